@@ -1,0 +1,43 @@
+//! # lucent_accel
+//!
+//! Acceleration structures and ray kernels. This crate sees positions, indices and
+//! transforms, never materials.
+//!
+//! - [`MeshBvh`]: a bottom-level BVH over one triangle mesh: binned SAH build ([`build`]),
+//!   collapsed into 4- or 8-wide nodes ([`wide`]), traversed by SIMD kernels
+//!   ([`Kernel::Simd`], AVX2) or the portable scalar ones, with SaarCOR's unit-triangle
+//!   test ([`triangle`]) or the watertight test.
+//! - [`Shape`]: analytic primitives in canonical space.
+//! - [`TwoLevel`]: the top-level BVH over [`Instance`]s of [`Geometry`].
+//! - [`reference`]: brute-force kernels every fast one is checked against.
+//!
+//! Every query comes in two forms: `intersect` (closest [`Hit`]) and `occluded` (any hit).
+//!
+//! # Example
+//! ```
+//! use lucent_accel::{MeshBvh, MeshOptions, Ray};
+//! use glam::Vec3;
+//! let p = [Vec3::ZERO, Vec3::X, Vec3::Y];
+//! let bvh = MeshBvh::build(&p, &[[0, 1, 2]], MeshOptions::default()).unwrap();
+//! let hit = bvh.intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z)).unwrap();
+//! assert_eq!(hit.t, 1.0);
+//! ```
+#![warn(missing_docs)]
+
+pub mod build;
+mod geom;
+mod kernel;
+mod mesh;
+pub mod reference;
+mod shape;
+mod tlas;
+pub(crate) mod traverse;
+pub mod triangle;
+pub mod wide;
+
+pub use geom::{Aabb, Hit, Ray, INVALID};
+pub use glam;
+pub use kernel::Kernel;
+pub use mesh::{BuildError, BvhStats, MeshBvh, MeshOptions, TriangleTest, Width};
+pub use shape::{Shape, ShapeHit};
+pub use tlas::{Geometry, Instance, TwoLevel};

@@ -1,0 +1,467 @@
+//! The bottom-level index over one triangle mesh.
+
+use crate::build::{build_binary, BuildConfig, PrimRef};
+use crate::geom::{Aabb, Hit, Ray};
+use crate::kernel::{Kernel, KernelSet, ScalarSet};
+use crate::traverse::{self, Leaves, RayPre};
+use crate::triangle::{
+    tri4_intersect, tri4_intersect_scalar, tri4_occluded, tri4_occluded_scalar, Tri4, UnitTriangle,
+    WatertightRay, NEVER_HIT,
+};
+use crate::wide::{collapse, leaf_code, WideNode};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Errors of building an acceleration structure.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum BuildError {
+    /// A triangle names a vertex that does not exist.
+    #[error("triangle {tri} uses vertex {index}, but the mesh has only {vertices} vertices")]
+    IndexOutOfRange {
+        /// Triangle index.
+        tri: usize,
+        /// The bad vertex index.
+        index: u32,
+        /// Number of vertices.
+        vertices: usize,
+    },
+    /// More primitives than the node encoding can address.
+    #[error("too many primitives for one acceleration structure ({0})")]
+    TooLarge(usize),
+    /// An instance names a geometry that does not exist.
+    #[error("instance {inst} uses geometry {geom}, but there are only {count}")]
+    NoSuchGeometry {
+        /// Instance index.
+        inst: usize,
+        /// The bad geometry index.
+        geom: u32,
+        /// Number of geometries.
+        count: usize,
+    },
+}
+
+/// Node width of the traversal layout.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Width {
+    /// 4 children per node (SSE).
+    W4,
+    /// 8 children per node (AVX2).
+    #[default]
+    W8,
+}
+
+/// Which ray/triangle test the leaves use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum TriangleTest {
+    /// SaarCOR's unit-triangle test on precomputed affine maps (4 triangles at once).
+    #[default]
+    UnitTriangle,
+    /// Woop–Benthin–Wald watertight test on the vertices.
+    Watertight,
+}
+
+/// Options of a mesh build.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MeshOptions {
+    /// Node width.
+    pub width: Width,
+    /// Triangle test.
+    pub test: TriangleTest,
+}
+
+#[derive(Clone, Debug)]
+pub(crate) enum Nodes {
+    W4(Vec<WideNode<4>>),
+    W8(Vec<WideNode<8>>),
+}
+
+/// Size and quality figures of a built structure.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct BvhStats {
+    /// Wide nodes.
+    pub nodes: usize,
+    /// Leaves.
+    pub leaves: usize,
+    /// Primitives indexed (degenerate and non-finite ones are left out).
+    pub prims: usize,
+    /// SAH cost of the binary tree (relative to the root's area).
+    pub sah: f32,
+    /// Bytes of nodes plus leaf data.
+    pub bytes: usize,
+}
+
+/// A BVH over one triangle mesh (a BLAS).
+#[derive(Clone, Debug)]
+pub struct MeshBvh {
+    pub(crate) nodes: Nodes,
+    tris: Vec<Tri4>,
+    wt_verts: Vec<[Vec3; 3]>,
+    wt_ids: Vec<u32>,
+    test: TriangleTest,
+    bounds: Aabb,
+    kernel: Kernel,
+    stats: BvhStats,
+}
+
+impl MeshBvh {
+    /// Builds the BVH of triangles `indices` over `positions`. Triangles with non-finite
+    /// vertices or zero area are left out (no ray can hit them).
+    pub fn build(
+        positions: &[Vec3],
+        indices: &[[u32; 3]],
+        opts: MeshOptions,
+    ) -> Result<Self, BuildError> {
+        let nv = positions.len();
+        if let Some((tri, index)) = indices
+            .iter()
+            .enumerate()
+            .find_map(|(t, i)| i.iter().find(|&&v| v as usize >= nv).map(|&v| (t, v)))
+        {
+            return Err(BuildError::IndexOutOfRange {
+                tri,
+                index,
+                vertices: nv,
+            });
+        }
+        if indices.len() >= (1 << 29) {
+            return Err(BuildError::TooLarge(indices.len()));
+        }
+        let verts = |t: &[u32; 3]| {
+            [
+                positions[t[0] as usize],
+                positions[t[1] as usize],
+                positions[t[2] as usize],
+            ]
+        };
+        let units: Vec<Option<[f32; 12]>> = indices
+            .par_iter()
+            .map(|t| {
+                let [a, b, c] = verts(t);
+                UnitTriangle::new(a, b, c).map(|u| u.m)
+            })
+            .collect();
+        let prims: Vec<PrimRef> = indices
+            .par_iter()
+            .enumerate()
+            .filter(|(i, _)| units[*i].is_some())
+            .map(|(i, t)| PrimRef::new(Aabb::from_points(&verts(t)), i as u32))
+            .collect();
+        let cfg = BuildConfig {
+            max_leaf: 8,
+            leaf_block: if opts.test == TriangleTest::UnitTriangle {
+                4
+            } else {
+                1
+            },
+            cost_traverse: 1.0,
+        };
+        let bin = build_binary(prims, &cfg);
+        let sah = bin.sah_cost(&cfg);
+        let bounds = bin.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds);
+        let mut tris = Vec::new();
+        let mut wt_verts = Vec::new();
+        let mut wt_ids = Vec::new();
+        let mut leaves = 0usize;
+        let mut make_leaf = |first: u32, count: u32| -> Result<u32, BuildError> {
+            leaves += 1;
+            let ids = bin.prims[first as usize..(first + count) as usize]
+                .iter()
+                .map(|p| p.id);
+            match opts.test {
+                TriangleTest::UnitTriangle => {
+                    let start = tris.len() as u32;
+                    let mut groups = 0;
+                    let ids: Vec<u32> = ids.collect();
+                    for chunk in ids.chunks(4) {
+                        let mut t4 = Tri4::EMPTY;
+                        for (lane, &id) in chunk.iter().enumerate() {
+                            t4.set(lane, &units[id as usize].unwrap_or(NEVER_HIT), id);
+                        }
+                        tris.push(t4);
+                        groups += 1;
+                    }
+                    leaf_code(start, groups).ok_or(BuildError::TooLarge(indices.len()))
+                }
+                TriangleTest::Watertight => {
+                    let start = wt_ids.len() as u32;
+                    for id in ids {
+                        wt_verts.push(verts(&indices[id as usize]));
+                        wt_ids.push(id);
+                    }
+                    leaf_code(start, count).ok_or(BuildError::TooLarge(indices.len()))
+                }
+            }
+        };
+        let nodes = match opts.width {
+            Width::W4 => Nodes::W4(collapse::<4, _>(&bin, &mut make_leaf)?),
+            Width::W8 => Nodes::W8(collapse::<8, _>(&bin, &mut make_leaf)?),
+        };
+        let (n_nodes, node_bytes) = match &nodes {
+            Nodes::W4(n) => (n.len(), std::mem::size_of_val(n.as_slice())),
+            Nodes::W8(n) => (n.len(), std::mem::size_of_val(n.as_slice())),
+        };
+        let bytes = node_bytes
+            + std::mem::size_of_val(tris.as_slice())
+            + std::mem::size_of_val(wt_verts.as_slice())
+            + 4 * wt_ids.len();
+        let stats = BvhStats {
+            nodes: n_nodes,
+            leaves,
+            prims: bin.prims.len(),
+            sah,
+            bytes,
+        };
+        Ok(Self {
+            nodes,
+            tris,
+            wt_verts,
+            wt_ids,
+            test: opts.test,
+            bounds,
+            kernel: Kernel::detect(),
+            stats,
+        })
+    }
+
+    /// Bounds of the indexed triangles.
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// Size and quality figures.
+    #[must_use]
+    pub fn stats(&self) -> BvhStats {
+        self.stats
+    }
+
+    /// The kernel queries run.
+    #[must_use]
+    pub fn kernel(&self) -> Kernel {
+        self.kernel
+    }
+
+    /// Chooses the kernel (falls back to scalar when the CPU lacks the SIMD one).
+    pub fn set_kernel(&mut self, k: Kernel) {
+        self.kernel = k.supported();
+    }
+
+    /// Closest hit of `ray` (`inst` is `INVALID`).
+    #[must_use]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut hit = Hit::none(ray.tmax);
+        let pre = RayPre::new(ray);
+        match self.kernel {
+            // SAFETY: `Kernel::Simd` is only ever set when AVX2 was detected.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Simd => unsafe { simd_intersect(self, &pre, &mut hit) },
+            _ => {
+                self.intersect_k::<ScalarSet>(&pre, &mut hit);
+            }
+        }
+        hit.is_hit().then_some(hit)
+    }
+
+    /// True when anything blocks `ray` within `[tmin, tmax)`.
+    #[must_use]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        let pre = RayPre::new(ray);
+        match self.kernel {
+            // SAFETY: as in `intersect`.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Simd => unsafe { simd_occluded(self, &pre, ray.tmax) },
+            _ => self.occluded_k::<ScalarSet>(&pre, ray.tmax),
+        }
+    }
+
+    /// Closest-hit query with kernel set `K`; returns true when `hit` was narrowed.
+    #[inline(always)]
+    pub(crate) fn intersect_k<K: KernelSet>(&self, pre: &RayPre, hit: &mut Hit) -> bool {
+        let before = hit.t;
+        // SAFETY (all arms): the caller selected K for this CPU.
+        match (self.test, &self.nodes) {
+            (TriangleTest::UnitTriangle, Nodes::W8(n)) => unsafe {
+                traverse::intersect::<8, K::B8, _>(
+                    n,
+                    &UnitLeaves::<K> {
+                        tris: &self.tris,
+                        k: std::marker::PhantomData,
+                    },
+                    pre,
+                    hit,
+                )
+            },
+            (TriangleTest::UnitTriangle, Nodes::W4(n)) => unsafe {
+                traverse::intersect::<4, K::B4, _>(
+                    n,
+                    &UnitLeaves::<K> {
+                        tris: &self.tris,
+                        k: std::marker::PhantomData,
+                    },
+                    pre,
+                    hit,
+                )
+            },
+            (TriangleTest::Watertight, Nodes::W8(n)) => unsafe {
+                traverse::intersect::<8, K::B8, _>(n, &self.wt_leaves(pre), pre, hit)
+            },
+            (TriangleTest::Watertight, Nodes::W4(n)) => unsafe {
+                traverse::intersect::<4, K::B4, _>(n, &self.wt_leaves(pre), pre, hit)
+            },
+        }
+        hit.t < before
+    }
+
+    #[inline(always)]
+    pub(crate) fn occluded_k<K: KernelSet>(&self, pre: &RayPre, tmax: f32) -> bool {
+        // SAFETY (all arms): the caller selected K for this CPU.
+        match (self.test, &self.nodes) {
+            (TriangleTest::UnitTriangle, Nodes::W8(n)) => unsafe {
+                traverse::occluded::<8, K::B8, _>(
+                    n,
+                    &UnitLeaves::<K> {
+                        tris: &self.tris,
+                        k: std::marker::PhantomData,
+                    },
+                    pre,
+                    tmax,
+                )
+            },
+            (TriangleTest::UnitTriangle, Nodes::W4(n)) => unsafe {
+                traverse::occluded::<4, K::B4, _>(
+                    n,
+                    &UnitLeaves::<K> {
+                        tris: &self.tris,
+                        k: std::marker::PhantomData,
+                    },
+                    pre,
+                    tmax,
+                )
+            },
+            (TriangleTest::Watertight, Nodes::W8(n)) => unsafe {
+                traverse::occluded::<8, K::B8, _>(n, &self.wt_leaves(pre), pre, tmax)
+            },
+            (TriangleTest::Watertight, Nodes::W4(n)) => unsafe {
+                traverse::occluded::<4, K::B4, _>(n, &self.wt_leaves(pre), pre, tmax)
+            },
+        }
+    }
+
+    fn wt_leaves(&self, pre: &RayPre) -> WtLeaves<'_> {
+        WtLeaves {
+            verts: &self.wt_verts,
+            ids: &self.wt_ids,
+            ray: WatertightRay::new(pre.org, pre.dir),
+        }
+    }
+
+    /// Checks the node structure: every child index in range, every leaf range in range.
+    pub fn validate(&self) -> Result<(), String> {
+        fn check<const W: usize>(nodes: &[WideNode<W>], items: usize) -> Result<(), String> {
+            for (i, n) in nodes.iter().enumerate() {
+                for &c in &n.child {
+                    if c == crate::wide::EMPTY {
+                        continue;
+                    }
+                    if c & crate::wide::LEAF != 0 {
+                        let (f, k) = crate::wide::leaf_range(c);
+                        if (f + k) as usize > items {
+                            return Err(format!("node {i}: leaf {f}+{k} beyond {items} items"));
+                        }
+                    } else if c as usize >= nodes.len() || c as usize <= i {
+                        return Err(format!("node {i}: child {c} out of order"));
+                    }
+                }
+            }
+            Ok(())
+        }
+        let items = if self.test == TriangleTest::UnitTriangle {
+            self.tris.len()
+        } else {
+            self.wt_ids.len()
+        };
+        match &self.nodes {
+            Nodes::W4(n) => check(n, items),
+            Nodes::W8(n) => check(n, items),
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn simd_intersect(b: &MeshBvh, pre: &RayPre, hit: &mut Hit) {
+    b.intersect_k::<crate::kernel::SimdSet>(pre, hit);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn simd_occluded(b: &MeshBvh, pre: &RayPre, tmax: f32) -> bool {
+    b.occluded_k::<crate::kernel::SimdSet>(pre, tmax)
+}
+
+struct UnitLeaves<'a, K> {
+    tris: &'a [Tri4],
+    k: std::marker::PhantomData<K>,
+}
+
+impl<K: KernelSet> Leaves for UnitLeaves<'_, K> {
+    #[inline(always)]
+    fn intersect(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit) {
+        for g in first..first + count {
+            // SAFETY: leaf ranges are checked against `tris` by `validate` (tests) and built in range.
+            let t4 = unsafe { self.tris.get_unchecked(g as usize) };
+            let h = if K::SIMD {
+                tri4_intersect(t4, r.org, r.dir, r.tmin, hit.t)
+            } else {
+                tri4_intersect_scalar(t4, r.org, r.dir, r.tmin, hit.t)
+            };
+            if let Some(h) = h {
+                hit.t = h.t;
+                hit.u = h.u;
+                hit.v = h.v;
+                hit.prim = t4.prim[h.lane];
+            }
+        }
+    }
+    #[inline(always)]
+    fn occluded(&self, first: u32, count: u32, r: &RayPre, tmax: f32) -> bool {
+        (first..first + count).any(|g| {
+            // SAFETY: as above.
+            let t4 = unsafe { self.tris.get_unchecked(g as usize) };
+            if K::SIMD {
+                tri4_occluded(t4, r.org, r.dir, r.tmin, tmax)
+            } else {
+                tri4_occluded_scalar(t4, r.org, r.dir, r.tmin, tmax)
+            }
+        })
+    }
+}
+
+struct WtLeaves<'a> {
+    verts: &'a [[Vec3; 3]],
+    ids: &'a [u32],
+    ray: WatertightRay,
+}
+
+impl Leaves for WtLeaves<'_> {
+    fn intersect(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit) {
+        for i in first as usize..(first + count) as usize {
+            let [a, b, c] = self.verts[i];
+            if let Some((t, u, v)) = self.ray.hit(a, b, c, r.tmin, hit.t) {
+                *hit = Hit {
+                    t,
+                    u,
+                    v,
+                    prim: self.ids[i],
+                    inst: hit.inst,
+                };
+            }
+        }
+    }
+    fn occluded(&self, first: u32, count: u32, r: &RayPre, tmax: f32) -> bool {
+        (first as usize..(first + count) as usize).any(|i| {
+            let [a, b, c] = self.verts[i];
+            self.ray.hit(a, b, c, r.tmin, tmax).is_some()
+        })
+    }
+}

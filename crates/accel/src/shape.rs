@@ -1,0 +1,323 @@
+//! Analytic primitives in their canonical space. An instance of a shape is this canonical
+//! shape under the instance's `world_from_object` transform (SaarCOR §2.2's idea, applied to
+//! quadrics as REND3R does): the ray is carried into object space and meets the unit shape.
+//!
+//! Canonical forms (axis z, as REND3R's `conics.sv`):
+//! - `Sphere`: x²+y²+z² = 1.
+//! - `Cylinder`: x²+y² = 1, infinite along z, no caps (REND3R).
+//! - `CappedCylinder`: x²+y² ≤ 1 for z in [-1, 1], with caps.
+//! - `Cone`: x²+y² = z², infinite double cone, apex at the origin (REND3R).
+//! - `CappedCone`: x²+y² = z² for z in [0, 1], closed by a disk at z = 1.
+//! - `Box`: [-1, 1]³.
+//! - `Disk`: x²+y² ≤ 1 in the plane z = 0.
+//!
+//! Quadrics are solved in f64 (cheap next to a traversal, and robust for far origins).
+
+use crate::geom::Aabb;
+use glam::{DVec3, Vec3};
+
+/// The kind of an analytic primitive.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Shape {
+    /// Unit sphere.
+    Sphere,
+    /// Infinite unit cylinder along z.
+    Cylinder,
+    /// Unit cylinder, z in [-1, 1], capped.
+    CappedCylinder,
+    /// Infinite double cone x²+y² = z².
+    Cone,
+    /// Cone z in [0, 1] with a cap at z = 1.
+    CappedCone,
+    /// Box [-1, 1]³.
+    Box,
+    /// Unit disk in z = 0.
+    Disk,
+}
+
+/// A hit on a shape: distance, surface parameters and the part hit (side, cap, face).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShapeHit {
+    /// Distance.
+    pub t: f32,
+    /// Surface parameter u in [0, 1].
+    pub u: f32,
+    /// Surface parameter v in [0, 1].
+    pub v: f32,
+    /// Part: 0 = main surface; cylinder 1/2 = bottom/top cap; cone 1 = cap; box 0..6 = face.
+    pub part: u32,
+}
+
+impl Shape {
+    /// Bounds in object space (infinite for the infinite shapes).
+    #[must_use]
+    pub fn bounds_local(self) -> Aabb {
+        let inf = f32::INFINITY;
+        match self {
+            Shape::Sphere | Shape::CappedCylinder | Shape::Box => Aabb {
+                min: Vec3::splat(-1.0),
+                max: Vec3::ONE,
+            },
+            Shape::Cylinder => Aabb {
+                min: Vec3::new(-1.0, -1.0, -inf),
+                max: Vec3::new(1.0, 1.0, inf),
+            },
+            Shape::Cone => Aabb {
+                min: Vec3::splat(-inf),
+                max: Vec3::splat(inf),
+            },
+            Shape::CappedCone => Aabb {
+                min: Vec3::new(-1.0, -1.0, 0.0),
+                max: Vec3::ONE,
+            },
+            Shape::Disk => Aabb {
+                min: Vec3::new(-1.0, -1.0, 0.0),
+                max: Vec3::new(1.0, 1.0, 0.0),
+            },
+        }
+    }
+
+    /// True for shapes with finite bounds.
+    #[must_use]
+    pub fn is_bounded(self) -> bool {
+        !matches!(self, Shape::Cylinder | Shape::Cone)
+    }
+
+    /// Nearest hit of the object-space ray `o + t d` with `t` in `[tmin, tmax)`.
+    #[must_use]
+    pub fn intersect_local(self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<ShapeHit> {
+        let (o, d) = (o.as_dvec3(), d.as_dvec3());
+        let (lo, hi) = (tmin as f64, tmax as f64);
+        let mut best: Option<(f64, u32)> = None;
+        let mut consider = |t: f64, part: u32, ok: bool| {
+            if ok && t >= lo && t < hi && best.is_none_or(|(bt, _)| t < bt) {
+                best = Some((t, part));
+            }
+        };
+        match self {
+            Shape::Sphere => {
+                for t in quadric(d.dot(d), d.dot(o), o.dot(o) - 1.0) {
+                    consider(t, 0, true);
+                }
+            }
+            Shape::Cylinder | Shape::CappedCylinder => {
+                let capped = self == Shape::CappedCylinder;
+                for t in quadric(
+                    d.x * d.x + d.y * d.y,
+                    d.x * o.x + d.y * o.y,
+                    o.x * o.x + o.y * o.y - 1.0,
+                ) {
+                    let z = o.z + t * d.z;
+                    consider(t, 0, !capped || (-1.0..=1.0).contains(&z));
+                }
+                if capped && d.z != 0.0 {
+                    for (part, zc) in [(1, -1.0), (2, 1.0)] {
+                        let t = (zc - o.z) / d.z;
+                        let p = o + d * t;
+                        consider(t, part, p.x * p.x + p.y * p.y <= 1.0);
+                    }
+                }
+            }
+            Shape::Cone | Shape::CappedCone => {
+                let capped = self == Shape::CappedCone;
+                let a = d.x * d.x + d.y * d.y - d.z * d.z;
+                let b = d.x * o.x + d.y * o.y - d.z * o.z;
+                let c = o.x * o.x + o.y * o.y - o.z * o.z;
+                let roots: [Option<f64>; 2] = if a.abs() < 1e-12 * d.length_squared() {
+                    // Ray parallel to the surface: one crossing.
+                    [(b != 0.0).then(|| -c / (2.0 * b)), None]
+                } else {
+                    let r = quadric(a, b, c);
+                    [r.first().copied(), r.get(1).copied()]
+                };
+                for t in roots.into_iter().flatten() {
+                    let z = o.z + t * d.z;
+                    consider(t, 0, !capped || (0.0..=1.0).contains(&z));
+                }
+                if capped && d.z != 0.0 {
+                    let t = (1.0 - o.z) / d.z;
+                    let p = o + d * t;
+                    consider(t, 1, p.x * p.x + p.y * p.y <= 1.0);
+                }
+            }
+            Shape::Box => {
+                // Slabs; remember which face bounds the entry and the exit.
+                let mut tn = f64::NEG_INFINITY;
+                let mut tf = f64::INFINITY;
+                let (mut fn_, mut ff) = (0u32, 0u32);
+                for k in 0..3 {
+                    if d[k] == 0.0 {
+                        if o[k].abs() > 1.0 {
+                            return None;
+                        }
+                        continue;
+                    }
+                    let inv = 1.0 / d[k];
+                    let (mut a, mut b) = ((-1.0 - o[k]) * inv, (1.0 - o[k]) * inv);
+                    let (mut fa, mut fb) = (2 * k as u32, 2 * k as u32 + 1);
+                    if a > b {
+                        std::mem::swap(&mut a, &mut b);
+                        std::mem::swap(&mut fa, &mut fb);
+                    }
+                    if a > tn {
+                        tn = a;
+                        fn_ = fa;
+                    }
+                    if b < tf {
+                        tf = b;
+                        ff = fb;
+                    }
+                }
+                if tn <= tf {
+                    consider(tn, fn_, true);
+                    consider(tf, ff, true);
+                }
+            }
+            Shape::Disk => {
+                if d.z != 0.0 {
+                    let t = -o.z / d.z;
+                    let p = o + d * t;
+                    consider(t, 0, p.x * p.x + p.y * p.y <= 1.0);
+                }
+            }
+        }
+        let (t, part) = best?;
+        let p = o + d * t;
+        let (u, v) = self.uv(p, part);
+        Some(ShapeHit {
+            t: t as f32,
+            u: u as f32,
+            v: v as f32,
+            part,
+        })
+    }
+
+    fn uv(self, p: DVec3, part: u32) -> (f64, f64) {
+        use std::f64::consts::{PI, TAU};
+        let phi = (p.y.atan2(p.x) / TAU).rem_euclid(1.0);
+        match self {
+            Shape::Sphere => (phi, (p.z.clamp(-1.0, 1.0).acos() / PI)),
+            Shape::Cylinder | Shape::Cone => (phi, p.z - p.z.floor()),
+            Shape::CappedCylinder if part == 0 => (phi, (p.z + 1.0) * 0.5),
+            Shape::CappedCone if part == 0 => (phi, p.z),
+            Shape::Box => {
+                let axis = part as usize / 2;
+                let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+                ((p[a] + 1.0) * 0.5, (p[b] + 1.0) * 0.5)
+            }
+            _ => ((p.x + 1.0) * 0.5, (p.y + 1.0) * 0.5),
+        }
+    }
+
+    /// Outward surface normal (object space, not normalized) at a point of part `part`.
+    #[must_use]
+    pub fn normal_local(self, p: Vec3, part: u32) -> Vec3 {
+        match (self, part) {
+            (Shape::Sphere, _) => p,
+            (Shape::Cylinder | Shape::CappedCylinder, 0) => Vec3::new(p.x, p.y, 0.0),
+            (Shape::CappedCylinder, 1) => -Vec3::Z,
+            (Shape::CappedCylinder, _) => Vec3::Z,
+            (Shape::Cone, _) | (Shape::CappedCone, 0) => Vec3::new(p.x, p.y, -p.z),
+            (Shape::CappedCone, _) => Vec3::Z,
+            (Shape::Box, f) => {
+                let mut n = Vec3::ZERO;
+                n[(f / 2) as usize] = if f % 2 == 0 { -1.0 } else { 1.0 };
+                n
+            }
+            (Shape::Disk, _) => Vec3::Z,
+            (Shape::Cylinder, _) => Vec3::new(p.x, p.y, 0.0),
+        }
+    }
+}
+
+/// Real roots of `a t² + 2 b t + c = 0`, ascending, computed without cancellation.
+fn quadric(a: f64, b: f64, c: f64) -> Vec<f64> {
+    if a == 0.0 {
+        return if b != 0.0 {
+            vec![-c / (2.0 * b)]
+        } else {
+            vec![]
+        };
+    }
+    let disc = b * b - a * c;
+    if disc < 0.0 {
+        return vec![];
+    }
+    let sign = if b >= 0.0 { 1.0 } else { -1.0 };
+    let q = -(b + sign * disc.sqrt());
+    let (mut t0, mut t1) = if q != 0.0 { (q / a, c / q) } else { (0.0, 0.0) };
+    if t0 > t1 {
+        std::mem::swap(&mut t0, &mut t1);
+    }
+    vec![t0, t1]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sphere_hits_front() {
+        let h = Shape::Sphere
+            .intersect_local(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z, 0.0, f32::INFINITY)
+            .expect("hit");
+        assert!((h.t - 4.0).abs() < 1e-6);
+        let h = Shape::Sphere
+            .intersect_local(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY)
+            .expect("inside");
+        assert!((h.t - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn capped_cylinder_caps_and_side() {
+        let s = Shape::CappedCylinder;
+        let h = s
+            .intersect_local(Vec3::new(0.2, 0.0, 5.0), -Vec3::Z, 0.0, f32::INFINITY)
+            .expect("cap");
+        assert_eq!(h.part, 2);
+        assert!((h.t - 4.0).abs() < 1e-6);
+        let h = s
+            .intersect_local(Vec3::new(5.0, 0.0, 0.5), -Vec3::X, 0.0, f32::INFINITY)
+            .expect("side");
+        assert_eq!(h.part, 0);
+        assert!((h.t - 4.0).abs() < 1e-6);
+        assert!(s
+            .intersect_local(Vec3::new(5.0, 0.0, 1.5), -Vec3::X, 0.0, f32::INFINITY)
+            .is_none());
+        assert!(Shape::Cylinder
+            .intersect_local(Vec3::new(5.0, 0.0, 100.0), -Vec3::X, 0.0, f32::INFINITY)
+            .is_some());
+    }
+
+    #[test]
+    fn cones() {
+        // Double cone: a ray along x at height z = 0.5 meets it at x = ±0.5.
+        let h = Shape::Cone
+            .intersect_local(Vec3::new(5.0, 0.0, 0.5), -Vec3::X, 0.0, f32::INFINITY)
+            .expect("hit");
+        assert!((h.t - 4.5).abs() < 1e-6);
+        let h = Shape::CappedCone
+            .intersect_local(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z, 0.0, f32::INFINITY)
+            .expect("cap");
+        assert_eq!(h.part, 1);
+        assert!(Shape::CappedCone
+            .intersect_local(Vec3::new(5.0, 0.0, -0.5), -Vec3::X, 0.0, f32::INFINITY)
+            .is_none());
+    }
+
+    #[test]
+    fn box_and_disk() {
+        let h = Shape::Box
+            .intersect_local(Vec3::new(0.0, 5.0, 0.0), -Vec3::Y, 0.0, f32::INFINITY)
+            .expect("box");
+        assert!((h.t - 4.0).abs() < 1e-6);
+        assert_eq!(Shape::Box.normal_local(Vec3::Y, h.part), Vec3::Y);
+        let h = Shape::Disk
+            .intersect_local(Vec3::new(0.5, 0.0, 2.0), -Vec3::Z, 0.0, f32::INFINITY)
+            .expect("disk");
+        assert!((h.t - 2.0).abs() < 1e-6);
+        assert!(Shape::Disk
+            .intersect_local(Vec3::new(1.5, 0.0, 2.0), -Vec3::Z, 0.0, f32::INFINITY)
+            .is_none());
+    }
+}

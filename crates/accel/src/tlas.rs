@@ -1,0 +1,328 @@
+//! The two-level index (SaarCOR §2): one bottom-level structure per geometry (a triangle
+//! mesh BVH or an analytic shape) and a top-level BVH over instances, each a geometry plus
+//! an affine `world_from_object` map. Rays are carried into object space at the instance
+//! (their direction is not renormalized, so `t` is shared by both levels). The top level is
+//! cheap to rebuild, which is what dynamic scenes do every frame.
+
+use crate::build::{build_binary, BuildConfig, PrimRef};
+use crate::geom::{Aabb, Hit, Ray};
+use crate::kernel::{Kernel, KernelSet, ScalarSet};
+use crate::mesh::{BuildError, BvhStats, MeshBvh};
+use crate::shape::Shape;
+use crate::traverse::{self, Leaves, RayPre};
+use crate::wide::{collapse, leaf_code, WideNode};
+use glam::Affine3A;
+use rayon::prelude::*;
+
+/// What an instance draws.
+#[derive(Clone, Debug)]
+pub enum Geometry {
+    /// A triangle mesh with its BVH.
+    Mesh(MeshBvh),
+    /// An analytic shape in canonical form.
+    Shape(Shape),
+}
+
+impl Geometry {
+    /// Bounds in object space.
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        match self {
+            Geometry::Mesh(m) => m.bounds(),
+            Geometry::Shape(s) => s.bounds_local(),
+        }
+    }
+}
+
+/// One placed copy of a geometry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance {
+    /// Index into the geometry list.
+    pub geometry: u32,
+    /// Object space to world space.
+    pub world_from_object: Affine3A,
+    /// World space to object space (cached inverse).
+    pub object_from_world: Affine3A,
+}
+
+impl Instance {
+    /// An instance of geometry `geometry` placed by `world_from_object`.
+    #[must_use]
+    pub fn new(geometry: u32, world_from_object: Affine3A) -> Self {
+        Self {
+            geometry,
+            world_from_object,
+            object_from_world: world_from_object.inverse(),
+        }
+    }
+}
+
+/// Geometries, instances and the top-level BVH over them.
+#[derive(Clone, Debug)]
+pub struct TwoLevel {
+    geometries: Vec<Geometry>,
+    instances: Vec<Instance>,
+    nodes: Vec<WideNode<8>>,
+    /// Instance ids in leaf order.
+    order: Vec<u32>,
+    /// Instances with infinite bounds, tested outside the tree.
+    unbounded: Vec<u32>,
+    bounds: Aabb,
+    kernel: Kernel,
+}
+
+impl TwoLevel {
+    /// Builds the top level over `instances` of `geometries`.
+    pub fn new(geometries: Vec<Geometry>, instances: Vec<Instance>) -> Result<Self, BuildError> {
+        let mut s = Self {
+            geometries,
+            instances,
+            nodes: Vec::new(),
+            order: Vec::new(),
+            unbounded: Vec::new(),
+            bounds: Aabb::EMPTY,
+            kernel: Kernel::detect(),
+        };
+        s.rebuild()?;
+        Ok(s)
+    }
+
+    /// Geometries.
+    #[must_use]
+    pub fn geometries(&self) -> &[Geometry] {
+        &self.geometries
+    }
+
+    /// Instances.
+    #[must_use]
+    pub fn instances(&self) -> &[Instance] {
+        &self.instances
+    }
+
+    /// Replaces the instance list (e.g. new transforms for a frame) and rebuilds the top level.
+    pub fn set_instances(&mut self, instances: Vec<Instance>) -> Result<(), BuildError> {
+        self.instances = instances;
+        self.rebuild()
+    }
+
+    /// World bounds of the bounded instances.
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// Chooses the kernel for both levels (falls back to scalar without AVX2).
+    pub fn set_kernel(&mut self, k: Kernel) {
+        self.kernel = k.supported();
+        for g in &mut self.geometries {
+            if let Geometry::Mesh(m) = g {
+                m.set_kernel(k);
+            }
+        }
+    }
+
+    /// Figures of the top level (nodes and bytes) and of all bottom levels together.
+    #[must_use]
+    pub fn stats(&self) -> (BvhStats, BvhStats) {
+        let top = BvhStats {
+            nodes: self.nodes.len(),
+            leaves: 0,
+            prims: self.instances.len(),
+            sah: 0.0,
+            bytes: std::mem::size_of_val(self.nodes.as_slice())
+                + 4 * (self.order.len() + self.unbounded.len())
+                + std::mem::size_of_val(self.instances.as_slice()),
+        };
+        let mut bottom = BvhStats::default();
+        for g in &self.geometries {
+            if let Geometry::Mesh(m) = g {
+                let s = m.stats();
+                bottom.nodes += s.nodes;
+                bottom.leaves += s.leaves;
+                bottom.prims += s.prims;
+                bottom.bytes += s.bytes;
+            }
+        }
+        (top, bottom)
+    }
+
+    /// Rebuilds the top-level BVH from the current instances.
+    pub fn rebuild(&mut self) -> Result<(), BuildError> {
+        let ng = self.geometries.len();
+        if let Some((inst, i)) = self
+            .instances
+            .iter()
+            .enumerate()
+            .find(|(_, i)| i.geometry as usize >= ng)
+        {
+            return Err(BuildError::NoSuchGeometry {
+                inst,
+                geom: i.geometry,
+                count: ng,
+            });
+        }
+        let boxes: Vec<Aabb> = self
+            .instances
+            .par_iter()
+            .map(|i| {
+                self.geometries[i.geometry as usize]
+                    .bounds()
+                    .transformed(&i.world_from_object)
+            })
+            .collect();
+        self.unbounded.clear();
+        let mut prims = Vec::with_capacity(boxes.len());
+        for (i, b) in boxes.iter().enumerate() {
+            if b.is_empty() {
+                continue;
+            }
+            if b.is_finite() {
+                prims.push(PrimRef::new(*b, i as u32));
+            } else {
+                self.unbounded.push(i as u32);
+            }
+        }
+        let cfg = BuildConfig {
+            max_leaf: 2,
+            leaf_block: 1,
+            cost_traverse: 1.0,
+        };
+        let bin = build_binary(prims, &cfg);
+        self.bounds = bin.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds);
+        self.order = bin.prims.iter().map(|p| p.id).collect();
+        self.nodes = collapse::<8, BuildError>(&bin, &mut |first, count| {
+            leaf_code(first, count).ok_or(BuildError::TooLarge(self.instances.len()))
+        })?;
+        Ok(())
+    }
+
+    /// Closest hit over all instances.
+    #[must_use]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut hit = Hit::none(ray.tmax);
+        let pre = RayPre::new(ray);
+        match self.kernel {
+            // SAFETY: `Kernel::Simd` is only set when AVX2 was detected.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Simd => unsafe { simd_intersect(self, &pre, &mut hit) },
+            _ => self.intersect_k::<ScalarSet>(&pre, &mut hit),
+        }
+        hit.is_hit().then_some(hit)
+    }
+
+    /// True when anything blocks `ray` within `[tmin, tmax)`.
+    #[must_use]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        let pre = RayPre::new(ray);
+        match self.kernel {
+            // SAFETY: as in `intersect`.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Simd => unsafe { simd_occluded(self, &pre, ray.tmax) },
+            _ => self.occluded_k::<ScalarSet>(&pre, ray.tmax),
+        }
+    }
+
+    #[inline(always)]
+    fn intersect_k<K: KernelSet>(&self, pre: &RayPre, hit: &mut Hit) {
+        let leaves = InstLeaves::<K> {
+            tl: self,
+            k: std::marker::PhantomData,
+        };
+        // SAFETY: the caller selected K for this CPU.
+        unsafe { traverse::intersect::<8, K::B8, _>(&self.nodes, &leaves, pre, hit) };
+        for &i in &self.unbounded {
+            leaves.hit_instance(i, pre, hit);
+        }
+    }
+
+    #[inline(always)]
+    fn occluded_k<K: KernelSet>(&self, pre: &RayPre, tmax: f32) -> bool {
+        let leaves = InstLeaves::<K> {
+            tl: self,
+            k: std::marker::PhantomData,
+        };
+        // SAFETY: the caller selected K for this CPU.
+        self.unbounded
+            .iter()
+            .any(|&i| leaves.occludes(i, pre, tmax))
+            || unsafe { traverse::occluded::<8, K::B8, _>(&self.nodes, &leaves, pre, tmax) }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn simd_intersect(t: &TwoLevel, pre: &RayPre, hit: &mut Hit) {
+    t.intersect_k::<crate::kernel::SimdSet>(pre, hit);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn simd_occluded(t: &TwoLevel, pre: &RayPre, tmax: f32) -> bool {
+    t.occluded_k::<crate::kernel::SimdSet>(pre, tmax)
+}
+
+struct InstLeaves<'a, K> {
+    tl: &'a TwoLevel,
+    k: std::marker::PhantomData<K>,
+}
+
+impl<K: KernelSet> InstLeaves<'_, K> {
+    #[inline(always)]
+    fn local(&self, inst: &Instance, pre: &RayPre) -> RayPre {
+        let r = Ray {
+            org: pre.org,
+            dir: pre.dir,
+            tmin: pre.tmin,
+            tmax: f32::INFINITY,
+        }
+        .transformed(&inst.object_from_world);
+        RayPre::new(&r)
+    }
+
+    #[inline(always)]
+    fn hit_instance(&self, id: u32, pre: &RayPre, hit: &mut Hit) {
+        let inst = &self.tl.instances[id as usize];
+        let lp = self.local(inst, pre);
+        match &self.tl.geometries[inst.geometry as usize] {
+            Geometry::Mesh(m) => {
+                if m.intersect_k::<K>(&lp, hit) {
+                    hit.inst = id;
+                }
+            }
+            Geometry::Shape(s) => {
+                if let Some(h) = s.intersect_local(lp.org, lp.dir, lp.tmin, hit.t) {
+                    *hit = Hit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim: h.part,
+                        inst: id,
+                    };
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn occludes(&self, id: u32, pre: &RayPre, tmax: f32) -> bool {
+        let inst = &self.tl.instances[id as usize];
+        let lp = self.local(inst, pre);
+        match &self.tl.geometries[inst.geometry as usize] {
+            Geometry::Mesh(m) => m.occluded_k::<K>(&lp, tmax),
+            Geometry::Shape(s) => s.intersect_local(lp.org, lp.dir, lp.tmin, tmax).is_some(),
+        }
+    }
+}
+
+impl<K: KernelSet> Leaves for InstLeaves<'_, K> {
+    #[inline(always)]
+    fn intersect(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit) {
+        for i in first..first + count {
+            self.hit_instance(self.tl.order[i as usize], r, hit);
+        }
+    }
+    #[inline(always)]
+    fn occluded(&self, first: u32, count: u32, r: &RayPre, tmax: f32) -> bool {
+        (first..first + count).any(|i| self.occludes(self.tl.order[i as usize], r, tmax))
+    }
+}

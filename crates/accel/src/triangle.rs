@@ -1,0 +1,450 @@
+//! Ray/triangle tests.
+//!
+//! The default is SaarCOR's **unit-triangle test** (Woop, Schmittler & Slusallek, "RPU: A
+//! Programmable Ray Processing Unit for Realtime Ray Tracing", SIGGRAPH 2005; Woop's 2004
+//! thesis): every triangle gets an affine map into the space where it is the unit triangle
+//! (1,0,0), (0,1,0), (0,0,0). For a ray mapped into that space, `t = -O'z / D'z`,
+//! `u = O'x + t D'x`, `v = O'y + t D'y`, and the ray hits when `u, v >= 0` and `u + v <= 1`.
+//! There is no absolute epsilon anywhere, so a millimetre bunny and a kilometre room are
+//! treated alike.
+//!
+//! We map vertex 1 to (1,0,0), vertex 2 to (0,1,0) and vertex 0 to the origin, so `u` and `v`
+//! are the usual barycentric weights of vertices 1 and 2.
+//!
+//! The **watertight** test (Woop, Benthin & Wald, "Watertight Ray/Triangle Intersection",
+//! JCGT 2013) is the selectable alternative: no gaps or double hits on shared edges.
+//!
+//! PERF: the scalar and SSE versions evaluate exactly the same operations in the same
+//! order without fused multiply-adds, so they return bit-identical answers (tested).
+
+use glam::{DVec3, Vec3};
+
+/// The 3×4 affine map into unit-triangle space, row-major: rows 0..2 are
+/// `(m[4r], m[4r+1], m[4r+2], m[4r+3])`, the last entry of each row being the translation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UnitTriangle {
+    /// Row-major 3×4 matrix.
+    pub m: [f32; 12],
+}
+
+/// The map used for a padding lane or a degenerate triangle: `O'z = 1`, `D'z = 0`, so `t` is
+/// `-inf` (or NaN) and no ray ever hits it.
+pub const NEVER_HIT: [f32; 12] = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+
+impl UnitTriangle {
+    /// The map for triangle (v0, v1, v2), computed in f64; `None` when the triangle is
+    /// degenerate (zero area) or not finite.
+    #[must_use]
+    pub fn new(v0: Vec3, v1: Vec3, v2: Vec3) -> Option<Self> {
+        let (a, b, c) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
+        let e1 = b - a;
+        let e2 = c - a;
+        let n = e1.cross(e2);
+        let det = n.length_squared(); // det [e1 e2 n] = (e1 x e2) . n
+        if !(det > 0.0) || !det.is_finite() || !a.is_finite() {
+            return None;
+        }
+        // Rows of [e1 e2 n]^-1 (n is orthogonal to e1 and e2).
+        let r0 = e2.cross(n) / det;
+        let r1 = n.cross(e1) / det;
+        let r2 = n / det;
+        let row = |r: DVec3| [r.x, r.y, r.z, -r.dot(a)];
+        let rows = [row(r0), row(r1), row(r2)];
+        let mut m = [0.0f32; 12];
+        for (i, v) in rows.iter().flatten().enumerate() {
+            m[i] = *v as f32;
+        }
+        if m.iter().all(|x| x.is_finite()) {
+            Some(Self { m })
+        } else {
+            None
+        }
+    }
+
+    /// The raw map for a triangle, or [`NEVER_HIT`] when it is degenerate.
+    #[must_use]
+    pub fn or_never(v0: Vec3, v1: Vec3, v2: Vec3) -> [f32; 12] {
+        Self::new(v0, v1, v2).map_or(NEVER_HIT, |u| u.m)
+    }
+}
+
+/// Unit-triangle test of one ray against one map: `Some((t, u, v))` when `t` is in
+/// `[tmin, tmax)` and the point lies inside the triangle.
+#[inline(always)]
+#[must_use]
+pub fn unit_triangle_hit(
+    m: &[f32; 12],
+    o: Vec3,
+    d: Vec3,
+    tmin: f32,
+    tmax: f32,
+) -> Option<(f32, f32, f32)> {
+    let dz = m[8] * d.x + m[9] * d.y + m[10] * d.z;
+    let oz = m[8] * o.x + m[9] * o.y + m[10] * o.z + m[11];
+    let t = -oz / dz;
+    let dx = m[0] * d.x + m[1] * d.y + m[2] * d.z;
+    let ox = m[0] * o.x + m[1] * o.y + m[2] * o.z + m[3];
+    let u = ox + t * dx;
+    let dy = m[4] * d.x + m[5] * d.y + m[6] * d.z;
+    let oy = m[4] * o.x + m[5] * o.y + m[6] * o.z + m[7];
+    let v = oy + t * dy;
+    let ok = u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t >= tmin && t < tmax;
+    ok.then_some((t, u, v))
+}
+
+/// Four unit triangles in SoA form (component-major): 208 bytes.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+pub struct Tri4 {
+    /// `m[c][lane]`: component `c` of the 3×4 map of lane `lane`.
+    pub m: [[f32; 4]; 12],
+    /// Primitive id per lane (`u32::MAX` for a padding lane).
+    pub prim: [u32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<Tri4>() == 208);
+
+impl Tri4 {
+    /// A group whose lanes never hit.
+    pub const EMPTY: Self = {
+        let mut m = [[0.0f32; 4]; 12];
+        m[11] = [1.0; 4];
+        Self {
+            m,
+            prim: [u32::MAX; 4],
+        }
+    };
+
+    /// Puts a map into a lane.
+    pub fn set(&mut self, lane: usize, m: &[f32; 12], prim: u32) {
+        for (c, v) in m.iter().enumerate() {
+            self.m[c][lane] = *v;
+        }
+        self.prim[lane] = prim;
+    }
+
+    /// The map of one lane.
+    #[must_use]
+    pub fn lane(&self, lane: usize) -> [f32; 12] {
+        std::array::from_fn(|c| self.m[c][lane])
+    }
+}
+
+/// Result of testing a ray against a [`Tri4`]: the nearest lane that hits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LaneHit {
+    /// Distance.
+    pub t: f32,
+    /// Barycentric u.
+    pub u: f32,
+    /// Barycentric v.
+    pub v: f32,
+    /// The lane (0..4).
+    pub lane: usize,
+}
+
+/// Scalar test of a ray against four triangles: the nearest hit in `[tmin, tmax)`, first lane
+/// winning ties.
+#[inline(always)]
+#[must_use]
+pub fn tri4_intersect_scalar(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<LaneHit> {
+    let mut best: Option<LaneHit> = None;
+    let mut limit = tmax;
+    for lane in 0..4 {
+        if let Some((t, u, v)) = unit_triangle_hit(&t4.lane(lane), o, d, tmin, limit) {
+            limit = t;
+            best = Some(LaneHit { t, u, v, lane });
+        }
+    }
+    best
+}
+
+/// Scalar any-hit test against four triangles.
+#[inline(always)]
+#[must_use]
+pub fn tri4_occluded_scalar(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
+    (0..4).any(|lane| unit_triangle_hit(&t4.lane(lane), o, d, tmin, tmax).is_some())
+}
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod sse {
+    //! SSE2 version of the four-triangle test (SSE2 is part of x86-64, so no detection).
+    use super::{LaneHit, Tri4};
+    use glam::Vec3;
+    use std::arch::x86_64::*;
+
+    /// The lane mask of hits and the t, u, v of all lanes.
+    #[inline(always)]
+    fn eval(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> (i32, __m128, __m128, __m128) {
+        // SAFETY: SSE2 is always available on x86-64; `Tri4` is 16-byte aligned so the
+        // aligned loads are in bounds and aligned.
+        unsafe {
+            let ld = |c: usize| _mm_load_ps(t4.m[c].as_ptr());
+            let (ox, oy, oz) = (_mm_set1_ps(o.x), _mm_set1_ps(o.y), _mm_set1_ps(o.z));
+            let (dx, dy, dz) = (_mm_set1_ps(d.x), _mm_set1_ps(d.y), _mm_set1_ps(d.z));
+            let dot3 = |r: usize, x, y, z| {
+                _mm_add_ps(
+                    _mm_add_ps(_mm_mul_ps(ld(r), x), _mm_mul_ps(ld(r + 1), y)),
+                    _mm_mul_ps(ld(r + 2), z),
+                )
+            };
+            let dzp = dot3(8, dx, dy, dz);
+            let ozp = _mm_add_ps(dot3(8, ox, oy, oz), ld(11));
+            let t = _mm_div_ps(_mm_xor_ps(ozp, _mm_set1_ps(-0.0)), dzp);
+            let dxp = dot3(0, dx, dy, dz);
+            let oxp = _mm_add_ps(dot3(0, ox, oy, oz), ld(3));
+            let u = _mm_add_ps(oxp, _mm_mul_ps(t, dxp));
+            let dyp = dot3(4, dx, dy, dz);
+            let oyp = _mm_add_ps(dot3(4, ox, oy, oz), ld(7));
+            let v = _mm_add_ps(oyp, _mm_mul_ps(t, dyp));
+            let zero = _mm_setzero_ps();
+            let m = _mm_and_ps(
+                _mm_and_ps(_mm_cmpge_ps(u, zero), _mm_cmpge_ps(v, zero)),
+                _mm_and_ps(
+                    _mm_cmple_ps(_mm_add_ps(u, v), _mm_set1_ps(1.0)),
+                    _mm_and_ps(
+                        _mm_cmpge_ps(t, _mm_set1_ps(tmin)),
+                        _mm_cmplt_ps(t, _mm_set1_ps(tmax)),
+                    ),
+                ),
+            );
+            (_mm_movemask_ps(m), t, u, v)
+        }
+    }
+
+    #[inline(always)]
+    pub(crate) fn intersect(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<LaneHit> {
+        let (mask, t, u, v) = eval(t4, o, d, tmin, tmax);
+        if mask == 0 {
+            return None;
+        }
+        let mut ts = [0f32; 4];
+        let mut us = [0f32; 4];
+        let mut vs = [0f32; 4];
+        // SAFETY: the arrays hold exactly four f32; unaligned stores allow any alignment.
+        unsafe {
+            _mm_storeu_ps(ts.as_mut_ptr(), t);
+            _mm_storeu_ps(us.as_mut_ptr(), u);
+            _mm_storeu_ps(vs.as_mut_ptr(), v);
+        }
+        let mut best = 4;
+        let mut bt = f32::INFINITY;
+        for lane in 0..4 {
+            if mask & (1 << lane) != 0 && (best == 4 || ts[lane] < bt) {
+                best = lane;
+                bt = ts[lane];
+            }
+        }
+        Some(LaneHit {
+            t: ts[best],
+            u: us[best],
+            v: vs[best],
+            lane: best,
+        })
+    }
+
+    #[inline(always)]
+    pub(crate) fn occluded(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
+        eval(t4, o, d, tmin, tmax).0 != 0
+    }
+}
+
+/// Four-triangle closest-hit test with the fastest code this CPU has (identical answers).
+#[inline(always)]
+#[must_use]
+pub fn tri4_intersect(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<LaneHit> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        sse::intersect(t4, o, d, tmin, tmax)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        tri4_intersect_scalar(t4, o, d, tmin, tmax)
+    }
+}
+
+/// Four-triangle any-hit test with the fastest code this CPU has.
+#[inline(always)]
+#[must_use]
+pub fn tri4_occluded(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        sse::occluded(t4, o, d, tmin, tmax)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        tri4_occluded_scalar(t4, o, d, tmin, tmax)
+    }
+}
+
+/// Per-ray constants of the watertight test (Woop, Benthin & Wald 2013, §3).
+#[derive(Clone, Copy, Debug)]
+pub struct WatertightRay {
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f32,
+    sy: f32,
+    sz: f32,
+    org: Vec3,
+}
+
+impl WatertightRay {
+    /// Precomputes the shear for direction `d`.
+    #[must_use]
+    pub fn new(o: Vec3, d: Vec3) -> Self {
+        let a = d.abs();
+        let kz = if a.x > a.y {
+            if a.x > a.z {
+                0
+            } else {
+                2
+            }
+        } else if a.y > a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        Self {
+            kx,
+            ky,
+            kz,
+            sx: d[kx] / d[kz],
+            sy: d[ky] / d[kz],
+            sz: 1.0 / d[kz],
+            org: o,
+        }
+    }
+
+    /// Tests triangle (v0, v1, v2); returns `(t, u, v)` with u, v the weights of v1 and v2.
+    #[must_use]
+    pub fn hit(
+        &self,
+        v0: Vec3,
+        v1: Vec3,
+        v2: Vec3,
+        tmin: f32,
+        tmax: f32,
+    ) -> Option<(f32, f32, f32)> {
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        let a = v0 - self.org;
+        let b = v1 - self.org;
+        let c = v2 - self.org;
+        let ax = a[kx] - self.sx * a[kz];
+        let ay = a[ky] - self.sy * a[kz];
+        let bx = b[kx] - self.sx * b[kz];
+        let by = b[ky] - self.sy * b[kz];
+        let cx = c[kx] - self.sx * c[kz];
+        let cy = c[ky] - self.sy * c[kz];
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        if u == 0.0 || v == 0.0 || w == 0.0 {
+            // Fall back to double precision on edges, as the paper does.
+            let (cxd, cyd, bxd, byd, axd, ayd) = (
+                cx as f64, cy as f64, bx as f64, by as f64, ax as f64, ay as f64,
+            );
+            u = (cxd * byd - cyd * bxd) as f32;
+            v = (axd * cyd - ayd * cxd) as f32;
+            w = (bxd * ayd - byd * axd) as f32;
+        }
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            return None;
+        }
+        let az = self.sz * a[kz];
+        let bz = self.sz * b[kz];
+        let cz = self.sz * c[kz];
+        let tn = u * az + v * bz + w * cz;
+        let inv = 1.0 / det;
+        let t = tn * inv;
+        if !(t >= tmin && t < tmax) {
+            return None;
+        }
+        // u, v, w here are the weights of v0, v1, v2.
+        Some((t, v * inv, w * inv))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unit_triangle_maps_vertices() {
+        let (a, b, c) = (
+            Vec3::new(1.0, 2.0, 3.0),
+            Vec3::new(4.0, 2.5, 3.0),
+            Vec3::new(1.5, 6.0, 3.5),
+        );
+        let m = UnitTriangle::new(a, b, c).expect("not degenerate").m;
+        let map = |p: Vec3| {
+            Vec3::new(
+                m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3],
+                m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
+                m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11],
+            )
+        };
+        assert!(map(a).abs_diff_eq(Vec3::ZERO, 1e-5));
+        assert!(map(b).abs_diff_eq(Vec3::X, 1e-5));
+        assert!(map(c).abs_diff_eq(Vec3::Y, 1e-5));
+    }
+
+    #[test]
+    fn hit_and_barycentrics() {
+        let (a, b, c) = (Vec3::ZERO, Vec3::X, Vec3::Y);
+        let m = UnitTriangle::new(a, b, c).expect("ok").m;
+        let (t, u, v) = unit_triangle_hit(
+            &m,
+            Vec3::new(0.25, 0.5, 2.0),
+            Vec3::new(0.0, 0.0, -1.0),
+            0.0,
+            f32::INFINITY,
+        )
+        .expect("hit");
+        assert_eq!((t, u, v), (2.0, 0.25, 0.5));
+        let w = WatertightRay::new(Vec3::new(0.25, 0.5, 2.0), Vec3::new(0.0, 0.0, -1.0));
+        let (t2, u2, v2) = w.hit(a, b, c, 0.0, f32::INFINITY).expect("hit");
+        assert!((t2 - 2.0).abs() < 1e-6 && (u2 - 0.25).abs() < 1e-6 && (v2 - 0.5).abs() < 1e-6);
+        assert!(unit_triangle_hit(
+            &m,
+            Vec3::new(0.8, 0.8, 2.0),
+            Vec3::new(0.0, 0.0, -1.0),
+            0.0,
+            f32::INFINITY
+        )
+        .is_none());
+    }
+
+    #[test]
+    fn degenerate_never_hits() {
+        assert!(UnitTriangle::new(Vec3::ZERO, Vec3::X, Vec3::X * 2.0).is_none());
+        assert!(UnitTriangle::new(Vec3::ZERO, Vec3::X, Vec3::new(f32::NAN, 0.0, 0.0)).is_none());
+        let t4 = Tri4::EMPTY;
+        for d in [Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE] {
+            assert!(tri4_intersect(&t4, Vec3::ZERO, d, 0.0, f32::INFINITY).is_none());
+            assert!(tri4_intersect_scalar(&t4, Vec3::ZERO, d, 0.0, f32::INFINITY).is_none());
+        }
+    }
+
+    #[test]
+    fn tiny_and_huge_scales_agree() {
+        // The same configuration at scale 1e-3 and 1e3 gives the same hit/miss answers.
+        for scale in [1e-3f32, 1.0, 1e3] {
+            let (a, b, c) = (Vec3::ZERO, Vec3::X * scale, Vec3::Y * scale);
+            let m = UnitTriangle::new(a, b, c).expect("ok").m;
+            let o = Vec3::new(0.3, 0.3, 1.0) * scale;
+            assert!(unit_triangle_hit(&m, o, -Vec3::Z, 0.0, f32::INFINITY).is_some());
+            let o2 = Vec3::new(0.6, 0.6, 1.0) * scale;
+            assert!(unit_triangle_hit(&m, o2, -Vec3::Z, 0.0, f32::INFINITY).is_none());
+        }
+    }
+}

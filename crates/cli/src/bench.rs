@@ -1,0 +1,284 @@
+//! `lucent bench rays DIR`: traces the rays the Embree harness dumped (see
+//! `shared/bench/README.md` for the file formats) and prints one JSON line per
+//! (kind, kernel, thread count), in the harness's schema.
+
+use anyhow::{bail, Context, Result};
+use lucent_accel::glam::Vec3;
+use lucent_accel::{Kernel, MeshBvh, MeshOptions, Ray, TriangleTest, Width};
+use rayon::prelude::*;
+use std::path::Path;
+use std::time::Instant;
+
+/// A triangle mesh as dumped: positions and index triples.
+pub struct DumpMesh {
+    pub positions: Vec<Vec3>,
+    pub indices: Vec<[u32; 3]>,
+}
+
+/// Eight rays in SoA form, as dumped.
+#[derive(Clone, Copy)]
+pub struct Block {
+    pub o: [[f32; 8]; 3],
+    pub d: [[f32; 8]; 3],
+    pub tfar: [f32; 8],
+    pub valid: [i32; 8],
+    pub pixel: [i32; 8],
+}
+
+/// A batch of ray blocks.
+pub struct Batch {
+    pub width: u32,
+    pub height: u32,
+    pub active: u32,
+    pub blocks: Vec<Block>,
+}
+
+fn u32_at(b: &[u8], off: usize, what: &str) -> Result<u32> {
+    let s = b.get(off..off + 4).with_context(|| {
+        format!(
+            "{what}: file ends at byte {} (wanted 4 bytes at {off})",
+            b.len()
+        )
+    })?;
+    Ok(u32::from_le_bytes([s[0], s[1], s[2], s[3]]))
+}
+
+/// Reads `mesh.bin`.
+pub fn read_mesh(path: &Path) -> Result<DumpMesh> {
+    let b = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let name = path.display().to_string();
+    if b.get(..8) != Some(b"RTBMESH1") {
+        bail!("{name}: not a mesh dump (no RTBMESH1 magic)");
+    }
+    let nv = u32_at(&b, 8, &name)? as usize;
+    let nt = u32_at(&b, 12, &name)? as usize;
+    let need = 16 + nv * 12 + nt * 12;
+    if b.len() < need {
+        bail!(
+            "{name}: {} bytes, but {nv} vertices and {nt} triangles need {need}",
+            b.len()
+        );
+    }
+    let f = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+    let positions = (0..nv)
+        .map(|i| Vec3::new(f(16 + i * 12), f(20 + i * 12), f(24 + i * 12)))
+        .collect();
+    let base = 16 + nv * 12;
+    let mut indices = Vec::with_capacity(nt);
+    for t in 0..nt {
+        let g = |k: usize| u32_at(&b, base + t * 12 + k * 4, &name);
+        indices.push([g(0)?, g(1)?, g(2)?]);
+    }
+    Ok(DumpMesh { positions, indices })
+}
+
+/// Reads a `rays_KIND.bin`.
+pub fn read_rays(path: &Path) -> Result<Batch> {
+    let b = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let name = path.display().to_string();
+    if b.get(..8) != Some(b"RTBRAYS1") {
+        bail!("{name}: not a ray dump (no RTBRAYS1 magic)");
+    }
+    let width = u32_at(&b, 8, &name)?;
+    let height = u32_at(&b, 12, &name)?;
+    let nb = u32_at(&b, 16, &name)? as usize;
+    let active = u32_at(&b, 20, &name)?;
+    if b.len() < 24 + nb * 288 {
+        bail!(
+            "{name}: {} bytes, but {nb} blocks need {}",
+            b.len(),
+            24 + nb * 288
+        );
+    }
+    let mut blocks = Vec::with_capacity(nb);
+    for k in 0..nb {
+        let base = 24 + k * 288;
+        let row = |r: usize| -> [u32; 8] {
+            std::array::from_fn(|l| {
+                u32::from_le_bytes(
+                    b[base + r * 32 + l * 4..base + r * 32 + l * 4 + 4]
+                        .try_into()
+                        .unwrap_or([0; 4]),
+                )
+            })
+        };
+        let fr = |r: usize| row(r).map(f32::from_bits);
+        let ir = |r: usize| row(r).map(|x| x as i32);
+        blocks.push(Block {
+            o: [fr(0), fr(1), fr(2)],
+            d: [fr(3), fr(4), fr(5)],
+            tfar: fr(6),
+            valid: ir(7),
+            pixel: ir(8),
+        });
+    }
+    Ok(Batch {
+        width,
+        height,
+        active,
+        blocks,
+    })
+}
+
+impl Block {
+    fn ray(&self, l: usize) -> Ray {
+        Ray {
+            org: Vec3::new(self.o[0][l], self.o[1][l], self.o[2][l]),
+            dir: Vec3::new(self.d[0][l], self.d[1][l], self.d[2][l]),
+            tmin: 0.0,
+            tmax: self.tfar[l],
+        }
+    }
+}
+
+/// Options of `bench rays`.
+pub struct RaysOptions {
+    pub name: String,
+    pub threads: Vec<usize>,
+    pub frames: usize,
+    pub warmup: usize,
+    pub kinds: Vec<String>,
+    pub width: Width,
+    pub test: TriangleTest,
+    pub kernel: Kernel,
+}
+
+const CHUNK_BLOCKS: usize = 32;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn pool(threads: usize) -> Result<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("cannot start the thread pool")
+}
+
+/// Runs the benchmark and prints JSON lines.
+pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
+    let mesh = read_mesh(&dir.join("mesh.bin"))?;
+    let tris = mesh.indices.len();
+    let opts = MeshOptions {
+        width: o.width,
+        test: o.test,
+    };
+    let bvh_label = format!(
+        "{}{}",
+        if o.width == Width::W8 { "bvh8" } else { "bvh4" },
+        if o.test == TriangleTest::Watertight {
+            "-watertight"
+        } else {
+            ""
+        }
+    );
+    let mut bvh = None;
+    for &threads in &o.threads {
+        let p = pool(threads)?;
+        let mut times = Vec::new();
+        for _ in 0..o.frames.max(1) {
+            let t0 = Instant::now();
+            let b = p.install(|| MeshBvh::build(&mesh.positions, &mesh.indices, opts))?;
+            times.push(t0.elapsed().as_secs_f64());
+            bvh = Some(b);
+        }
+        let st = bvh.as_ref().map(|b| b.stats()).unwrap_or_default();
+        println!(
+            "{{\"kind\":\"build\",\"tracer\":\"lucent\",\"scene\":\"{}\",\"tris\":{tris},\"quality\":\"sah\",\"bvh\":\"{bvh_label}\",\"threads\":{threads},\"median_ms\":{:.2},\"nodes\":{},\"sah\":{:.2},\"bytes\":{},\"bytes_per_tri\":{:.1}}}",
+            o.name,
+            1e3 * median(times),
+            st.nodes,
+            st.sah,
+            st.bytes,
+            st.bytes as f64 / tris.max(1) as f64
+        );
+    }
+    let Some(mut bvh) = bvh else {
+        bail!("no thread count given")
+    };
+    bvh.set_kernel(o.kernel);
+    let api = if bvh.kernel() == Kernel::Simd {
+        "single"
+    } else {
+        "single-scalar"
+    };
+    let ref_ids = std::fs::read(dir.join("ref_ids.bin")).ok().map(|b| {
+        b.chunks_exact(4)
+            .map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect::<Vec<i32>>()
+    });
+    for kind in &o.kinds {
+        let path = dir.join(format!("rays_{kind}.bin"));
+        let batch = read_rays(&path)?;
+        let shadow = kind == "shadow";
+        for &threads in &o.threads {
+            let p = pool(threads)?;
+            let mut out = vec![-1i32; batch.blocks.len() * 8];
+            let pass = |out: &mut [i32]| {
+                out.par_chunks_mut(CHUNK_BLOCKS * 8)
+                    .zip(batch.blocks.par_chunks(CHUNK_BLOCKS))
+                    .for_each(|(res, blocks)| {
+                        for (bi, b) in blocks.iter().enumerate() {
+                            for l in 0..8 {
+                                if b.valid[l] == 0 {
+                                    continue;
+                                }
+                                let r = b.ray(l);
+                                res[bi * 8 + l] = if shadow {
+                                    bvh.occluded(&r) as i32
+                                } else {
+                                    bvh.intersect(&r).map_or(-1, |h| h.prim as i32)
+                                };
+                            }
+                        }
+                    });
+            };
+            let times: Vec<f64> = p.install(|| {
+                for _ in 0..o.warmup {
+                    pass(&mut out);
+                }
+                (0..o.frames.max(1))
+                    .map(|_| {
+                        let t0 = Instant::now();
+                        pass(&mut out);
+                        t0.elapsed().as_secs_f64()
+                    })
+                    .collect()
+            });
+            let med = median(times);
+            let npix = (batch.width * batch.height) as usize;
+            let mut px = vec![-1i32; npix];
+            for (bi, b) in batch.blocks.iter().enumerate() {
+                for l in 0..8 {
+                    if let Some(slot) = usize::try_from(b.pixel[l]).ok().filter(|&p| p < npix) {
+                        px[slot] = if b.valid[l] != 0 { out[bi * 8 + l] } else { -1 };
+                    }
+                }
+            }
+            let mut line = format!(
+                "{{\"kind\":\"{kind}\",\"tracer\":\"lucent\",\"scene\":\"{}\",\"tris\":{tris},\"bvh\":\"{bvh_label}\",\"api\":\"{api}\",\"threads\":{threads},\"width\":{},\"height\":{},\"rays\":{},\"median_ms\":{:.3},\"mrays_s\":{:.2}",
+                o.name,
+                batch.width,
+                batch.height,
+                batch.active,
+                1e3 * med,
+                batch.active as f64 / med * 1e-6
+            );
+            if shadow {
+                line += &format!(",\"occluded\":{}", px.iter().filter(|&&v| v == 1).count());
+            } else {
+                line += &format!(",\"hits\":{}", px.iter().filter(|&&v| v >= 0).count());
+                if kind == "primary" {
+                    if let Some(r) = &ref_ids {
+                        let diff = px.iter().zip(r.iter()).filter(|(a, b)| a != b).count();
+                        line += &format!(",\"diff_px_vs_ref\":{diff}");
+                    }
+                }
+            }
+            println!("{line}}}");
+        }
+    }
+    Ok(())
+}
