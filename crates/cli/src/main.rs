@@ -4,9 +4,15 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
 mod bench;
+mod render_cmd;
 
 #[derive(Parser)]
-#[command(name = "lucent", version, about = "lucent: a real-time CPU ray tracer", long_about = None)]
+#[command(
+    name = "lucent",
+    version,
+    about = "lucent: a real-time CPU ray tracer",
+    long_about = "lucent: a real-time CPU ray tracer.\n\nRender a scene to an image:   lucent render scene.obj -o out.png\nRender the built-in demo:     lucent render -o demo.png\nDescribe a scene:             lucent info scene.gltf\nCompare speed with Embree:    ../shared/bench/compare.sh (calls `lucent bench rays`)\n\nScenes: Wavefront OBJ (+MTL, also .obj.gz), PLY, glTF 2.0 (.gltf, .glb).\nSet RUST_LOG=debug for more messages."
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -14,6 +20,44 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
+    /// Render a scene (or the built-in demo) to a PNG or EXR image with Whitted ray tracing.
+    Render {
+        /// Scene file (.obj, .obj.gz, .ply, .gltf, .glb). Without it: the built-in demo scene.
+        scene: Option<PathBuf>,
+        /// Camera as EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV: eye, look-at point, up vector, vertical
+        /// field of view in degrees. Default: the scene's camera, else one framing the scene.
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true, num_args = 1)]
+        camera: Option<Vec<f32>>,
+        /// Orthographic projection (same view height as the perspective view at the look-at point).
+        #[arg(long)]
+        ortho: bool,
+        /// Image size WIDTHxHEIGHT.
+        #[arg(long, default_value = "1024x768", value_parser = render_cmd::parse_size)]
+        size: (u32, u32),
+        /// Samples per pixel (jittered, deterministic per pixel and sample).
+        #[arg(long, default_value_t = 1)]
+        spp: u32,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Output image: .png (8-bit sRGB) or .exr (linear float).
+        #[arg(short, long, default_value = "out.png")]
+        output: PathBuf,
+        /// Most reflection/refraction generations.
+        #[arg(long, default_value_t = 6)]
+        max_depth: u32,
+        /// Turn shadow rays off.
+        #[arg(long)]
+        no_shadows: bool,
+        /// Use the watertight triangle test instead of the unit-triangle test.
+        #[arg(long)]
+        watertight: bool,
+    },
+    /// Print a scene's counts, bounds, camera and acceleration-structure size.
+    Info {
+        /// Scene file. Without it: the built-in demo scene.
+        scene: Option<PathBuf>,
+    },
     /// Speed reports.
     #[command(subcommand)]
     Bench(BenchCmd),
@@ -53,8 +97,39 @@ enum BenchCmd {
 }
 
 fn main() -> Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
     let cli = Cli::parse();
     match cli.cmd {
+        Cmd::Render {
+            scene,
+            camera,
+            ortho,
+            size,
+            spp,
+            threads,
+            output,
+            max_depth,
+            no_shadows,
+            watertight,
+        } => render_cmd::run(render_cmd::RenderArgs {
+            scene,
+            camera,
+            ortho,
+            size,
+            spp,
+            threads,
+            output,
+            max_depth,
+            no_shadows,
+            watertight,
+        }),
+        Cmd::Info { scene } => render_cmd::info(scene.as_deref()),
         Cmd::Bench(BenchCmd::Rays {
             dir,
             name,

@@ -1,14 +1,19 @@
-pub fn add(left: u64, right: u64) -> u64 {
-    left + right
-}
+//! # lucent_render
+//!
+//! Turns a scene into pixels: [`World`] builds the two-level index from a
+//! `lucent_scene::Scene`, [`Camera`] makes primary rays, the [`integrator`] shades them
+//! (Whitted), [`render()`] runs tiles on all cores, and [`Film`] writes PNG or EXR.
+#![warn(missing_docs)]
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+pub mod camera;
+pub mod film;
+pub mod integrator;
+mod render;
+pub mod texture;
+mod world;
 
-    #[test]
-    fn it_works() {
-        let result = add(2, 2);
-        assert_eq!(result, 4);
-    }
-}
+pub use camera::{framing_camera, Camera};
+pub use film::{Film, OutputError};
+pub use integrator::WhittedSettings;
+pub use render::{jitter, pcg_hash, render, render_pixel, RenderSettings, TILE};
+pub use world::{shape_of, Surface, World, WorldError};

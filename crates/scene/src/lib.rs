@@ -1,14 +1,43 @@
-pub fn add(left: u64, right: u64) -> u64 {
-    left + right
-}
+//! # lucent_scene
+//!
+//! What the world contains, as plain data ([`Scene`]), and importers that fill it:
+//! Wavefront OBJ + MTL (also `.obj.gz`), PLY (ASCII and binary) and glTF 2.0
+//! (`.gltf` + `.bin`, `.glb`). Every error names the file and the line or glTF path.
+//! Missing textures give a warning and the plain colour.
+#![warn(missing_docs)]
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+mod demo;
+mod error;
+mod gltf;
+mod model;
+mod obj;
+mod ply;
+mod texture;
 
-    #[test]
-    fn it_works() {
-        let result = add(2, 2);
-        assert_eq!(result, 4);
+pub use demo::{demo_scene, torus};
+pub use error::ImportError;
+pub use gltf::load_gltf;
+pub use model::*;
+pub use obj::{load_obj, parse_obj};
+pub use ply::load_ply;
+pub use texture::{srgb_to_linear, texture_from_image};
+
+use std::path::Path;
+
+/// Loads a scene file, choosing the importer by extension.
+pub fn load(path: &Path) -> Result<Scene, ImportError> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let stem = name.strip_suffix(".gz").unwrap_or(&name);
+    if stem.ends_with(".obj") {
+        load_obj(path)
+    } else if stem.ends_with(".ply") {
+        load_ply(path)
+    } else if name.ends_with(".gltf") || name.ends_with(".glb") {
+        load_gltf(path)
+    } else {
+        Err(ImportError::UnknownFormat(path.to_path_buf()))
     }
 }

@@ -1,0 +1,196 @@
+//! `lucent render` and `lucent info`.
+
+use anyhow::{bail, Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use lucent_accel::glam::Vec3;
+use lucent_accel::{MeshOptions, TriangleTest};
+use lucent_render::{framing_camera, render, Camera, RenderSettings, WhittedSettings, World};
+use lucent_scene::{CameraDesc, Scene};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Options of `lucent render`.
+pub struct RenderArgs {
+    pub scene: Option<PathBuf>,
+    pub camera: Option<Vec<f32>>,
+    pub ortho: bool,
+    pub size: (u32, u32),
+    pub spp: u32,
+    pub threads: Option<usize>,
+    pub output: PathBuf,
+    pub max_depth: u32,
+    pub no_shadows: bool,
+    pub watertight: bool,
+}
+
+/// Parses "WxH".
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT (e.g. 1024x768)"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{w}' is not a width"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{h}' is not a height"))?;
+    if w == 0 || h == 0 || w > 16384 || h > 16384 {
+        return Err(format!("{w}x{h}: each side must be 1..=16384"));
+    }
+    Ok((w, h))
+}
+
+/// Loads a scene file, or the built-in demo when `path` is `None`.
+pub fn load_scene(path: Option<&Path>) -> Result<Scene> {
+    match path {
+        None => Ok(lucent_scene::demo_scene()),
+        Some(p) => lucent_scene::load(p).map_err(anyhow::Error::from),
+    }
+}
+
+/// The camera to use: `--camera`, else the scene's, else one framing the bounds.
+pub fn choose_camera(scene: &Scene, camera: Option<&[f32]>, ortho: bool) -> Result<CameraDesc> {
+    let mut desc = match camera {
+        Some(c) => {
+            if c.len() != 10 || c.iter().any(|v| !v.is_finite()) {
+                bail!(
+                    "--camera needs 10 finite numbers EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV (got {})",
+                    c.len()
+                );
+            }
+            CameraDesc {
+                eye: Vec3::new(c[0], c[1], c[2]),
+                look_at: Vec3::new(c[3], c[4], c[5]),
+                up: Vec3::new(c[6], c[7], c[8]),
+                vfov_deg: c[9],
+                ortho_height: None,
+            }
+        }
+        None => match (scene.camera, scene.bounds()) {
+            (Some(c), _) => c,
+            (None, Some((lo, hi))) => framing_camera(lo, hi),
+            (None, None) => bail!("the scene is empty: nothing to frame"),
+        },
+    };
+    if ortho {
+        let dist = (desc.look_at - desc.eye).length();
+        desc.ortho_height = Some(2.0 * dist * (desc.vfov_deg.to_radians() * 0.5).tan());
+    }
+    Ok(desc)
+}
+
+pub fn run(a: RenderArgs) -> Result<()> {
+    if let Some(t) = a.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(t.max(1))
+            .build_global()
+            .context("cannot set the thread count")?;
+    }
+    let t0 = Instant::now();
+    let scene = load_scene(a.scene.as_deref())?;
+    let load_s = t0.elapsed().as_secs_f64();
+    let desc = choose_camera(&scene, a.camera.as_deref(), a.ortho)?;
+    let st = scene.stats();
+    let t1 = Instant::now();
+    let opts = MeshOptions {
+        test: if a.watertight {
+            TriangleTest::Watertight
+        } else {
+            TriangleTest::UnitTriangle
+        },
+        ..MeshOptions::default()
+    };
+    let world = World::new(scene, opts)?;
+    let build_s = t1.elapsed().as_secs_f64();
+    let (w, h) = a.size;
+    let settings = RenderSettings {
+        width: w,
+        height: h,
+        spp: a.spp.max(1),
+        whitted: WhittedSettings {
+            max_depth: a.max_depth,
+            shadows: !a.no_shadows,
+        },
+    };
+    let cam = Camera::new(&desc, w, h);
+    let tiles = (w.div_ceil(lucent_render::TILE) * h.div_ceil(lucent_render::TILE)) as u64;
+    let bar = if std::io::stderr().is_terminal() {
+        ProgressBar::new(tiles)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} tiles {elapsed}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let t2 = Instant::now();
+    let (film, rays) = render(&world, &cam, &settings, &|n| bar.inc(n));
+    let render_s = t2.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    film.save(&a.output)?;
+    println!(
+        "scene: {} triangles, {} instances, {} lights",
+        st.triangles,
+        st.instances,
+        world.lights.len()
+    );
+    println!(
+        "load {:.1} ms, build {:.1} ms, render {:.1} ms ({}x{}, {} spp, {} threads)",
+        load_s * 1e3,
+        build_s * 1e3,
+        render_s * 1e3,
+        w,
+        h,
+        settings.spp,
+        rayon::current_num_threads()
+    );
+    println!(
+        "{rays} rays, {:.2} Mrays/s",
+        rays as f64 / render_s.max(1e-9) * 1e-6
+    );
+    println!("wrote {}", a.output.display());
+    Ok(())
+}
+
+pub fn info(path: Option<&Path>) -> Result<()> {
+    let scene = load_scene(path)?;
+    let st = scene.stats();
+    println!(
+        "scene:      {}",
+        path.map_or("(built-in demo)".to_string(), |p| p.display().to_string())
+    );
+    println!(
+        "triangles:  {} ({} instanced)",
+        st.triangles, st.instanced_triangles
+    );
+    println!("vertices:   {}", st.vertices);
+    println!("meshes:     {}", st.meshes);
+    println!("instances:  {}", st.instances);
+    println!("materials:  {}", st.materials);
+    println!("textures:   {}", st.textures);
+    println!("lights:     {}", st.lights);
+    match scene.bounds() {
+        Some((lo, hi)) => println!(
+            "bounds:     [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
+            lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+        ),
+        None => println!("bounds:     empty"),
+    }
+    if let Some(c) = scene.camera {
+        println!(
+            "camera:     eye {:?} look-at {:?} up {:?} vfov {:.1}",
+            c.eye.to_array(),
+            c.look_at.to_array(),
+            c.up.to_array(),
+            c.vfov_deg
+        );
+    }
+    let t = Instant::now();
+    let world = World::new(scene, MeshOptions::default())?;
+    let (top, bottom) = world.accel.stats();
+    println!("accel:      {} bytes ({:.1} per triangle): BLAS {} nodes, {} bytes; TLAS {} nodes, {} bytes; built in {:.1} ms", top.bytes + bottom.bytes, (top.bytes + bottom.bytes) as f64 / st.triangles.max(1) as f64, bottom.nodes, bottom.bytes, top.nodes, top.bytes, t.elapsed().as_secs_f64() * 1e3);
+    Ok(())
+}

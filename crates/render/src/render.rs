@@ -1,0 +1,103 @@
+//! The tile renderer: tiles on all cores (rayon), samples deterministic per (pixel, sample).
+
+use crate::camera::Camera;
+use crate::film::Film;
+use crate::integrator::{li, WhittedSettings};
+use crate::world::World;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Render settings.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderSettings {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Samples per pixel (1 = pixel centre; more = jittered).
+    pub spp: u32,
+    /// Integrator settings.
+    pub whitted: WhittedSettings,
+}
+
+/// Tile edge in pixels.
+pub const TILE: u32 = 16;
+
+/// A 32-bit hash (Jarzynski & Olano, "Hash Functions for GPU Rendering", JCGT 2020: PCG).
+#[must_use]
+pub fn pcg_hash(x: u32) -> u32 {
+    let s = x.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let w = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277_803_737);
+    (w >> 22) ^ w
+}
+
+/// The jitter of sample `s` of pixel (x, y): a pure function, so images do not depend on
+/// thread count or tile order.
+#[must_use]
+pub fn jitter(x: u32, y: u32, s: u32) -> (f32, f32) {
+    let h = pcg_hash(x ^ pcg_hash(y ^ pcg_hash(s)));
+    let h2 = pcg_hash(h);
+    (
+        (h >> 8) as f32 / (1u32 << 24) as f32,
+        (h2 >> 8) as f32 / (1u32 << 24) as f32,
+    )
+}
+
+/// Radiance of pixel (x, y) averaged over its samples.
+#[must_use]
+pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32) -> Vec3 {
+    let spp = s.spp.max(1);
+    let mut c = Vec3::ZERO;
+    for k in 0..spp {
+        let (jx, jy) = if spp == 1 {
+            (0.5, 0.5)
+        } else {
+            jitter(x, y, k)
+        };
+        c += li(w, &cam.ray(x as f32 + jx, y as f32 + jy), &s.whitted, 0);
+    }
+    c / spp as f32
+}
+
+/// Renders a frame; `progress(tiles_done)` is called after each tile. Returns the film and
+/// the number of rays traced.
+pub fn render(
+    w: &World,
+    cam: &Camera,
+    s: &RenderSettings,
+    progress: &(dyn Fn(u64) + Sync),
+) -> (Film, u64) {
+    let (tw, th) = (s.width.div_ceil(TILE), s.height.div_ceil(TILE));
+    let tiles: Vec<(u32, u32)> = (0..th)
+        .flat_map(|ty| (0..tw).map(move |tx| (tx, ty)))
+        .collect();
+    let done: Vec<(u32, u32, Vec<Vec3>, u64)> = tiles
+        .par_iter()
+        .map(|&(tx, ty)| {
+            let (x0, y0) = (tx * TILE, ty * TILE);
+            let (x1, y1) = ((x0 + TILE).min(s.width), (y0 + TILE).min(s.height));
+            let before = crate::world::rays_traced_here();
+            let mut px = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    px.push(render_pixel(w, cam, s, x, y));
+                }
+            }
+            progress(1);
+            (tx, ty, px, crate::world::rays_traced_here() - before)
+        })
+        .collect();
+    let mut film = Film::new(s.width, s.height);
+    let mut rays = 0;
+    for (tx, ty, px, r) in done {
+        rays += r;
+        let (x0, y0) = (tx * TILE, ty * TILE);
+        let x1 = (x0 + TILE).min(s.width);
+        let wdt = (x1 - x0) as usize;
+        for (i, c) in px.into_iter().enumerate() {
+            let (x, y) = (x0 + (i % wdt) as u32, y0 + (i / wdt) as u32);
+            film.pixels[(y * s.width + x) as usize] = c;
+        }
+    }
+    (film, rays)
+}

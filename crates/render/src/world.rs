@@ -1,0 +1,287 @@
+//! The render-side view of a scene: the two-level acceleration structure built from it,
+//! plus everything shading needs to rebuild a surface point from a hit.
+
+use glam::{Affine3A, Mat3A, Vec2, Vec3};
+use lucent_accel::{Geometry, Hit, Instance, MeshBvh, MeshOptions, Ray, Shape, TwoLevel};
+use lucent_scene::{Geom, Light, LightKind, Scene, ShapeKind};
+use rayon::prelude::*;
+
+/// Errors of preparing a scene for rendering.
+#[derive(Debug, thiserror::Error)]
+pub enum WorldError {
+    /// Building an acceleration structure failed.
+    #[error("mesh '{mesh}': {source}")]
+    Build {
+        /// Mesh name.
+        mesh: String,
+        /// Cause.
+        source: lucent_accel::BuildError,
+    },
+    /// The top level failed.
+    #[error("instances: {0}")]
+    Top(lucent_accel::BuildError),
+}
+
+/// Maps a scene shape kind to the accel one.
+#[must_use]
+pub fn shape_of(k: ShapeKind) -> Shape {
+    match k {
+        ShapeKind::Sphere => Shape::Sphere,
+        ShapeKind::Cylinder => Shape::Cylinder,
+        ShapeKind::CappedCylinder => Shape::CappedCylinder,
+        ShapeKind::Cone => Shape::Cone,
+        ShapeKind::CappedCone => Shape::CappedCone,
+        ShapeKind::Box => Shape::Box,
+        ShapeKind::Disk => Shape::Disk,
+    }
+}
+
+/// Per instance: what shading needs.
+#[derive(Clone, Copy, Debug)]
+struct InstInfo {
+    geom: Geom,
+    normal_to_world: Mat3A,
+}
+
+/// A scene with its acceleration structure.
+pub struct World {
+    /// The scene.
+    pub scene: Scene,
+    /// Two-level index: geometry `i < meshes.len()` is mesh `i`; shapes follow.
+    pub accel: TwoLevel,
+    info: Vec<InstInfo>,
+    /// Lights used for rendering (the scene's, or ones derived from emitters).
+    pub lights: Vec<Light>,
+    /// Diagonal of the world bounds (for ray offsets).
+    pub scale: f32,
+}
+
+/// A surface point rebuilt from a hit.
+#[derive(Clone, Copy, Debug)]
+pub struct Surface {
+    /// World position.
+    pub p: Vec3,
+    /// Geometric normal (world, unit, as the geometry is wound).
+    pub ng: Vec3,
+    /// Shading normal (world, unit, same side as `ng`).
+    pub ns: Vec3,
+    /// Texture coordinates.
+    pub uv: Vec2,
+    /// Material index.
+    pub material: u32,
+}
+
+impl World {
+    /// Builds BLASes (in parallel) and the TLAS.
+    pub fn new(scene: Scene, opts: MeshOptions) -> Result<Self, WorldError> {
+        let meshes: Result<Vec<Geometry>, WorldError> = scene
+            .meshes
+            .par_iter()
+            .map(|m| {
+                MeshBvh::build(&m.positions, &m.indices, opts)
+                    .map(Geometry::Mesh)
+                    .map_err(|source| WorldError::Build {
+                        mesh: m.name.clone(),
+                        source,
+                    })
+            })
+            .collect();
+        let mut geoms = meshes?;
+        let kinds = [
+            ShapeKind::Sphere,
+            ShapeKind::Cylinder,
+            ShapeKind::CappedCylinder,
+            ShapeKind::Cone,
+            ShapeKind::CappedCone,
+            ShapeKind::Box,
+            ShapeKind::Disk,
+        ];
+        let shape_base = geoms.len() as u32;
+        geoms.extend(kinds.iter().map(|&k| Geometry::Shape(shape_of(k))));
+        let mut insts = Vec::with_capacity(scene.instances.len());
+        let mut info = Vec::with_capacity(scene.instances.len());
+        for i in &scene.instances {
+            let g = match i.geom {
+                Geom::Mesh(m) => m,
+                Geom::Shape { kind, .. } => {
+                    shape_base + kinds.iter().position(|&k| k == kind).unwrap_or(0) as u32
+                }
+            };
+            insts.push(Instance::new(g, i.world_from_object));
+            info.push(InstInfo {
+                geom: i.geom,
+                normal_to_world: normal_matrix(&i.world_from_object),
+            });
+        }
+        let accel = TwoLevel::new(geoms, insts).map_err(WorldError::Top)?;
+        let scale = scene
+            .bounds()
+            .map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
+        let mut w = Self {
+            scene,
+            accel,
+            info,
+            lights: Vec::new(),
+            scale,
+        };
+        w.lights = if w.scene.lights.is_empty() {
+            w.emitter_lights()
+        } else {
+            w.scene.lights.clone()
+        };
+        Ok(w)
+    }
+
+    /// Closest hit.
+    #[must_use]
+    pub fn intersect(&self, r: &Ray) -> Option<Hit> {
+        count_ray();
+        self.accel.intersect(r)
+    }
+
+    /// Any hit.
+    #[must_use]
+    pub fn occluded(&self, r: &Ray) -> bool {
+        count_ray();
+        self.accel.occluded(r)
+    }
+
+    /// Rebuilds the surface point of a hit.
+    #[must_use]
+    pub fn surface(&self, r: &Ray, h: &Hit) -> Surface {
+        let inst = &self.info[h.inst as usize];
+        let world_from_object = &self.accel.instances()[h.inst as usize].world_from_object;
+        let p = r.at(h.t);
+        match inst.geom {
+            Geom::Mesh(m) => {
+                let mesh = &self.scene.meshes[m as usize];
+                let tri = h.prim as usize;
+                let idx = mesh.indices[tri];
+                let [a, b, c] = idx.map(|i| mesh.positions[i as usize]);
+                let ng_obj = (b - a).cross(c - a);
+                let ng = (inst.normal_to_world * glam::Vec3A::from(ng_obj))
+                    .normalize_or_zero()
+                    .into();
+                let w = Vec3::new(1.0 - h.u - h.v, h.u, h.v);
+                let ns = match mesh.normals.corners(tri, &idx) {
+                    Some([n0, n1, n2]) => {
+                        let n: Vec3 = (inst.normal_to_world
+                            * glam::Vec3A::from(n0 * w.x + n1 * w.y + n2 * w.z))
+                        .into();
+                        let n = n.normalize_or_zero();
+                        if n == Vec3::ZERO || !n.is_finite() {
+                            ng
+                        } else if n.dot(ng) < 0.0 {
+                            // Keep shading normals on the geometric side (flipped winding).
+                            -n
+                        } else {
+                            n
+                        }
+                    }
+                    None => ng,
+                };
+                let uv = mesh
+                    .uvs
+                    .corners(tri, &idx)
+                    .map_or(Vec2::new(h.u, h.v), |[t0, t1, t2]| {
+                        t0 * w.x + t1 * w.y + t2 * w.z
+                    });
+                Surface {
+                    p,
+                    ng,
+                    ns,
+                    uv,
+                    material: mesh.material.get(tri).copied().unwrap_or(0),
+                }
+            }
+            Geom::Shape { kind, material } => {
+                let p_obj = world_from_object.inverse().transform_point3(p);
+                let n_obj = shape_of(kind).normal_local(p_obj, h.prim);
+                let ng: Vec3 = (inst.normal_to_world * glam::Vec3A::from(n_obj))
+                    .normalize_or_zero()
+                    .into();
+                Surface {
+                    p,
+                    ng,
+                    ns: ng,
+                    uv: Vec2::new(h.u, h.v),
+                    material,
+                }
+            }
+        }
+    }
+
+    /// Point lights at the emitting surfaces (one per emissive material and instance), for
+    /// scenes such as the Cornell box that light themselves by geometry.
+    fn emitter_lights(&self) -> Vec<Light> {
+        let mut out = Vec::new();
+        for inst in &self.scene.instances {
+            let Geom::Mesh(m) = inst.geom else { continue };
+            let mesh = &self.scene.meshes[m as usize];
+            let mut acc: std::collections::BTreeMap<u32, (Vec3, Vec3, f32)> = Default::default();
+            for (t, idx) in mesh.indices.iter().enumerate() {
+                let mat = mesh.material.get(t).copied().unwrap_or(0);
+                let Some(mm) = self.scene.materials.get(mat as usize) else {
+                    continue;
+                };
+                if mm.emission.max_element() <= 0.0 {
+                    continue;
+                }
+                let [a, b, c] = idx.map(|i| {
+                    inst.world_from_object
+                        .transform_point3(mesh.positions[i as usize])
+                });
+                let n = (b - a).cross(c - a);
+                let area = n.length() * 0.5;
+                if !(area > 0.0) {
+                    continue;
+                }
+                let e = acc.entry(mat).or_insert((Vec3::ZERO, Vec3::ZERO, 0.0));
+                e.0 += (a + b + c) / 3.0 * area;
+                e.1 += n;
+                e.2 += area;
+            }
+            for (mat, (pc, n, area)) in acc {
+                let em = self.scene.materials[mat as usize].emission;
+                // Just off the emitter, on the side it faces (the side the camera sees for a ceiling light).
+                let mut nn = n.normalize_or_zero();
+                if let Some((lo, hi)) = self.scene.bounds() {
+                    if nn.dot((lo + hi) * 0.5 - pc / area) < 0.0 {
+                        nn = -nn;
+                    }
+                }
+                let position = pc / area + nn * (self.scale * 0.02);
+                out.push(Light {
+                    kind: LightKind::Point { position },
+                    color: em / em.max_element(),
+                    inverse_square: false,
+                });
+            }
+        }
+        out
+    }
+}
+
+thread_local! {
+    static RAYS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+fn count_ray() {
+    RAYS.with(|c| c.set(c.get() + 1));
+}
+
+/// Rays traced by this thread so far (closest-hit and shadow queries).
+#[must_use]
+pub fn rays_traced_here() -> u64 {
+    RAYS.with(|c| c.get())
+}
+
+/// The inverse transpose of the linear part (for normals).
+fn normal_matrix(m: &Affine3A) -> Mat3A {
+    let inv = m.matrix3.inverse();
+    if inv.is_finite() {
+        inv.transpose()
+    } else {
+        m.matrix3
+    }
+}

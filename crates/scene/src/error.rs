@@ -1,0 +1,39 @@
+//! Import errors: every one names the file and the place in it.
+
+use std::path::PathBuf;
+
+/// An error while importing a scene.
+#[derive(Debug, thiserror::Error)]
+pub enum ImportError {
+    /// The file could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// Bad content at a line.
+    #[error("{path}:{line}: {msg}")]
+    Parse {
+        /// File.
+        path: PathBuf,
+        /// Line number (1-based).
+        line: usize,
+        /// What is wrong.
+        msg: String,
+    },
+    /// Bad content somewhere without a line (binary formats, glTF paths).
+    #[error("{path}: {at}: {msg}")]
+    Invalid {
+        /// File.
+        path: PathBuf,
+        /// Where: a glTF JSON path, "header", a byte offset.
+        at: String,
+        /// What is wrong.
+        msg: String,
+    },
+    /// The file type is not known.
+    #[error("{0}: unknown scene format (expected .obj, .obj.gz, .ply, .ply.gz, .gltf or .glb)")]
+    UnknownFormat(PathBuf),
+}

@@ -1,0 +1,340 @@
+//! The scene as plain data: meshes, instances, materials, textures, lights, camera.
+
+use glam::{Affine3A, Vec2, Vec3};
+
+/// A per-corner attribute: values, and per-triangle indices into them (`None`: the
+/// triangle's position indices are used).
+#[derive(Clone, Debug, Default)]
+pub struct Attr<T> {
+    /// Values.
+    pub values: Vec<T>,
+    /// Index triples per triangle, when they differ from the position indices.
+    pub indices: Option<Vec<[u32; 3]>>,
+}
+
+impl<T: Copy> Attr<T> {
+    /// The three values of triangle `tri`, if the attribute is present.
+    #[must_use]
+    pub fn corners(&self, tri: usize, pos_idx: &[u32; 3]) -> Option<[T; 3]> {
+        if self.values.is_empty() {
+            return None;
+        }
+        let idx = match &self.indices {
+            Some(v) => v.get(tri)?,
+            None => pos_idx,
+        };
+        Some([
+            *self.values.get(idx[0] as usize)?,
+            *self.values.get(idx[1] as usize)?,
+            *self.values.get(idx[2] as usize)?,
+        ])
+    }
+}
+
+/// A triangle mesh in object space.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    /// Name (from the file, for messages).
+    pub name: String,
+    /// Vertex positions.
+    pub positions: Vec<Vec3>,
+    /// Triangles (indices into `positions`), in file order.
+    pub indices: Vec<[u32; 3]>,
+    /// Shading normals (may be empty).
+    pub normals: Attr<Vec3>,
+    /// Texture coordinates, v = 0 at the bottom of the image (may be empty).
+    pub uvs: Attr<Vec2>,
+    /// Material per triangle (index into `Scene::materials`).
+    pub material: Vec<u32>,
+}
+
+/// The kind of an analytic shape, in its canonical form (see `lucent_accel::Shape`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShapeKind {
+    /// Unit sphere.
+    Sphere,
+    /// Infinite cylinder x²+y²=1 along z.
+    Cylinder,
+    /// Cylinder x²+y² ≤ 1, z in [-1, 1], capped.
+    CappedCylinder,
+    /// Infinite double cone x²+y² = z².
+    Cone,
+    /// Cone with apex at the origin, z in [0, 1], capped at z = 1.
+    CappedCone,
+    /// Box [-1, 1]³.
+    Box,
+    /// Unit disk in z = 0.
+    Disk,
+}
+
+/// What an instance draws.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Geom {
+    /// Mesh `i` of `Scene::meshes` (materials per triangle).
+    Mesh(u32),
+    /// A shape with one material.
+    Shape {
+        /// Kind.
+        kind: ShapeKind,
+        /// Material index.
+        material: u32,
+    },
+}
+
+/// A placed geometry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance {
+    /// What is drawn.
+    pub geom: Geom,
+    /// Object to world.
+    pub world_from_object: Affine3A,
+}
+
+/// A Phong-style material with the extra terms a Whitted tracer needs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// Name.
+    pub name: String,
+    /// Ambient reflectance (MTL `Ka`).
+    pub ambient: Vec3,
+    /// Diffuse reflectance (MTL `Kd`, glTF base colour).
+    pub diffuse: Vec3,
+    /// Diffuse texture (multiplies `diffuse`).
+    pub diffuse_tex: Option<u32>,
+    /// Specular reflectance of highlights (MTL `Ks`).
+    pub specular: Vec3,
+    /// Phong exponent (MTL `Ns`).
+    pub shininess: f32,
+    /// Emitted radiance (MTL `Ke`).
+    pub emission: Vec3,
+    /// Mirror reflectance (MTL `illum` 3/5/7: `Ks`; glTF metallic).
+    pub reflect: Vec3,
+    /// Transmittance (MTL `1 - d` or `Tf`; glTF transmission).
+    pub transmit: Vec3,
+    /// Index of refraction.
+    pub ior: f32,
+    /// Reflectance follows Fresnel (dielectrics).
+    pub fresnel: bool,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self {
+            name: "default".into(),
+            ambient: Vec3::ZERO,
+            diffuse: Vec3::splat(0.7),
+            diffuse_tex: None,
+            specular: Vec3::ZERO,
+            shininess: 32.0,
+            emission: Vec3::ZERO,
+            reflect: Vec3::ZERO,
+            transmit: Vec3::ZERO,
+            ior: 1.5,
+            fresnel: false,
+        }
+    }
+}
+
+/// How texture coordinates outside [0, 1] are treated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Wrap {
+    /// Tile.
+    #[default]
+    Repeat,
+    /// Clamp to the edge.
+    Clamp,
+    /// Tile, mirrored every other time.
+    Mirror,
+}
+
+/// An RGBA texture in linear floating point (sRGB decoded on load).
+#[derive(Clone, Debug)]
+pub struct Texture {
+    /// Name or path.
+    pub name: String,
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// Texels, row 0 at the top of the image.
+    pub texels: Vec<[f32; 4]>,
+    /// Wrap mode in u.
+    pub wrap_u: Wrap,
+    /// Wrap mode in v.
+    pub wrap_v: Wrap,
+}
+
+/// A light's shape.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightKind {
+    /// At a point, in every direction.
+    Point {
+        /// Position.
+        position: Vec3,
+    },
+    /// From infinitely far, along `direction` (the way the light travels).
+    Directional {
+        /// Direction of travel.
+        direction: Vec3,
+    },
+    /// A cone from a point.
+    Spot {
+        /// Position.
+        position: Vec3,
+        /// Axis direction (the way the light travels).
+        direction: Vec3,
+        /// Full-intensity half angle (radians).
+        inner: f32,
+        /// Zero-intensity half angle (radians).
+        outer: f32,
+    },
+}
+
+/// A light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// Shape.
+    pub kind: LightKind,
+    /// Linear RGB colour times intensity.
+    pub color: Vec3,
+    /// Intensity falls with the squared distance.
+    pub inverse_square: bool,
+}
+
+/// A camera description.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraDesc {
+    /// Eye position.
+    pub eye: Vec3,
+    /// Point looked at.
+    pub look_at: Vec3,
+    /// Up hint.
+    pub up: Vec3,
+    /// Vertical field of view in degrees (perspective).
+    pub vfov_deg: f32,
+    /// Orthographic: full height of the view in world units.
+    pub ortho_height: Option<f32>,
+}
+
+/// Everything a renderer needs.
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    /// Meshes.
+    pub meshes: Vec<Mesh>,
+    /// Instances.
+    pub instances: Vec<Instance>,
+    /// Materials (index 0 exists whenever anything refers to materials).
+    pub materials: Vec<Material>,
+    /// Textures.
+    pub textures: Vec<Texture>,
+    /// Lights.
+    pub lights: Vec<Light>,
+    /// The scene's own camera.
+    pub camera: Option<CameraDesc>,
+    /// Ambient light colour.
+    pub ambient: Vec3,
+    /// Background colour of rays that escape.
+    pub background: Vec3,
+}
+
+/// Ambient light for formats that do not say (OBJ, PLY, plain glTF): a modest fill so
+/// faces turned away from every light are not pure black.
+pub const DEFAULT_AMBIENT: Vec3 = Vec3::splat(0.1);
+
+/// Counts for `lucent info`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SceneStats {
+    /// Triangles over unique meshes.
+    pub triangles: usize,
+    /// Vertices over unique meshes.
+    pub vertices: usize,
+    /// Meshes.
+    pub meshes: usize,
+    /// Instances (mesh and shape).
+    pub instances: usize,
+    /// Triangles counted once per instance.
+    pub instanced_triangles: usize,
+    /// Materials.
+    pub materials: usize,
+    /// Textures.
+    pub textures: usize,
+    /// Lights.
+    pub lights: usize,
+}
+
+impl Scene {
+    /// Counts.
+    #[must_use]
+    pub fn stats(&self) -> SceneStats {
+        SceneStats {
+            triangles: self.meshes.iter().map(|m| m.indices.len()).sum(),
+            vertices: self.meshes.iter().map(|m| m.positions.len()).sum(),
+            meshes: self.meshes.len(),
+            instances: self.instances.len(),
+            instanced_triangles: self
+                .instances
+                .iter()
+                .map(|i| {
+                    if let Geom::Mesh(m) = i.geom {
+                        self.meshes.get(m as usize).map_or(0, |m| m.indices.len())
+                    } else {
+                        0
+                    }
+                })
+                .sum(),
+            materials: self.materials.len(),
+            textures: self.textures.len(),
+            lights: self.lights.len(),
+        }
+    }
+
+    /// World bounds of all mesh instances (shapes of finite size included); `None` when empty.
+    #[must_use]
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let mut lo = Vec3::INFINITY;
+        let mut hi = Vec3::NEG_INFINITY;
+        for inst in &self.instances {
+            match inst.geom {
+                Geom::Mesh(m) => {
+                    let Some(mesh) = self.meshes.get(m as usize) else {
+                        continue;
+                    };
+                    for p in &mesh.positions {
+                        let w = inst.world_from_object.transform_point3(*p);
+                        if w.is_finite() {
+                            lo = lo.min(w);
+                            hi = hi.max(w);
+                        }
+                    }
+                }
+                Geom::Shape { kind, .. } => {
+                    if matches!(kind, ShapeKind::Cylinder | ShapeKind::Cone) {
+                        continue;
+                    }
+                    for c in 0..8 {
+                        let p = Vec3::new(
+                            if c & 1 == 0 { -1.0 } else { 1.0 },
+                            if c & 2 == 0 { -1.0 } else { 1.0 },
+                            if c & 4 == 0 { -1.0 } else { 1.0 },
+                        );
+                        let w = inst.world_from_object.transform_point3(p);
+                        lo = lo.min(w);
+                        hi = hi.max(w);
+                    }
+                }
+            }
+        }
+        (lo.x <= hi.x).then_some((lo, hi))
+    }
+
+    /// Adds a mesh with an identity instance; returns the mesh index.
+    pub fn add_mesh(&mut self, mesh: Mesh) -> u32 {
+        let id = self.meshes.len() as u32;
+        self.meshes.push(mesh);
+        self.instances.push(Instance {
+            geom: Geom::Mesh(id),
+            world_from_object: Affine3A::IDENTITY,
+        });
+        id
+    }
+}
