@@ -172,8 +172,8 @@ impl BinaryBvh {
                         .nodes
                         .get(c)
                         .ok_or_else(|| format!("child {c} of {i} out of range"))?;
-                    if !cn.bounds.is_empty()
-                        && !(n.bounds.contains(cn.bounds.min) && n.bounds.contains(cn.bounds.max))
+                    if !(cn.bounds.is_empty()
+                        || n.bounds.contains(cn.bounds.min) && n.bounds.contains(cn.bounds.max))
                     {
                         return Err(format!("child {c} sticks out of node {i}"));
                     }

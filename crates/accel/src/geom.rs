@@ -1,6 +1,6 @@
 //! Rays, hits and axis-aligned boxes: the plain data every kernel shares.
 
-use glam::{Affine3A, Vec3, Vec3A};
+use glam::{Affine3A, Vec3};
 
 /// A ray `org + t * dir` for `t` in `[tmin, tmax)`.
 ///
@@ -191,7 +191,7 @@ impl Aabb {
             return *self;
         }
         // Arvo's method: per output axis, sum the min/max of each matrix column's contribution.
-        let mut lo = Vec3A::from(m.translation);
+        let mut lo = m.translation;
         let mut hi = lo;
         let cols = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
         let mn = [self.min.x, self.min.y, self.min.z];

@@ -87,6 +87,7 @@ impl<const W: usize> BoxTest<W> for ScalarBox {
     #[inline(always)]
     unsafe fn test(node: &WideNode<W>, r: &RayPre, tmax: f32, dist: &mut [f32; W]) -> u32 {
         let mut mask = 0;
+        #[allow(clippy::needless_range_loop)] // lane index into several SoA rows
         for i in 0..W {
             let mut tn = r.tmin;
             let mut tf = tmax;

@@ -41,7 +41,10 @@ impl UnitTriangle {
         let e2 = c - a;
         let n = e1.cross(e2);
         let det = n.length_squared(); // det [e1 e2 n] = (e1 x e2) . n
-        if !(det > 0.0) || !det.is_finite() || !a.is_finite() {
+        if det.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+            || !det.is_finite()
+            || !a.is_finite()
+        {
             return None;
         }
         // Rows of [e1 e2 n]^-1 (n is orthogonal to e1 and e2).
@@ -229,6 +232,7 @@ pub(crate) mod sse {
         }
         let mut best = 4;
         let mut bt = f32::INFINITY;
+        #[allow(clippy::needless_range_loop)] // lane index into three arrays and the mask
         for lane in 0..4 {
             if mask & (1 << lane) != 0 && (best == 4 || ts[lane] < bt) {
                 best = lane;

@@ -103,7 +103,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
         },
         ..MeshOptions::default()
     };
-    let world = World::new(scene, opts)?;
+    let mut world = World::new(scene, opts)?;
+    if world.ensure_light(desc.eye) {
+        tracing::info!("the scene has no lights: using a headlight at the camera");
+    }
     let build_s = t1.elapsed().as_secs_f64();
     let (w, h) = a.size;
     let settings = RenderSettings {

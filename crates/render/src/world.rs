@@ -132,6 +132,20 @@ impl World {
         Ok(w)
     }
 
+    /// Gives a scene with no lights and no emitters a headlight at the camera, so it is
+    /// not black; returns true when it did.
+    pub fn ensure_light(&mut self, eye: Vec3) -> bool {
+        if !self.lights.is_empty() {
+            return false;
+        }
+        self.lights.push(Light {
+            kind: LightKind::Point { position: eye },
+            color: Vec3::splat(0.9),
+            inverse_square: false,
+        });
+        true
+    }
+
     /// Closest hit.
     #[must_use]
     pub fn intersect(&self, r: &Ray) -> Option<Hit> {
@@ -233,7 +247,7 @@ impl World {
                 });
                 let n = (b - a).cross(c - a);
                 let area = n.length() * 0.5;
-                if !(area > 0.0) {
+                if area.is_nan() || area <= 0.0 {
                     continue;
                 }
                 let e = acc.entry(mat).or_insert((Vec3::ZERO, Vec3::ZERO, 0.0));

@@ -130,9 +130,8 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
             };
             let f = |k: &str| fm.get(k).and_then(|v| v.as_f64()).map(|x| x as f32);
             mat.ambient = v3("ambient").unwrap_or(mat.ambient);
-            if mat.diffuse_tex.is_none() {
-                mat.diffuse = v3("diffuse").unwrap_or(mat.diffuse);
-            }
+            // A texture modulates the AFF diffuse term (the glTF base colour factor is 1).
+            mat.diffuse = v3("diffuse").unwrap_or(mat.diffuse);
             mat.specular = v3("specular").unwrap_or(mat.specular);
             mat.reflect = mat.specular;
             mat.shininess = f("shine").unwrap_or(mat.shininess).max(1.0);

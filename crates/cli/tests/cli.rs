@@ -1,0 +1,184 @@
+//! The command line end to end.
+
+use std::path::Path;
+use std::process::Command;
+
+fn lucent() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_lucent"))
+}
+
+#[test]
+fn render_demo_writes_a_real_picture() {
+    let d = tempfile::tempdir().expect("tmp");
+    let out = d.path().join("demo.png");
+    let o = lucent()
+        .args(["render", "--size", "160x120", "--threads", "2", "-o"])
+        .arg(&out)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("Mrays/s") && text.contains("build"), "{text}");
+    let img = image::open(&out).expect("png").to_rgb8();
+    assert_eq!(img.dimensions(), (160, 120));
+    // Blue sky on top, and many distinct colours (not blank).
+    let sky = img.get_pixel(80, 2).0;
+    assert!(sky[2] > sky[0], "sky {sky:?}");
+    let mut colours: Vec<[u8; 3]> = img.pixels().map(|p| p.0).collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert!(colours.len() > 500, "only {} colours", colours.len());
+}
+
+#[test]
+fn render_errors_are_clear() {
+    let o = lucent()
+        .args(["render", "/no/such/scene.obj", "-o", "/tmp/x.png"])
+        .output()
+        .expect("run");
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("/no/such/scene.obj"), "{e}");
+    let o = lucent()
+        .args(["render", "--size", "12"])
+        .output()
+        .expect("run");
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("WIDTHxHEIGHT"));
+    let o = lucent()
+        .args(["render", "--camera", "1,2,3", "-o", "/tmp/x.png"])
+        .output()
+        .expect("run");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("10 finite numbers"));
+}
+
+#[test]
+fn info_prints_counts() {
+    let o = lucent().arg("info").output().expect("run");
+    assert!(o.status.success());
+    let t = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        t.contains("triangles:  2306") && t.contains("lights:     2") && t.contains("bytes"),
+        "{t}"
+    );
+}
+
+fn put_u32(b: &mut Vec<u8>, v: u32) {
+    b.extend_from_slice(&v.to_le_bytes());
+}
+
+/// Writes a dump in the harness's format: the unit square as two triangles and 16 rays down
+/// -z at y = 0.5 and x = 0.05, 0.15, ..., 1.55: the first ten hit.
+fn write_dump(dir: &Path) {
+    let mut m = b"RTBMESH1".to_vec();
+    put_u32(&mut m, 4);
+    put_u32(&mut m, 2);
+    for v in [0f32, 0., 0., 1., 0., 0., 1., 1., 0., 0., 1., 0.] {
+        m.extend_from_slice(&v.to_le_bytes());
+    }
+    for i in [0u32, 1, 2, 0, 2, 3] {
+        put_u32(&mut m, i);
+    }
+    std::fs::write(dir.join("mesh.bin"), m).expect("mesh");
+    for kind in ["primary", "shadow", "diffuse"] {
+        let mut r = b"RTBRAYS1".to_vec();
+        for v in [4u32, 4, 2, 16] {
+            put_u32(&mut r, v);
+        }
+        for blk in 0..2 {
+            let lane = |l: usize| (blk * 8 + l) as f32;
+            let rows: [[f32; 8]; 7] = [
+                std::array::from_fn(|l| 0.05 + lane(l) * 0.1),
+                [0.5; 8],
+                [1.0; 8],
+                [0.0; 8],
+                [0.0; 8],
+                [-1.0; 8],
+                [if kind == "shadow" { 2.0 } else { f32::INFINITY }; 8],
+            ];
+            for row in rows {
+                for v in row {
+                    r.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+            for _ in 0..8 {
+                r.extend_from_slice(&(-1i32).to_le_bytes());
+            }
+            for l in 0..8 {
+                r.extend_from_slice(&((blk * 8 + l) as i32).to_le_bytes());
+            }
+        }
+        std::fs::write(dir.join(format!("rays_{kind}.bin")), r).expect("rays");
+    }
+    // Triangle 0 = (0,0),(1,0),(1,1) holds y < x; triangle 1 holds y > x.
+    let ids: Vec<u8> = (0..16)
+        .flat_map(|i: i32| {
+            (match i {
+                0..=4 => 1i32,
+                5..=9 => 0,
+                _ => -1,
+            })
+            .to_le_bytes()
+        })
+        .collect();
+    std::fs::write(dir.join("ref_ids.bin"), ids).expect("ids");
+}
+
+#[test]
+fn bench_rays_reads_the_harness_format() {
+    let d = tempfile::tempdir().expect("tmp");
+    write_dump(d.path());
+    let o = lucent()
+        .args(["bench", "rays"])
+        .arg(d.path())
+        .args([
+            "--name",
+            "t",
+            "--threads",
+            "1,2",
+            "--frames",
+            "3",
+            "--warmup",
+            "1",
+        ])
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let t = String::from_utf8_lossy(&o.stdout);
+    let lines: Vec<&str> = t.lines().filter(|l| l.starts_with('{')).collect();
+    assert_eq!(
+        lines
+            .iter()
+            .filter(|l| l.contains("\"kind\":\"build\""))
+            .count(),
+        2,
+        "{t}"
+    );
+    let primary: Vec<&&str> = lines
+        .iter()
+        .filter(|l| l.contains("\"kind\":\"primary\""))
+        .collect();
+    assert_eq!(primary.len(), 2);
+    for l in &primary {
+        assert!(
+            l.contains("\"hits\":10")
+                && l.contains("\"diff_px_vs_ref\":0")
+                && l.contains("\"mrays_s\":"),
+            "{l}"
+        );
+    }
+    let shadow = lines
+        .iter()
+        .find(|l| l.contains("\"kind\":\"shadow\""))
+        .expect("shadow line");
+    assert!(shadow.contains("\"occluded\":10"), "{shadow}");
+    // Bad input: a truncated file gives a clear error.
+    std::fs::write(d.path().join("mesh.bin"), b"RTBMESH1\x05\0\0\0").expect("cut");
+    let o = lucent()
+        .args(["bench", "rays"])
+        .arg(d.path())
+        .output()
+        .expect("run");
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("mesh.bin"));
+}

@@ -1,0 +1,173 @@
+//! Every shared scene: it loads with the published counts, and every kernel agrees with the
+//! brute-force reference on seeded camera and random rays.
+
+mod common;
+use common::scene;
+use glam::Vec3;
+use lucent_accel::reference::intersect_triangles;
+use lucent_accel::{Kernel, MeshBvh, MeshOptions, Ray, TriangleTest, Width};
+use lucent_render::Camera;
+use lucent_scene::{load, CameraDesc};
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+
+/// (file, triangles, vertices) from shared/scenes/README.md.
+const COUNTS: &[(&str, usize, usize)] = &[
+    ("cornell_box/cornell_box.obj", 36, 76),
+    ("cornell_box_original/CornellBox-Original.obj", 36, 72),
+    ("bart/museum/museum5_t0.obj.gz", 11_820, 9_187),
+    ("bart/museum/museum5.gltf", 11_820, 9_187),
+    ("bart/kitchen/kitchen_t0.obj.gz", 110_561, 68_131),
+    ("bart/kitchen/kitchen.gltf", 110_561, 68_131),
+    ("sponza_dabrovic/sponza.obj.gz", 66_454, 39_999),
+    ("conference/conference.obj.gz", 331_179, 194_399),
+    ("stanford/bunny.ply", 69_451, 35_947),
+    ("gltf_animated/BoxAnimated.glb", 254, 320),
+    ("gltf_animated/CesiumMan.glb", 4_672, 3_273),
+];
+
+#[test]
+fn every_shared_scene_loads_with_its_counts() {
+    for &(file, tris, verts) in COUNTS {
+        let s = load(&scene(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let st = s.stats();
+        assert_eq!(st.triangles, tris, "{file}: triangles");
+        assert_eq!(st.vertices, verts, "{file}: vertices");
+        assert!(!s.instances.is_empty(), "{file}: no instances");
+        for m in &s.meshes {
+            assert_eq!(
+                m.material.len(),
+                m.indices.len(),
+                "{file}: one material per triangle"
+            );
+            assert!(
+                m.material.iter().all(|&i| (i as usize) < s.materials.len()),
+                "{file}: material out of range"
+            );
+        }
+    }
+    // Textures and lights where the README says there are some.
+    assert_eq!(
+        load(&scene("sponza_dabrovic/sponza.obj.gz"))
+            .expect("sponza")
+            .textures
+            .len(),
+        10
+    );
+    let k = load(&scene("bart/kitchen/kitchen.gltf")).expect("kitchen");
+    assert_eq!(k.textures.len(), 8);
+    assert_eq!(k.lights.len(), 6);
+    assert!(k.camera.is_some(), "the kitchen has an animated camera");
+    assert!(
+        k.materials
+            .iter()
+            .any(|m| m.transmit.max_element() > 0.0 && (m.ior - 1.55).abs() < 1e-6),
+        "transmission + ior read"
+    );
+}
+
+/// Scenes with their README cameras (eye, look-at, up, vfov).
+const VIEWS: &[(&str, [f32; 10])] = &[
+    (
+        "cornell_box/cornell_box.obj",
+        [278.0, 273.0, -800.0, 278.0, 273.0, 0.0, 0.0, 1.0, 0.0, 39.3],
+    ),
+    (
+        "bart/museum/museum5_t0.obj.gz",
+        [0.0, 1.6, -6.0, 0.0, 1.6, 0.0, 0.0, 1.0, 0.0, 45.0],
+    ),
+    (
+        "bart/kitchen/kitchen_t0.obj.gz",
+        [
+            3.75, 2.3, 3.6, 3.4365, 1.8802, 2.7482, -0.1270, 0.9074, -0.4005, 40.0,
+        ],
+    ),
+    (
+        "sponza_dabrovic/sponza.obj.gz",
+        [-10.0, 2.5, 0.0, 0.0, 4.5, 0.0, 0.0, 1.0, 0.0, 70.0],
+    ),
+    (
+        "conference/conference.obj.gz",
+        [
+            1550.0, 420.0, -150.0, 300.0, 150.0, -200.0, 0.0, 1.0, 0.0, 60.0,
+        ],
+    ),
+    (
+        "stanford/bunny.ply",
+        [
+            -0.0168, 0.11, 0.40, -0.0168, 0.11, -0.0015, 0.0, 1.0, 0.0, 30.0,
+        ],
+    ),
+];
+
+#[test]
+fn kernels_match_reference_on_shared_scenes() {
+    let mut variants = vec![
+        (Width::W8, Kernel::Scalar, TriangleTest::UnitTriangle),
+        (Width::W4, Kernel::Scalar, TriangleTest::UnitTriangle),
+    ];
+    if Kernel::simd_available() {
+        variants.push((Width::W8, Kernel::Simd, TriangleTest::UnitTriangle));
+        variants.push((Width::W4, Kernel::Simd, TriangleTest::UnitTriangle));
+    }
+    for &(file, c) in VIEWS {
+        let s = load(&scene(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let m = &s.meshes[0];
+        let cam = Camera::new(
+            &CameraDesc {
+                eye: Vec3::new(c[0], c[1], c[2]),
+                look_at: Vec3::new(c[3], c[4], c[5]),
+                up: Vec3::new(c[6], c[7], c[8]),
+                vfov_deg: c[9],
+                ortho_height: None,
+            },
+            64,
+            48,
+        );
+        let (lo, hi) = s.bounds().expect("bounds");
+        let mut rng = Pcg64::seed_from_u64(42);
+        // Camera rays over a 64x48 grid (subsampled) plus random rays through the bounds.
+        let mut rays: Vec<Ray> = (0..48)
+            .step_by(3)
+            .flat_map(|y| (0..64).step_by(3).map(move |x| (x, y)))
+            .map(|(x, y)| cam.ray(x as f32 + 0.5, y as f32 + 0.5))
+            .collect();
+        for _ in 0..120 {
+            let a = lo + (hi - lo) * Vec3::new(rng.random(), rng.random(), rng.random());
+            let b = lo + (hi - lo) * Vec3::new(rng.random(), rng.random(), rng.random());
+            rays.push(Ray::new(a, (b - a).normalize_or(Vec3::Y)));
+        }
+        let want: Vec<_> = rays
+            .iter()
+            .map(|r| intersect_triangles(&m.positions, &m.indices, r))
+            .collect();
+        for &(width, kernel, test) in &variants {
+            let mut bvh = MeshBvh::build(&m.positions, &m.indices, MeshOptions { width, test })
+                .expect("build");
+            bvh.validate().expect("well formed");
+            bvh.set_kernel(kernel);
+            for (r, w) in rays.iter().zip(&want) {
+                let g = bvh.intersect(r);
+                // Same hit or miss; the same distance up to the triangle test's own rounding
+                // (nearly coplanar triangles a few ulps apart may be found in either order).
+                match (w, g) {
+                    (None, None) => {}
+                    (Some(w), Some(g)) => assert!(
+                        (w.t - g.t).abs() <= 4e-6 * w.t,
+                        "{file} {width:?} {kernel:?}: t {} vs {} for {r:?}",
+                        w.t,
+                        g.t
+                    ),
+                    _ => panic!(
+                        "{file} {width:?} {kernel:?}: hit/miss differs for {r:?}: {w:?} vs {g:?}"
+                    ),
+                }
+                assert_eq!(
+                    bvh.occluded(r),
+                    w.is_some(),
+                    "{file} {width:?} {kernel:?}: occluded"
+                );
+            }
+        }
+    }
+}
