@@ -8,7 +8,7 @@
 //! primitives are tested at once), as Embree's builders do.
 
 use crate::geom::Aabb;
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 /// Number of bins per axis.
 pub const BINS: usize = 32;
@@ -36,47 +36,90 @@ pub struct BuildConfig {
 
 impl Default for BuildConfig {
     fn default() -> Self {
-        Self {
-            max_leaf: 8,
-            leaf_block: 4,
-            cost_traverse: 1.0,
-        }
+        Self { max_leaf: 8, leaf_block: 4, cost_traverse: 1.0 }
     }
 }
 
-/// One primitive to build over: its box and its id.
+/// One primitive to build over: its box and its id (32 bytes, two SIMD registers).
+///
+/// PERF: the id rides in the w lane of `lo` (as bits), so box unions are plain SIMD
+/// min/max; the w lanes of unions are garbage and never read. The bits are offset by
+/// [`ID_BIAS`] so that w always holds a *normal* float: raw small ids would be denormals,
+/// and every SIMD operation touching them would take a slow microcode assist.
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]
 pub struct PrimRef {
-    /// Lower corner.
-    pub min: Vec3,
-    /// Primitive id.
-    pub id: u32,
-    /// Upper corner.
-    pub max: Vec3,
-    _pad: u32,
+    lo: Vec4,
+    hi: Vec4,
 }
 
+/// Offset of the id bits: the smallest normal f32. Ids must be below `MAX_PRIMS`.
+const ID_BIAS: u32 = 0x0080_0000;
+/// Most primitives one build takes (their biased bits stay below +inf).
+pub const MAX_PRIMS: u32 = 1 << 30;
+
 impl PrimRef {
-    /// A reference to primitive `id` with box `b`.
+    /// A reference to primitive `id` (below [`MAX_PRIMS`]) with box `b`.
     #[must_use]
     pub fn new(b: Aabb, id: u32) -> Self {
-        Self {
-            min: b.min,
-            id,
-            max: b.max,
-            _pad: 0,
-        }
+        debug_assert!(id < MAX_PRIMS);
+        Self { lo: b.min.extend(f32::from_bits(id + ID_BIAS)), hi: b.max.extend(1.0) }
+    }
+    /// Primitive id.
+    #[inline(always)]
+    #[must_use]
+    pub fn id(&self) -> u32 {
+        self.lo.w.to_bits() - ID_BIAS
+    }
+    /// Lower corner.
+    #[must_use]
+    pub fn min(&self) -> Vec3 {
+        self.lo.truncate()
+    }
+    /// Upper corner.
+    #[must_use]
+    pub fn max(&self) -> Vec3 {
+        self.hi.truncate()
     }
     #[inline(always)]
-    fn centroid2(&self) -> Vec3 {
-        self.min + self.max
+    fn centroid2(&self) -> Vec4 {
+        self.lo + self.hi
+    }
+}
+
+/// A box in SIMD form for the builder's hot loops.
+#[derive(Clone, Copy, Debug)]
+struct Box4 {
+    lo: Vec4,
+    hi: Vec4,
+}
+
+impl Box4 {
+    const EMPTY: Self = Self { lo: Vec4::INFINITY, hi: Vec4::NEG_INFINITY };
+    #[inline(always)]
+    fn add(&mut self, p: &PrimRef) {
+        self.lo = self.lo.min(p.lo);
+        self.hi = self.hi.max(p.hi);
+    }
+    #[inline(always)]
+    fn grow(&mut self, c: Vec4) {
+        self.lo = self.lo.min(c);
+        self.hi = self.hi.max(c);
+    }
+    #[inline(always)]
+    fn union(self, o: Self) -> Self {
+        Self { lo: self.lo.min(o.lo), hi: self.hi.max(o.hi) }
+    }
+    #[inline(always)]
+    fn half_area(&self) -> f32 {
+        let e = (self.hi - self.lo).truncate();
+        if e.x < 0.0 {
+            return 0.0;
+        }
+        e.x * e.y + e.y * e.z + e.z * e.x
     }
     fn aabb(&self) -> Aabb {
-        Aabb {
-            min: self.min,
-            max: self.max,
-        }
+        Aabb { min: self.lo.truncate(), max: self.hi.truncate() }
     }
 }
 
@@ -136,19 +179,12 @@ impl BinaryBvh {
     /// one leaf, leaf sizes within bounds. Returns a description of the first violation.
     pub fn validate(&self, cfg: &BuildConfig) -> Result<(), String> {
         if self.nodes.is_empty() {
-            return if self.prims.is_empty() {
-                Ok(())
-            } else {
-                Err("primitives but no nodes".into())
-            };
+            return if self.prims.is_empty() { Ok(()) } else { Err("primitives but no nodes".into()) };
         }
         let mut seen = vec![0u8; self.prims.len()];
         let mut stack = vec![(0usize, 0u32)];
         while let Some((i, depth)) = stack.pop() {
-            let n = self
-                .nodes
-                .get(i)
-                .ok_or_else(|| format!("node {i} out of range"))?;
+            let n = self.nodes.get(i).ok_or_else(|| format!("node {i} out of range"))?;
             if depth > MAX_DEPTH {
                 return Err(format!("depth {depth} beyond {MAX_DEPTH}"));
             }
@@ -157,24 +193,16 @@ impl BinaryBvh {
                     return Err(format!("leaf {i} has {} primitives", n.count));
                 }
                 for p in n.first..n.first + n.count {
-                    let pr = self
-                        .prims
-                        .get(p as usize)
-                        .ok_or_else(|| format!("leaf {i} prim {p} out of range"))?;
-                    if !(n.bounds.contains(pr.min) && n.bounds.contains(pr.max)) {
-                        return Err(format!("leaf {i} does not contain prim {}", pr.id));
+                    let pr = self.prims.get(p as usize).ok_or_else(|| format!("leaf {i} prim {p} out of range"))?;
+                    if !(n.bounds.contains(pr.min()) && n.bounds.contains(pr.max())) {
+                        return Err(format!("leaf {i} does not contain prim {}", pr.id()));
                     }
                     seen[p as usize] += 1;
                 }
             } else {
                 for c in [n.first as usize, n.right as usize] {
-                    let cn = self
-                        .nodes
-                        .get(c)
-                        .ok_or_else(|| format!("child {c} of {i} out of range"))?;
-                    if !(cn.bounds.is_empty()
-                        || n.bounds.contains(cn.bounds.min) && n.bounds.contains(cn.bounds.max))
-                    {
+                    let cn = self.nodes.get(c).ok_or_else(|| format!("child {c} of {i} out of range"))?;
+                    if !(cn.bounds.is_empty() || n.bounds.contains(cn.bounds.min) && n.bounds.contains(cn.bounds.max)) {
                         return Err(format!("child {c} sticks out of node {i}"));
                     }
                     stack.push((c, depth + 1));
@@ -206,22 +234,19 @@ pub fn build_binary(mut prims: Vec<PrimRef>, cfg: &BuildConfig) -> BinaryBvh {
     BinaryBvh { nodes, prims }
 }
 
-fn bounds_of(prims: &[PrimRef]) -> (Aabb, Aabb) {
+fn bounds_of(prims: &[PrimRef]) -> (Box4, Box4) {
     let fold = |s: &[PrimRef]| {
-        let mut b = Aabb::EMPTY;
-        let mut c = Aabb::EMPTY;
+        let mut b = Box4::EMPTY;
+        let mut c = Box4::EMPTY;
         for p in s {
-            b = b.union(p.aabb());
-            c = c.grow(p.centroid2());
+            b.add(p);
+            c.grow(p.centroid2());
         }
         (b, c)
     };
     if prims.len() > PARALLEL_BIN_MIN {
         use rayon::prelude::*;
-        prims.par_chunks(PARALLEL_BIN_MIN / 4).map(fold).reduce(
-            || (Aabb::EMPTY, Aabb::EMPTY),
-            |a, b| (a.0.union(b.0), a.1.union(b.1)),
-        )
+        prims.par_chunks(PARALLEL_BIN_MIN / 4).map(fold).reduce(|| (Box4::EMPTY, Box4::EMPTY), |a, b| (a.0.union(b.0), a.1.union(b.1)))
     } else {
         fold(prims)
     }
@@ -229,16 +254,13 @@ fn bounds_of(prims: &[PrimRef]) -> (Aabb, Aabb) {
 
 #[derive(Clone, Copy)]
 struct Bins {
-    b: [[Aabb; BINS]; 3],
+    b: [[Box4; BINS]; 3],
     n: [[u32; BINS]; 3],
 }
 
 impl Bins {
     fn new() -> Self {
-        Self {
-            b: [[Aabb::EMPTY; BINS]; 3],
-            n: [[0; BINS]; 3],
-        }
+        Self { b: [[Box4::EMPTY; BINS]; 3], n: [[0; BINS]; 3] }
     }
     fn merge(mut self, o: &Self) -> Self {
         for k in 0..3 {
@@ -254,38 +276,42 @@ impl Bins {
 /// Maps doubled centroids to bins along each axis.
 #[derive(Clone, Copy)]
 struct Binner {
-    origin: Vec3,
-    scale: Vec3,
+    origin: Vec4,
+    scale: Vec4,
+    /// Bins in use: fewer for small nodes, where the sweep would dominate.
+    nb: usize,
 }
 
 impl Binner {
-    fn new(cb: &Aabb) -> Self {
-        let ext = cb.extent();
-        let s = |e: f32| {
-            if e > 0.0 {
-                (BINS as f32 * 0.9999) / e
-            } else {
-                0.0
-            }
+    fn new(cb: &Box4, n: usize) -> Self {
+        let nb = if n < 64 {
+            8
+        } else if n < 1024 {
+            16
+        } else {
+            BINS
         };
-        Self {
-            origin: cb.min,
-            scale: Vec3::new(s(ext.x), s(ext.y), s(ext.z)),
-        }
+        let ext = cb.hi - cb.lo;
+        let s = |e: f32| if e > 0.0 { (nb as f32 * 0.9999) / e } else { 0.0 };
+        Self { origin: cb.lo, scale: Vec4::new(s(ext.x), s(ext.y), s(ext.z), 0.0), nb }
+    }
+    /// Bin indices on all three axes.
+    #[inline(always)]
+    fn bins(&self, c2: Vec4) -> [usize; 3] {
+        let f = ((c2 - self.origin) * self.scale).max(Vec4::ZERO).min(Vec4::splat((self.nb - 1) as f32));
+        [f.x as usize, f.y as usize, f.z as usize]
     }
     #[inline(always)]
-    fn bin(&self, c2: Vec3, axis: usize) -> usize {
+    fn bin(&self, c2: Vec4, axis: usize) -> usize {
         let f = (c2[axis] - self.origin[axis]) * self.scale[axis];
-        (f.max(0.0) as usize).min(BINS - 1)
+        (f.max(0.0) as usize).min(self.nb - 1)
     }
     fn fill(&self, prims: &[PrimRef]) -> Bins {
         let mut bins = Bins::new();
         for p in prims {
-            let c = p.centroid2();
-            let b = p.aabb();
-            for k in 0..3 {
-                let i = self.bin(c, k);
-                bins.b[k][i] = bins.b[k][i].union(b);
+            let idx = self.bins(p.centroid2());
+            for (k, &i) in idx.iter().enumerate() {
+                bins.b[k][i].add(p);
                 bins.n[k][i] += 1;
             }
         }
@@ -299,14 +325,12 @@ struct Split {
     cost: f32,
 }
 
-fn find_split(prims: &[PrimRef], cb: &Aabb, cfg: &BuildConfig) -> (Option<Split>, Binner) {
-    let binner = Binner::new(cb);
+fn find_split(prims: &[PrimRef], cb: &Box4, cfg: &BuildConfig) -> (Option<Split>, Binner) {
+    let binner = Binner::new(cb, prims.len());
+    let nb = binner.nb;
     let bins = if prims.len() > PARALLEL_BIN_MIN {
         use rayon::prelude::*;
-        prims
-            .par_chunks(PARALLEL_BIN_MIN / 4)
-            .map(|c| binner.fill(c))
-            .reduce(Bins::new, |a, b| a.merge(&b))
+        prims.par_chunks(PARALLEL_BIN_MIN / 4).map(|c| binner.fill(c)).reduce(Bins::new, |a, b| a.merge(&b))
     } else {
         binner.fill(prims)
     };
@@ -317,30 +341,25 @@ fn find_split(prims: &[PrimRef], cb: &Aabb, cfg: &BuildConfig) -> (Option<Split>
         }
         let mut right_area = [0.0f32; BINS];
         let mut right_n = [0usize; BINS];
-        let mut acc = Aabb::EMPTY;
+        let mut acc = Box4::EMPTY;
         let mut n = 0usize;
-        for i in (1..BINS).rev() {
+        for i in (1..nb).rev() {
             acc = acc.union(bins.b[k][i]);
             n += bins.n[k][i] as usize;
             right_area[i] = acc.half_area();
             right_n[i] = n;
         }
-        let mut acc = Aabb::EMPTY;
+        let mut acc = Box4::EMPTY;
         let mut n = 0usize;
-        for i in 1..BINS {
+        for i in 1..nb {
             acc = acc.union(bins.b[k][i - 1]);
             n += bins.n[k][i - 1] as usize;
             if n == 0 || right_n[i] == 0 {
                 continue;
             }
-            let cost = acc.half_area() * blocks(n, cfg.leaf_block) as f32
-                + right_area[i] * blocks(right_n[i], cfg.leaf_block) as f32;
+            let cost = acc.half_area() * blocks(n, cfg.leaf_block) as f32 + right_area[i] * blocks(right_n[i], cfg.leaf_block) as f32;
             if best.as_ref().is_none_or(|b| cost < b.cost) {
-                best = Some(Split {
-                    axis: k,
-                    bin: i,
-                    cost,
-                });
+                best = Some(Split { axis: k, bin: i, cost });
             }
         }
     }
@@ -349,45 +368,37 @@ fn find_split(prims: &[PrimRef], cb: &Aabb, cfg: &BuildConfig) -> (Option<Split>
 
 /// Partitions `prims` so that those `go_left` come first; returns the left count and the
 /// bounds and centroid bounds of both sides.
-fn partition(
-    prims: &mut [PrimRef],
-    go_left: impl Fn(&PrimRef) -> bool,
-) -> (usize, [(Aabb, Aabb); 2]) {
-    let mut side = [(Aabb::EMPTY, Aabb::EMPTY); 2];
+fn partition(prims: &mut [PrimRef], go_left: impl Fn(&PrimRef) -> bool) -> (usize, [(Box4, Box4); 2]) {
+    let mut side = [(Box4::EMPTY, Box4::EMPTY); 2];
     let mut i = 0;
     let mut j = prims.len();
     while i < j {
-        if go_left(&prims[i]) {
-            side[0].0 = side[0].0.union(prims[i].aabb());
-            side[0].1 = side[0].1.grow(prims[i].centroid2());
+        let p = prims[i];
+        let s = if go_left(&p) {
             i += 1;
+            0
         } else {
             j -= 1;
-            side[1].0 = side[1].0.union(prims[i].aabb());
-            side[1].1 = side[1].1.grow(prims[i].centroid2());
             prims.swap(i, j);
-        }
+            1
+        };
+        side[s].0.add(&p);
+        side[s].1.grow(p.centroid2());
     }
     (i, side)
 }
 
-fn make_leaf(nodes: &mut Vec<BinNode>, bounds: Aabb, offset: usize, n: usize) -> u32 {
-    nodes.push(BinNode {
-        bounds,
-        first: offset as u32,
-        right: 0,
-        count: n as u32,
-    });
+fn make_leaf(nodes: &mut Vec<BinNode>, bounds: Box4, offset: usize, n: usize) -> u32 {
+    nodes.push(BinNode { bounds: bounds.aabb(), first: offset as u32, right: 0, count: n as u32 });
     (nodes.len() - 1) as u32
 }
 
-#[allow(clippy::too_many_arguments)]
 fn build_rec(
     cfg: &BuildConfig,
     prims: &mut [PrimRef],
     offset: usize,
-    bounds: Aabb,
-    cbounds: Aabb,
+    bounds: Box4,
+    cbounds: Box4,
     depth: u32,
     nodes: &mut Vec<BinNode>,
 ) -> u32 {
@@ -396,11 +407,7 @@ fn build_rec(
     if n <= 1 {
         return make_leaf(nodes, bounds, offset, n);
     }
-    let (split, binner) = if depth >= MEDIAN_DEPTH {
-        (None, Binner::new(&cbounds))
-    } else {
-        find_split(prims, &cbounds, cfg)
-    };
+    let (split, binner) = if depth >= MEDIAN_DEPTH { (None, Binner::new(&cbounds, n)) } else { find_split(prims, &cbounds, cfg) };
     let area = bounds.half_area();
     let leaf_cost = blocks(n, cfg.leaf_block) as f32 * area;
     let (nl, sides) = match split {
@@ -410,24 +417,15 @@ fn build_rec(
         _ if n <= max_leaf => return make_leaf(nodes, bounds, offset, n),
         _ => {
             // No useful split (equal centroids, or too deep): object median along the widest axis.
-            let axis = cbounds.extent().max_position();
+            let axis = cbounds.aabb().extent().max_position();
             let mid = n / 2;
-            prims.select_nth_unstable_by(mid, |a, b| {
-                a.centroid2()[axis].total_cmp(&b.centroid2()[axis])
-            });
+            prims.select_nth_unstable_by(mid, |a, b| a.centroid2()[axis].total_cmp(&b.centroid2()[axis]));
             let (l, r) = prims.split_at(mid);
-            let (bl, cl) = bounds_of(l);
-            let (br, cr) = bounds_of(r);
-            (mid, [(bl, cl), (br, cr)])
+            (mid, [bounds_of(l), bounds_of(r)])
         }
     };
     let me = nodes.len();
-    nodes.push(BinNode {
-        bounds,
-        first: 0,
-        right: 0,
-        count: 0,
-    });
+    nodes.push(BinNode { bounds: bounds.aabb(), first: 0, right: 0, count: 0 });
     let (left, right) = prims.split_at_mut(nl);
     let [(bl, cl), (br, cr)] = sides;
     let (li, ri) = if n > PARALLEL_MIN {

@@ -22,12 +22,7 @@ impl Ray {
     /// A ray from `org` along `dir` over `[0, inf)`.
     #[must_use]
     pub fn new(org: Vec3, dir: Vec3) -> Self {
-        Self {
-            org,
-            dir,
-            tmin: 0.0,
-            tmax: f32::INFINITY,
-        }
+        Self { org, dir, tmin: 0.0, tmax: f32::INFINITY }
     }
 
     /// The same ray restricted to `[tmin, tmax)`.
@@ -47,12 +42,7 @@ impl Ray {
     /// The ray carried into another space by an affine map (direction not renormalized).
     #[must_use]
     pub fn transformed(&self, to_from: &Affine3A) -> Self {
-        Self {
-            org: to_from.transform_point3(self.org),
-            dir: to_from.transform_vector3(self.dir),
-            tmin: self.tmin,
-            tmax: self.tmax,
-        }
+        Self { org: to_from.transform_point3(self.org), dir: to_from.transform_vector3(self.dir), tmin: self.tmin, tmax: self.tmax }
     }
 }
 
@@ -75,13 +65,7 @@ impl Hit {
     /// "No hit yet" with the search limited to `tmax`.
     #[must_use]
     pub fn none(tmax: f32) -> Self {
-        Self {
-            t: tmax,
-            u: 0.0,
-            v: 0.0,
-            prim: INVALID,
-            inst: INVALID,
-        }
+        Self { t: tmax, u: 0.0, v: 0.0, prim: INVALID, inst: INVALID }
     }
 
     /// True when a primitive was hit.
@@ -111,10 +95,7 @@ impl Default for Aabb {
 
 impl Aabb {
     /// The empty box (the identity of `union`).
-    pub const EMPTY: Self = Self {
-        min: Vec3::INFINITY,
-        max: Vec3::NEG_INFINITY,
-    };
+    pub const EMPTY: Self = Self { min: Vec3::INFINITY, max: Vec3::NEG_INFINITY };
 
     /// The box spanning the given points.
     #[must_use]
@@ -125,19 +106,13 @@ impl Aabb {
     /// This box grown to contain `p`.
     #[must_use]
     pub fn grow(self, p: Vec3) -> Self {
-        Self {
-            min: self.min.min(p),
-            max: self.max.max(p),
-        }
+        Self { min: self.min.min(p), max: self.max.max(p) }
     }
 
     /// The smallest box containing both.
     #[must_use]
     pub fn union(self, o: Self) -> Self {
-        Self {
-            min: self.min.min(o.min),
-            max: self.max.max(o.max),
-        }
+        Self { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
 
     /// True for the empty box (or any inverted one).
@@ -202,10 +177,7 @@ impl Aabb {
             lo += a.min(b);
             hi += a.max(b);
         }
-        Self {
-            min: lo.into(),
-            max: hi.into(),
-        }
+        Self { min: lo.into(), max: hi.into() }
     }
 
     /// True when `p` lies inside or on the box.

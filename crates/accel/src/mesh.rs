@@ -5,8 +5,7 @@ use crate::geom::{Aabb, Hit, Ray};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::traverse::{self, Leaves, RayPre};
 use crate::triangle::{
-    tri4_intersect, tri4_intersect_scalar, tri4_occluded, tri4_occluded_scalar, Tri4, UnitTriangle,
-    WatertightRay, NEVER_HIT,
+    tri4_intersect, tri4_intersect_scalar, tri4_occluded, tri4_occluded_scalar, Tri4, UnitTriangle, WatertightRay, NEVER_HIT,
 };
 use crate::wide::{collapse, leaf_code, WideNode};
 use glam::Vec3;
@@ -106,33 +105,15 @@ pub struct MeshBvh {
 impl MeshBvh {
     /// Builds the BVH of triangles `indices` over `positions`. Triangles with non-finite
     /// vertices or zero area are left out (no ray can hit them).
-    pub fn build(
-        positions: &[Vec3],
-        indices: &[[u32; 3]],
-        opts: MeshOptions,
-    ) -> Result<Self, BuildError> {
+    pub fn build(positions: &[Vec3], indices: &[[u32; 3]], opts: MeshOptions) -> Result<Self, BuildError> {
         let nv = positions.len();
-        if let Some((tri, index)) = indices
-            .iter()
-            .enumerate()
-            .find_map(|(t, i)| i.iter().find(|&&v| v as usize >= nv).map(|&v| (t, v)))
-        {
-            return Err(BuildError::IndexOutOfRange {
-                tri,
-                index,
-                vertices: nv,
-            });
+        if let Some((tri, index)) = indices.iter().enumerate().find_map(|(t, i)| i.iter().find(|&&v| v as usize >= nv).map(|&v| (t, v))) {
+            return Err(BuildError::IndexOutOfRange { tri, index, vertices: nv });
         }
         if indices.len() >= (1 << 29) {
             return Err(BuildError::TooLarge(indices.len()));
         }
-        let verts = |t: &[u32; 3]| {
-            [
-                positions[t[0] as usize],
-                positions[t[1] as usize],
-                positions[t[2] as usize],
-            ]
-        };
+        let verts = |t: &[u32; 3]| [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
         let units: Vec<Option<[f32; 12]>> = indices
             .par_iter()
             .map(|t| {
@@ -146,15 +127,7 @@ impl MeshBvh {
             .filter(|(i, _)| units[*i].is_some())
             .map(|(i, t)| PrimRef::new(Aabb::from_points(&verts(t)), i as u32))
             .collect();
-        let cfg = BuildConfig {
-            max_leaf: 8,
-            leaf_block: if opts.test == TriangleTest::UnitTriangle {
-                4
-            } else {
-                1
-            },
-            cost_traverse: 1.0,
-        };
+        let cfg = BuildConfig { max_leaf: 8, leaf_block: if opts.test == TriangleTest::UnitTriangle { 4 } else { 1 }, cost_traverse: 1.0 };
         let bin = build_binary(prims, &cfg);
         let sah = bin.sah_cost(&cfg);
         let bounds = bin.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds);
@@ -164,9 +137,7 @@ impl MeshBvh {
         let mut leaves = 0usize;
         let mut make_leaf = |first: u32, count: u32| -> Result<u32, BuildError> {
             leaves += 1;
-            let ids = bin.prims[first as usize..(first + count) as usize]
-                .iter()
-                .map(|p| p.id);
+            let ids = bin.prims[first as usize..(first + count) as usize].iter().map(|p| p.id());
             match opts.test {
                 TriangleTest::UnitTriangle => {
                     let start = tris.len() as u32;
@@ -200,27 +171,9 @@ impl MeshBvh {
             Nodes::W4(n) => (n.len(), std::mem::size_of_val(n.as_slice())),
             Nodes::W8(n) => (n.len(), std::mem::size_of_val(n.as_slice())),
         };
-        let bytes = node_bytes
-            + std::mem::size_of_val(tris.as_slice())
-            + std::mem::size_of_val(wt_verts.as_slice())
-            + 4 * wt_ids.len();
-        let stats = BvhStats {
-            nodes: n_nodes,
-            leaves,
-            prims: bin.prims.len(),
-            sah,
-            bytes,
-        };
-        Ok(Self {
-            nodes,
-            tris,
-            wt_verts,
-            wt_ids,
-            test: opts.test,
-            bounds,
-            kernel: Kernel::detect(),
-            stats,
-        })
+        let bytes = node_bytes + std::mem::size_of_val(tris.as_slice()) + std::mem::size_of_val(wt_verts.as_slice()) + 4 * wt_ids.len();
+        let stats = BvhStats { nodes: n_nodes, leaves, prims: bin.prims.len(), sah, bytes };
+        Ok(Self { nodes, tris, wt_verts, wt_ids, test: opts.test, bounds, kernel: Kernel::detect(), stats })
     }
 
     /// Bounds of the indexed triangles.
@@ -281,33 +234,13 @@ impl MeshBvh {
         // SAFETY (all arms): the caller selected K for this CPU.
         match (self.test, &self.nodes) {
             (TriangleTest::UnitTriangle, Nodes::W8(n)) => unsafe {
-                traverse::intersect::<8, K::B8, _>(
-                    n,
-                    &UnitLeaves::<K> {
-                        tris: &self.tris,
-                        k: std::marker::PhantomData,
-                    },
-                    pre,
-                    hit,
-                )
+                traverse::intersect::<8, K::B8, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, hit)
             },
             (TriangleTest::UnitTriangle, Nodes::W4(n)) => unsafe {
-                traverse::intersect::<4, K::B4, _>(
-                    n,
-                    &UnitLeaves::<K> {
-                        tris: &self.tris,
-                        k: std::marker::PhantomData,
-                    },
-                    pre,
-                    hit,
-                )
+                traverse::intersect::<4, K::B4, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, hit)
             },
-            (TriangleTest::Watertight, Nodes::W8(n)) => unsafe {
-                traverse::intersect::<8, K::B8, _>(n, &self.wt_leaves(pre), pre, hit)
-            },
-            (TriangleTest::Watertight, Nodes::W4(n)) => unsafe {
-                traverse::intersect::<4, K::B4, _>(n, &self.wt_leaves(pre), pre, hit)
-            },
+            (TriangleTest::Watertight, Nodes::W8(n)) => unsafe { traverse::intersect::<8, K::B8, _>(n, &self.wt_leaves(pre), pre, hit) },
+            (TriangleTest::Watertight, Nodes::W4(n)) => unsafe { traverse::intersect::<4, K::B4, _>(n, &self.wt_leaves(pre), pre, hit) },
         }
         hit.t < before
     }
@@ -317,42 +250,18 @@ impl MeshBvh {
         // SAFETY (all arms): the caller selected K for this CPU.
         match (self.test, &self.nodes) {
             (TriangleTest::UnitTriangle, Nodes::W8(n)) => unsafe {
-                traverse::occluded::<8, K::B8, _>(
-                    n,
-                    &UnitLeaves::<K> {
-                        tris: &self.tris,
-                        k: std::marker::PhantomData,
-                    },
-                    pre,
-                    tmax,
-                )
+                traverse::occluded::<8, K::B8, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, tmax)
             },
             (TriangleTest::UnitTriangle, Nodes::W4(n)) => unsafe {
-                traverse::occluded::<4, K::B4, _>(
-                    n,
-                    &UnitLeaves::<K> {
-                        tris: &self.tris,
-                        k: std::marker::PhantomData,
-                    },
-                    pre,
-                    tmax,
-                )
+                traverse::occluded::<4, K::B4, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, tmax)
             },
-            (TriangleTest::Watertight, Nodes::W8(n)) => unsafe {
-                traverse::occluded::<8, K::B8, _>(n, &self.wt_leaves(pre), pre, tmax)
-            },
-            (TriangleTest::Watertight, Nodes::W4(n)) => unsafe {
-                traverse::occluded::<4, K::B4, _>(n, &self.wt_leaves(pre), pre, tmax)
-            },
+            (TriangleTest::Watertight, Nodes::W8(n)) => unsafe { traverse::occluded::<8, K::B8, _>(n, &self.wt_leaves(pre), pre, tmax) },
+            (TriangleTest::Watertight, Nodes::W4(n)) => unsafe { traverse::occluded::<4, K::B4, _>(n, &self.wt_leaves(pre), pre, tmax) },
         }
     }
 
     fn wt_leaves(&self, pre: &RayPre) -> WtLeaves<'_> {
-        WtLeaves {
-            verts: &self.wt_verts,
-            ids: &self.wt_ids,
-            ray: WatertightRay::new(pre.org, pre.dir),
-        }
+        WtLeaves { verts: &self.wt_verts, ids: &self.wt_ids, ray: WatertightRay::new(pre.org, pre.dir) }
     }
 
     /// Checks the node structure: every child index in range, every leaf range in range.
@@ -375,11 +284,7 @@ impl MeshBvh {
             }
             Ok(())
         }
-        let items = if self.test == TriangleTest::UnitTriangle {
-            self.tris.len()
-        } else {
-            self.wt_ids.len()
-        };
+        let items = if self.test == TriangleTest::UnitTriangle { self.tris.len() } else { self.wt_ids.len() };
         match &self.nodes {
             Nodes::W4(n) => check(n, items),
             Nodes::W8(n) => check(n, items),
@@ -448,13 +353,7 @@ impl Leaves for WtLeaves<'_> {
         for i in first as usize..(first + count) as usize {
             let [a, b, c] = self.verts[i];
             if let Some((t, u, v)) = self.ray.hit(a, b, c, r.tmin, hit.t) {
-                *hit = Hit {
-                    t,
-                    u,
-                    v,
-                    prim: self.ids[i],
-                    inst: hit.inst,
-                };
+                *hit = Hit { t, u, v, prim: self.ids[i], inst: hit.inst };
             }
         }
     }

@@ -11,22 +11,12 @@ pub fn intersect_triangles(positions: &[Vec3], indices: &[[u32; 3]], ray: &Ray) 
     let mut best: Option<Hit> = None;
     let mut tmax = ray.tmax;
     for (i, t) in indices.iter().enumerate() {
-        let Some(u) = UnitTriangle::new(
-            positions[t[0] as usize],
-            positions[t[1] as usize],
-            positions[t[2] as usize],
-        ) else {
+        let Some(u) = UnitTriangle::new(positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]) else {
             continue;
         };
         if let Some((t, u, v)) = unit_triangle_hit(&u.m, ray.org, ray.dir, ray.tmin, tmax) {
             tmax = t;
-            best = Some(Hit {
-                t,
-                u,
-                v,
-                prim: i as u32,
-                inst: INVALID,
-            });
+            best = Some(Hit { t, u, v, prim: i as u32, inst: INVALID });
         }
     }
     best
@@ -34,30 +24,14 @@ pub fn intersect_triangles(positions: &[Vec3], indices: &[[u32; 3]], ray: &Ray) 
 
 /// Closest hit over all triangles with the watertight test.
 #[must_use]
-pub fn intersect_triangles_watertight(
-    positions: &[Vec3],
-    indices: &[[u32; 3]],
-    ray: &Ray,
-) -> Option<Hit> {
+pub fn intersect_triangles_watertight(positions: &[Vec3], indices: &[[u32; 3]], ray: &Ray) -> Option<Hit> {
     let w = WatertightRay::new(ray.org, ray.dir);
     let mut best: Option<Hit> = None;
     let mut tmax = ray.tmax;
     for (i, t) in indices.iter().enumerate() {
-        if let Some((t, u, v)) = w.hit(
-            positions[t[0] as usize],
-            positions[t[1] as usize],
-            positions[t[2] as usize],
-            ray.tmin,
-            tmax,
-        ) {
+        if let Some((t, u, v)) = w.hit(positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize], ray.tmin, tmax) {
             tmax = t;
-            best = Some(Hit {
-                t,
-                u,
-                v,
-                prim: i as u32,
-                inst: INVALID,
-            });
+            best = Some(Hit { t, u, v, prim: i as u32, inst: INVALID });
         }
     }
     best
@@ -67,12 +41,8 @@ pub fn intersect_triangles_watertight(
 #[must_use]
 pub fn occluded_triangles(positions: &[Vec3], indices: &[[u32; 3]], ray: &Ray) -> bool {
     indices.iter().any(|t| {
-        UnitTriangle::new(
-            positions[t[0] as usize],
-            positions[t[1] as usize],
-            positions[t[2] as usize],
-        )
-        .is_some_and(|u| unit_triangle_hit(&u.m, ray.org, ray.dir, ray.tmin, ray.tmax).is_some())
+        UnitTriangle::new(positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize])
+            .is_some_and(|u| unit_triangle_hit(&u.m, ray.org, ray.dir, ray.tmin, ray.tmax).is_some())
     })
 }
 
@@ -87,26 +57,20 @@ pub enum RefGeometry<'a> {
 
 /// Closest hit over instances, each tested in full.
 #[must_use]
-pub fn intersect_instances(
-    geoms: &[RefGeometry<'_>],
-    instances: &[(u32, Affine3A)],
-    ray: &Ray,
-) -> Option<Hit> {
+pub fn intersect_instances(geoms: &[RefGeometry<'_>], instances: &[(u32, Affine3A)], ray: &Ray) -> Option<Hit> {
     let mut best: Option<Hit> = None;
     let mut tmax = ray.tmax;
     for (id, (g, world_from_object)) in instances.iter().enumerate() {
         let local = Ray { tmax, ..*ray }.transformed(&world_from_object.inverse());
         let h = match geoms[*g as usize] {
             RefGeometry::Mesh(p, i) => intersect_triangles(p, i, &local),
-            RefGeometry::Shape(s) => s
-                .intersect_local(local.org, local.dir, local.tmin, local.tmax)
-                .map(|h| Hit {
-                    t: h.t,
-                    u: h.u,
-                    v: h.v,
-                    prim: h.part,
-                    inst: 0,
-                }),
+            RefGeometry::Shape(s) => s.intersect_local(local.org, local.dir, local.tmin, local.tmax).map(|h| Hit {
+                t: h.t,
+                u: h.u,
+                v: h.v,
+                prim: h.part,
+                inst: 0,
+            }),
         };
         if let Some(mut h) = h {
             h.inst = id as u32;

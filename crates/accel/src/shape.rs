@@ -54,26 +54,11 @@ impl Shape {
     pub fn bounds_local(self) -> Aabb {
         let inf = f32::INFINITY;
         match self {
-            Shape::Sphere | Shape::CappedCylinder | Shape::Box => Aabb {
-                min: Vec3::splat(-1.0),
-                max: Vec3::ONE,
-            },
-            Shape::Cylinder => Aabb {
-                min: Vec3::new(-1.0, -1.0, -inf),
-                max: Vec3::new(1.0, 1.0, inf),
-            },
-            Shape::Cone => Aabb {
-                min: Vec3::splat(-inf),
-                max: Vec3::splat(inf),
-            },
-            Shape::CappedCone => Aabb {
-                min: Vec3::new(-1.0, -1.0, 0.0),
-                max: Vec3::ONE,
-            },
-            Shape::Disk => Aabb {
-                min: Vec3::new(-1.0, -1.0, 0.0),
-                max: Vec3::new(1.0, 1.0, 0.0),
-            },
+            Shape::Sphere | Shape::CappedCylinder | Shape::Box => Aabb { min: Vec3::splat(-1.0), max: Vec3::ONE },
+            Shape::Cylinder => Aabb { min: Vec3::new(-1.0, -1.0, -inf), max: Vec3::new(1.0, 1.0, inf) },
+            Shape::Cone => Aabb { min: Vec3::splat(-inf), max: Vec3::splat(inf) },
+            Shape::CappedCone => Aabb { min: Vec3::new(-1.0, -1.0, 0.0), max: Vec3::ONE },
+            Shape::Disk => Aabb { min: Vec3::new(-1.0, -1.0, 0.0), max: Vec3::new(1.0, 1.0, 0.0) },
         }
     }
 
@@ -102,11 +87,7 @@ impl Shape {
             }
             Shape::Cylinder | Shape::CappedCylinder => {
                 let capped = self == Shape::CappedCylinder;
-                for t in quadric(
-                    d.x * d.x + d.y * d.y,
-                    d.x * o.x + d.y * o.y,
-                    o.x * o.x + o.y * o.y - 1.0,
-                ) {
+                for t in quadric(d.x * d.x + d.y * d.y, d.x * o.x + d.y * o.y, o.x * o.x + o.y * o.y - 1.0) {
                     let z = o.z + t * d.z;
                     consider(t, 0, !capped || (-1.0..=1.0).contains(&z));
                 }
@@ -184,12 +165,7 @@ impl Shape {
         let (t, part) = best?;
         let p = o + d * t;
         let (u, v) = self.uv(p, part);
-        Some(ShapeHit {
-            t: t as f32,
-            u: u as f32,
-            v: v as f32,
-            part,
-        })
+        Some(ShapeHit { t: t as f32, u: u as f32, v: v as f32, part })
     }
 
     fn uv(self, p: DVec3, part: u32) -> (f64, f64) {
@@ -233,11 +209,7 @@ impl Shape {
 /// Real roots of `a t² + 2 b t + c = 0`, ascending, computed without cancellation.
 fn quadric(a: f64, b: f64, c: f64) -> Vec<f64> {
     if a == 0.0 {
-        return if b != 0.0 {
-            vec![-c / (2.0 * b)]
-        } else {
-            vec![]
-        };
+        return if b != 0.0 { vec![-c / (2.0 * b)] } else { vec![] };
     }
     let disc = b * b - a * c;
     if disc < 0.0 {
@@ -258,66 +230,42 @@ mod tests {
 
     #[test]
     fn sphere_hits_front() {
-        let h = Shape::Sphere
-            .intersect_local(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z, 0.0, f32::INFINITY)
-            .expect("hit");
+        let h = Shape::Sphere.intersect_local(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z, 0.0, f32::INFINITY).expect("hit");
         assert!((h.t - 4.0).abs() < 1e-6);
-        let h = Shape::Sphere
-            .intersect_local(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY)
-            .expect("inside");
+        let h = Shape::Sphere.intersect_local(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY).expect("inside");
         assert!((h.t - 1.0).abs() < 1e-6);
     }
 
     #[test]
     fn capped_cylinder_caps_and_side() {
         let s = Shape::CappedCylinder;
-        let h = s
-            .intersect_local(Vec3::new(0.2, 0.0, 5.0), -Vec3::Z, 0.0, f32::INFINITY)
-            .expect("cap");
+        let h = s.intersect_local(Vec3::new(0.2, 0.0, 5.0), -Vec3::Z, 0.0, f32::INFINITY).expect("cap");
         assert_eq!(h.part, 2);
         assert!((h.t - 4.0).abs() < 1e-6);
-        let h = s
-            .intersect_local(Vec3::new(5.0, 0.0, 0.5), -Vec3::X, 0.0, f32::INFINITY)
-            .expect("side");
+        let h = s.intersect_local(Vec3::new(5.0, 0.0, 0.5), -Vec3::X, 0.0, f32::INFINITY).expect("side");
         assert_eq!(h.part, 0);
         assert!((h.t - 4.0).abs() < 1e-6);
-        assert!(s
-            .intersect_local(Vec3::new(5.0, 0.0, 1.5), -Vec3::X, 0.0, f32::INFINITY)
-            .is_none());
-        assert!(Shape::Cylinder
-            .intersect_local(Vec3::new(5.0, 0.0, 100.0), -Vec3::X, 0.0, f32::INFINITY)
-            .is_some());
+        assert!(s.intersect_local(Vec3::new(5.0, 0.0, 1.5), -Vec3::X, 0.0, f32::INFINITY).is_none());
+        assert!(Shape::Cylinder.intersect_local(Vec3::new(5.0, 0.0, 100.0), -Vec3::X, 0.0, f32::INFINITY).is_some());
     }
 
     #[test]
     fn cones() {
         // Double cone: a ray along x at height z = 0.5 meets it at x = ±0.5.
-        let h = Shape::Cone
-            .intersect_local(Vec3::new(5.0, 0.0, 0.5), -Vec3::X, 0.0, f32::INFINITY)
-            .expect("hit");
+        let h = Shape::Cone.intersect_local(Vec3::new(5.0, 0.0, 0.5), -Vec3::X, 0.0, f32::INFINITY).expect("hit");
         assert!((h.t - 4.5).abs() < 1e-6);
-        let h = Shape::CappedCone
-            .intersect_local(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z, 0.0, f32::INFINITY)
-            .expect("cap");
+        let h = Shape::CappedCone.intersect_local(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z, 0.0, f32::INFINITY).expect("cap");
         assert_eq!(h.part, 1);
-        assert!(Shape::CappedCone
-            .intersect_local(Vec3::new(5.0, 0.0, -0.5), -Vec3::X, 0.0, f32::INFINITY)
-            .is_none());
+        assert!(Shape::CappedCone.intersect_local(Vec3::new(5.0, 0.0, -0.5), -Vec3::X, 0.0, f32::INFINITY).is_none());
     }
 
     #[test]
     fn box_and_disk() {
-        let h = Shape::Box
-            .intersect_local(Vec3::new(0.0, 5.0, 0.0), -Vec3::Y, 0.0, f32::INFINITY)
-            .expect("box");
+        let h = Shape::Box.intersect_local(Vec3::new(0.0, 5.0, 0.0), -Vec3::Y, 0.0, f32::INFINITY).expect("box");
         assert!((h.t - 4.0).abs() < 1e-6);
         assert_eq!(Shape::Box.normal_local(Vec3::Y, h.part), Vec3::Y);
-        let h = Shape::Disk
-            .intersect_local(Vec3::new(0.5, 0.0, 2.0), -Vec3::Z, 0.0, f32::INFINITY)
-            .expect("disk");
+        let h = Shape::Disk.intersect_local(Vec3::new(0.5, 0.0, 2.0), -Vec3::Z, 0.0, f32::INFINITY).expect("disk");
         assert!((h.t - 2.0).abs() < 1e-6);
-        assert!(Shape::Disk
-            .intersect_local(Vec3::new(1.5, 0.0, 2.0), -Vec3::Z, 0.0, f32::INFINITY)
-            .is_none());
+        assert!(Shape::Disk.intersect_local(Vec3::new(1.5, 0.0, 2.0), -Vec3::Z, 0.0, f32::INFINITY).is_none());
     }
 }

@@ -49,11 +49,7 @@ impl Instance {
     /// An instance of geometry `geometry` placed by `world_from_object`.
     #[must_use]
     pub fn new(geometry: u32, world_from_object: Affine3A) -> Self {
-        Self {
-            geometry,
-            world_from_object,
-            object_from_world: world_from_object.inverse(),
-        }
+        Self { geometry, world_from_object, object_from_world: world_from_object.inverse() }
     }
 }
 
@@ -149,27 +145,14 @@ impl TwoLevel {
     /// Rebuilds the top-level BVH from the current instances.
     pub fn rebuild(&mut self) -> Result<(), BuildError> {
         let ng = self.geometries.len();
-        if let Some((inst, i)) = self
-            .instances
-            .iter()
-            .enumerate()
-            .find(|(_, i)| i.geometry as usize >= ng)
-        {
-            return Err(BuildError::NoSuchGeometry {
-                inst,
-                geom: i.geometry,
-                count: ng,
-            });
+        if self.instances.len() >= crate::build::MAX_PRIMS as usize {
+            return Err(BuildError::TooLarge(self.instances.len()));
         }
-        let boxes: Vec<Aabb> = self
-            .instances
-            .par_iter()
-            .map(|i| {
-                self.geometries[i.geometry as usize]
-                    .bounds()
-                    .transformed(&i.world_from_object)
-            })
-            .collect();
+        if let Some((inst, i)) = self.instances.iter().enumerate().find(|(_, i)| i.geometry as usize >= ng) {
+            return Err(BuildError::NoSuchGeometry { inst, geom: i.geometry, count: ng });
+        }
+        let boxes: Vec<Aabb> =
+            self.instances.par_iter().map(|i| self.geometries[i.geometry as usize].bounds().transformed(&i.world_from_object)).collect();
         self.unbounded.clear();
         let mut prims = Vec::with_capacity(boxes.len());
         for (i, b) in boxes.iter().enumerate() {
@@ -182,17 +165,12 @@ impl TwoLevel {
                 self.unbounded.push(i as u32);
             }
         }
-        let cfg = BuildConfig {
-            max_leaf: 2,
-            leaf_block: 1,
-            cost_traverse: 1.0,
-        };
+        let cfg = BuildConfig { max_leaf: 2, leaf_block: 1, cost_traverse: 1.0 };
         let bin = build_binary(prims, &cfg);
         self.bounds = bin.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds);
-        self.order = bin.prims.iter().map(|p| p.id).collect();
-        self.nodes = collapse::<8, BuildError>(&bin, &mut |first, count| {
-            leaf_code(first, count).ok_or(BuildError::TooLarge(self.instances.len()))
-        })?;
+        self.order = bin.prims.iter().map(|p| p.id()).collect();
+        self.nodes =
+            collapse::<8, BuildError>(&bin, &mut |first, count| leaf_code(first, count).ok_or(BuildError::TooLarge(self.instances.len())))?;
         Ok(())
     }
 
@@ -224,10 +202,7 @@ impl TwoLevel {
 
     #[inline(always)]
     fn intersect_k<K: KernelSet>(&self, pre: &RayPre, hit: &mut Hit) {
-        let leaves = InstLeaves::<K> {
-            tl: self,
-            k: std::marker::PhantomData,
-        };
+        let leaves = InstLeaves::<K> { tl: self, k: std::marker::PhantomData };
         // SAFETY: the caller selected K for this CPU.
         unsafe { traverse::intersect::<8, K::B8, _>(&self.nodes, &leaves, pre, hit) };
         for &i in &self.unbounded {
@@ -237,14 +212,9 @@ impl TwoLevel {
 
     #[inline(always)]
     fn occluded_k<K: KernelSet>(&self, pre: &RayPre, tmax: f32) -> bool {
-        let leaves = InstLeaves::<K> {
-            tl: self,
-            k: std::marker::PhantomData,
-        };
+        let leaves = InstLeaves::<K> { tl: self, k: std::marker::PhantomData };
         // SAFETY: the caller selected K for this CPU.
-        self.unbounded
-            .iter()
-            .any(|&i| leaves.occludes(i, pre, tmax))
+        self.unbounded.iter().any(|&i| leaves.occludes(i, pre, tmax))
             || unsafe { traverse::occluded::<8, K::B8, _>(&self.nodes, &leaves, pre, tmax) }
     }
 }
@@ -269,13 +239,7 @@ struct InstLeaves<'a, K> {
 impl<K: KernelSet> InstLeaves<'_, K> {
     #[inline(always)]
     fn local(&self, inst: &Instance, pre: &RayPre) -> RayPre {
-        let r = Ray {
-            org: pre.org,
-            dir: pre.dir,
-            tmin: pre.tmin,
-            tmax: f32::INFINITY,
-        }
-        .transformed(&inst.object_from_world);
+        let r = Ray { org: pre.org, dir: pre.dir, tmin: pre.tmin, tmax: f32::INFINITY }.transformed(&inst.object_from_world);
         RayPre::new(&r)
     }
 
@@ -291,13 +255,7 @@ impl<K: KernelSet> InstLeaves<'_, K> {
             }
             Geometry::Shape(s) => {
                 if let Some(h) = s.intersect_local(lp.org, lp.dir, lp.tmin, hit.t) {
-                    *hit = Hit {
-                        t: h.t,
-                        u: h.u,
-                        v: h.v,
-                        prim: h.part,
-                        inst: id,
-                    };
+                    *hit = Hit { t: h.t, u: h.u, v: h.v, prim: h.part, inst: id };
                 }
             }
         }

@@ -41,10 +41,7 @@ impl UnitTriangle {
         let e2 = c - a;
         let n = e1.cross(e2);
         let det = n.length_squared(); // det [e1 e2 n] = (e1 x e2) . n
-        if det.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
-            || !det.is_finite()
-            || !a.is_finite()
-        {
+        if det.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || !det.is_finite() || !a.is_finite() {
             return None;
         }
         // Rows of [e1 e2 n]^-1 (n is orthogonal to e1 and e2).
@@ -75,13 +72,7 @@ impl UnitTriangle {
 /// `[tmin, tmax)` and the point lies inside the triangle.
 #[inline(always)]
 #[must_use]
-pub fn unit_triangle_hit(
-    m: &[f32; 12],
-    o: Vec3,
-    d: Vec3,
-    tmin: f32,
-    tmax: f32,
-) -> Option<(f32, f32, f32)> {
+pub fn unit_triangle_hit(m: &[f32; 12], o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<(f32, f32, f32)> {
     let dz = m[8] * d.x + m[9] * d.y + m[10] * d.z;
     let oz = m[8] * o.x + m[9] * o.y + m[10] * o.z + m[11];
     let t = -oz / dz;
@@ -112,10 +103,7 @@ impl Tri4 {
     pub const EMPTY: Self = {
         let mut m = [[0.0f32; 4]; 12];
         m[11] = [1.0; 4];
-        Self {
-            m,
-            prim: [u32::MAX; 4],
-        }
+        Self { m, prim: [u32::MAX; 4] }
     };
 
     /// Puts a map into a lane.
@@ -185,12 +173,7 @@ pub(crate) mod sse {
             let ld = |c: usize| _mm_load_ps(t4.m[c].as_ptr());
             let (ox, oy, oz) = (_mm_set1_ps(o.x), _mm_set1_ps(o.y), _mm_set1_ps(o.z));
             let (dx, dy, dz) = (_mm_set1_ps(d.x), _mm_set1_ps(d.y), _mm_set1_ps(d.z));
-            let dot3 = |r: usize, x, y, z| {
-                _mm_add_ps(
-                    _mm_add_ps(_mm_mul_ps(ld(r), x), _mm_mul_ps(ld(r + 1), y)),
-                    _mm_mul_ps(ld(r + 2), z),
-                )
-            };
+            let dot3 = |r: usize, x, y, z| _mm_add_ps(_mm_add_ps(_mm_mul_ps(ld(r), x), _mm_mul_ps(ld(r + 1), y)), _mm_mul_ps(ld(r + 2), z));
             let dzp = dot3(8, dx, dy, dz);
             let ozp = _mm_add_ps(dot3(8, ox, oy, oz), ld(11));
             let t = _mm_div_ps(_mm_xor_ps(ozp, _mm_set1_ps(-0.0)), dzp);
@@ -205,10 +188,7 @@ pub(crate) mod sse {
                 _mm_and_ps(_mm_cmpge_ps(u, zero), _mm_cmpge_ps(v, zero)),
                 _mm_and_ps(
                     _mm_cmple_ps(_mm_add_ps(u, v), _mm_set1_ps(1.0)),
-                    _mm_and_ps(
-                        _mm_cmpge_ps(t, _mm_set1_ps(tmin)),
-                        _mm_cmplt_ps(t, _mm_set1_ps(tmax)),
-                    ),
+                    _mm_and_ps(_mm_cmpge_ps(t, _mm_set1_ps(tmin)), _mm_cmplt_ps(t, _mm_set1_ps(tmax))),
                 ),
             );
             (_mm_movemask_ps(m), t, u, v)
@@ -239,12 +219,7 @@ pub(crate) mod sse {
                 bt = ts[lane];
             }
         }
-        Some(LaneHit {
-            t: ts[best],
-            u: us[best],
-            v: vs[best],
-            lane: best,
-        })
+        Some(LaneHit { t: ts[best], u: us[best], v: vs[best], lane: best })
     }
 
     #[inline(always)]
@@ -314,27 +289,12 @@ impl WatertightRay {
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        Self {
-            kx,
-            ky,
-            kz,
-            sx: d[kx] / d[kz],
-            sy: d[ky] / d[kz],
-            sz: 1.0 / d[kz],
-            org: o,
-        }
+        Self { kx, ky, kz, sx: d[kx] / d[kz], sy: d[ky] / d[kz], sz: 1.0 / d[kz], org: o }
     }
 
     /// Tests triangle (v0, v1, v2); returns `(t, u, v)` with u, v the weights of v1 and v2.
     #[must_use]
-    pub fn hit(
-        &self,
-        v0: Vec3,
-        v1: Vec3,
-        v2: Vec3,
-        tmin: f32,
-        tmax: f32,
-    ) -> Option<(f32, f32, f32)> {
+    pub fn hit(&self, v0: Vec3, v1: Vec3, v2: Vec3, tmin: f32, tmax: f32) -> Option<(f32, f32, f32)> {
         let (kx, ky, kz) = (self.kx, self.ky, self.kz);
         let a = v0 - self.org;
         let b = v1 - self.org;
@@ -350,9 +310,7 @@ impl WatertightRay {
         let mut w = bx * ay - by * ax;
         if u == 0.0 || v == 0.0 || w == 0.0 {
             // Fall back to double precision on edges, as the paper does.
-            let (cxd, cyd, bxd, byd, axd, ayd) = (
-                cx as f64, cy as f64, bx as f64, by as f64, ax as f64, ay as f64,
-            );
+            let (cxd, cyd, bxd, byd, axd, ayd) = (cx as f64, cy as f64, bx as f64, by as f64, ax as f64, ay as f64);
             u = (cxd * byd - cyd * bxd) as f32;
             v = (axd * cyd - ayd * cxd) as f32;
             w = (bxd * ayd - byd * axd) as f32;
@@ -384,11 +342,7 @@ mod tests {
 
     #[test]
     fn unit_triangle_maps_vertices() {
-        let (a, b, c) = (
-            Vec3::new(1.0, 2.0, 3.0),
-            Vec3::new(4.0, 2.5, 3.0),
-            Vec3::new(1.5, 6.0, 3.5),
-        );
+        let (a, b, c) = (Vec3::new(1.0, 2.0, 3.0), Vec3::new(4.0, 2.5, 3.0), Vec3::new(1.5, 6.0, 3.5));
         let m = UnitTriangle::new(a, b, c).expect("not degenerate").m;
         let map = |p: Vec3| {
             Vec3::new(
@@ -406,26 +360,12 @@ mod tests {
     fn hit_and_barycentrics() {
         let (a, b, c) = (Vec3::ZERO, Vec3::X, Vec3::Y);
         let m = UnitTriangle::new(a, b, c).expect("ok").m;
-        let (t, u, v) = unit_triangle_hit(
-            &m,
-            Vec3::new(0.25, 0.5, 2.0),
-            Vec3::new(0.0, 0.0, -1.0),
-            0.0,
-            f32::INFINITY,
-        )
-        .expect("hit");
+        let (t, u, v) = unit_triangle_hit(&m, Vec3::new(0.25, 0.5, 2.0), Vec3::new(0.0, 0.0, -1.0), 0.0, f32::INFINITY).expect("hit");
         assert_eq!((t, u, v), (2.0, 0.25, 0.5));
         let w = WatertightRay::new(Vec3::new(0.25, 0.5, 2.0), Vec3::new(0.0, 0.0, -1.0));
         let (t2, u2, v2) = w.hit(a, b, c, 0.0, f32::INFINITY).expect("hit");
         assert!((t2 - 2.0).abs() < 1e-6 && (u2 - 0.25).abs() < 1e-6 && (v2 - 0.5).abs() < 1e-6);
-        assert!(unit_triangle_hit(
-            &m,
-            Vec3::new(0.8, 0.8, 2.0),
-            Vec3::new(0.0, 0.0, -1.0),
-            0.0,
-            f32::INFINITY
-        )
-        .is_none());
+        assert!(unit_triangle_hit(&m, Vec3::new(0.8, 0.8, 2.0), Vec3::new(0.0, 0.0, -1.0), 0.0, f32::INFINITY).is_none());
     }
 
     #[test]

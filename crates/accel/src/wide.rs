@@ -20,18 +20,14 @@ pub const MAX_LEAF_ITEMS: u32 = 16;
 #[inline]
 #[must_use]
 pub fn leaf_code(first: u32, count: u32) -> Option<u32> {
-    (first < (1 << FIRST_BITS) && (1..=MAX_LEAF_ITEMS).contains(&count))
-        .then(|| LEAF | ((count - 1) << FIRST_BITS) | first)
+    (first < (1 << FIRST_BITS) && (1..=MAX_LEAF_ITEMS).contains(&count)).then(|| LEAF | ((count - 1) << FIRST_BITS) | first)
 }
 
 /// Decodes a leaf code into `(first, count)`.
 #[inline(always)]
 #[must_use]
 pub fn leaf_range(code: u32) -> (u32, u32) {
-    (
-        code & ((1 << FIRST_BITS) - 1),
-        ((code >> FIRST_BITS) & 0xF) + 1,
-    )
+    (code & ((1 << FIRST_BITS) - 1), ((code >> FIRST_BITS) & 0xF) + 1)
 }
 
 /// A node with `W` children. `bounds[0..3]` are the lower x, y, z of each child,
@@ -85,10 +81,7 @@ impl<const W: usize> WideNode<W> {
 
 /// Collapses a binary BVH into `W`-wide nodes (root at index 0). `make_leaf(first, count)`
 /// receives each binary leaf's primitive range and returns its leaf code.
-pub fn collapse<const W: usize, E>(
-    bin: &BinaryBvh,
-    make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, E>,
-) -> Result<Vec<WideNode<W>>, E> {
+pub fn collapse<const W: usize, E>(bin: &BinaryBvh, make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, E>) -> Result<Vec<WideNode<W>>, E> {
     let mut out = Vec::with_capacity(bin.nodes.len() / (W / 2).max(1) + 1);
     let Some(root) = bin.nodes.first() else {
         out.push(WideNode::EMPTY);
@@ -137,11 +130,7 @@ fn emit<const W: usize, E>(
     let mut node = WideNode::EMPTY;
     for (i, &k) in kids[..nk].iter().enumerate() {
         let c = bin.nodes[k];
-        let code = if c.is_leaf() {
-            make_leaf(c.first, c.count)?
-        } else {
-            emit(bin, k, out, make_leaf)?
-        };
+        let code = if c.is_leaf() { make_leaf(c.first, c.count)? } else { emit(bin, k, out, make_leaf)? };
         node.set(i, &c.bounds, code);
     }
     out[slot] = node;

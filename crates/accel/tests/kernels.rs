@@ -1,13 +1,8 @@
 //! Every fast kernel against the brute-force reference, on seeded random triangle soups.
 
 use glam::{Affine3A, Quat, Vec3};
-use lucent_accel::reference::{
-    intersect_instances, intersect_triangles, intersect_triangles_watertight, occluded_triangles,
-    RefGeometry,
-};
-use lucent_accel::{
-    Geometry, Instance, Kernel, MeshBvh, MeshOptions, Ray, Shape, TriangleTest, TwoLevel, Width,
-};
+use lucent_accel::reference::{intersect_instances, intersect_triangles, intersect_triangles_watertight, occluded_triangles, RefGeometry};
+use lucent_accel::{Geometry, Instance, Kernel, MeshBvh, MeshOptions, Ray, Shape, TriangleTest, TwoLevel, Width};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 
@@ -17,14 +12,7 @@ fn soup(rng: &mut Pcg64, n: usize, scale: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     for i in 0..n {
         let c = Vec3::new(rng.random(), rng.random(), rng.random()) * scale;
         for _ in 0..3 {
-            p.push(
-                c + Vec3::new(
-                    rng.random::<f32>() - 0.5,
-                    rng.random::<f32>() - 0.5,
-                    rng.random::<f32>() - 0.5,
-                ) * scale
-                    * 0.1,
-            );
+            p.push(c + Vec3::new(rng.random::<f32>() - 0.5, rng.random::<f32>() - 0.5, rng.random::<f32>() - 0.5) * scale * 0.1);
         }
         idx.push([3 * i as u32, 3 * i as u32 + 1, 3 * i as u32 + 2]);
     }
@@ -32,8 +20,7 @@ fn soup(rng: &mut Pcg64, n: usize, scale: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
 }
 
 fn random_ray(rng: &mut Pcg64, scale: f32) -> Ray {
-    let o = Vec3::new(rng.random(), rng.random(), rng.random()) * scale * 1.4
-        - Vec3::splat(scale * 0.2);
+    let o = Vec3::new(rng.random(), rng.random(), rng.random()) * scale * 1.4 - Vec3::splat(scale * 0.2);
     let target = Vec3::new(rng.random(), rng.random(), rng.random()) * scale;
     Ray::new(o, (target - o).normalize_or(Vec3::X))
 }
@@ -53,15 +40,7 @@ fn mesh_kernels_match_reference() {
         let mut rng = Pcg64::seed_from_u64(seed);
         let (p, idx) = soup(&mut rng, 3000, scale);
         for (width, kernel) in all_variants() {
-            let mut bvh = MeshBvh::build(
-                &p,
-                &idx,
-                MeshOptions {
-                    width,
-                    test: TriangleTest::UnitTriangle,
-                },
-            )
-            .expect("build");
+            let mut bvh = MeshBvh::build(&p, &idx, MeshOptions { width, test: TriangleTest::UnitTriangle }).expect("build");
             bvh.validate().expect("well formed");
             bvh.set_kernel(kernel);
             let mut rng = Pcg64::seed_from_u64(seed + 100);
@@ -81,11 +60,7 @@ fn mesh_kernels_match_reference() {
                     _ => panic!("{width:?} {kernel:?} scale {scale}: hit/miss differs for {r:?}: want {want:?} got {got:?}"),
                 }
                 let short = r.with_range(0.0, want.map_or(f32::INFINITY, |h| h.t * 0.999));
-                assert_eq!(
-                    bvh.occluded(&short),
-                    occluded_triangles(&p, &idx, &short),
-                    "{width:?} {kernel:?}: occluded differs"
-                );
+                assert_eq!(bvh.occluded(&short), occluded_triangles(&p, &idx, &short), "{width:?} {kernel:?}: occluded differs");
                 assert_eq!(bvh.occluded(&r), want.is_some());
             }
         }
@@ -97,15 +72,7 @@ fn watertight_kernel_matches_reference() {
     let mut rng = Pcg64::seed_from_u64(7);
     let (p, idx) = soup(&mut rng, 2000, 10.0);
     for (width, kernel) in all_variants() {
-        let mut bvh = MeshBvh::build(
-            &p,
-            &idx,
-            MeshOptions {
-                width,
-                test: TriangleTest::Watertight,
-            },
-        )
-        .expect("build");
+        let mut bvh = MeshBvh::build(&p, &idx, MeshOptions { width, test: TriangleTest::Watertight }).expect("build");
         bvh.set_kernel(kernel);
         for _ in 0..300 {
             let r = random_ray(&mut rng, 10.0);
@@ -124,15 +91,7 @@ fn simd_and_scalar_give_identical_hits() {
     let mut rng = Pcg64::seed_from_u64(11);
     let (p, idx) = soup(&mut rng, 5000, 5.0);
     for width in [Width::W4, Width::W8] {
-        let mut a = MeshBvh::build(
-            &p,
-            &idx,
-            MeshOptions {
-                width,
-                ..MeshOptions::default()
-            },
-        )
-        .expect("build");
+        let mut a = MeshBvh::build(&p, &idx, MeshOptions { width, ..MeshOptions::default() }).expect("build");
         let mut b = a.clone();
         a.set_kernel(Kernel::Scalar);
         b.set_kernel(Kernel::Simd);
@@ -147,41 +106,16 @@ fn simd_and_scalar_give_identical_hits() {
 
 #[test]
 fn nan_and_degenerate_input_never_breaks_the_build() {
-    let p = vec![
-        Vec3::ZERO,
-        Vec3::X,
-        Vec3::Y,
-        Vec3::new(f32::NAN, 0.0, 0.0),
-        Vec3::splat(f32::INFINITY),
-        Vec3::X * 2.0,
-    ];
-    let idx = vec![
-        [0, 1, 2],
-        [0, 3, 2],
-        [4, 1, 2],
-        [0, 1, 5],
-        [1, 1, 1],
-        [0, 1, 2],
-    ];
+    let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(f32::NAN, 0.0, 0.0), Vec3::splat(f32::INFINITY), Vec3::X * 2.0];
+    let idx = vec![[0, 1, 2], [0, 3, 2], [4, 1, 2], [0, 1, 5], [1, 1, 1], [0, 1, 2]];
     let bvh = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("build");
-    assert_eq!(
-        bvh.stats().prims,
-        2,
-        "only the two proper triangles are indexed"
-    );
-    let h = bvh
-        .intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z))
-        .expect("hit");
+    assert_eq!(bvh.stats().prims, 2, "only the two proper triangles are indexed");
+    let h = bvh.intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z)).expect("hit");
     assert_eq!(h.t, 1.0);
-    assert!(bvh
-        .intersect(&Ray::new(Vec3::new(5.0, 5.0, 1.0), -Vec3::Z))
-        .is_none());
+    assert!(bvh.intersect(&Ray::new(Vec3::new(5.0, 5.0, 1.0), -Vec3::Z)).is_none());
     // A NaN ray finds nothing and does not hang.
-    assert!(bvh
-        .intersect(&Ray::new(Vec3::splat(f32::NAN), -Vec3::Z))
-        .is_none());
-    let err =
-        MeshBvh::build(&p, &[[0, 1, 9]], MeshOptions::default()).expect_err("index out of range");
+    assert!(bvh.intersect(&Ray::new(Vec3::splat(f32::NAN), -Vec3::Z)).is_none());
+    let err = MeshBvh::build(&p, &[[0, 1, 9]], MeshOptions::default()).expect_err("index out of range");
     assert!(err.to_string().contains("vertex 9"), "{err}");
 }
 
@@ -191,9 +125,7 @@ fn many_identical_triangles_build_a_bounded_tree() {
     let idx = vec![[0u32, 1, 2]; 20000];
     let bvh = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("build");
     bvh.validate().expect("well formed");
-    assert!(bvh
-        .intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z))
-        .is_some());
+    assert!(bvh.intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z)).is_some());
 }
 
 #[test]
@@ -201,27 +133,10 @@ fn two_level_matches_reference() {
     let mut rng = Pcg64::seed_from_u64(5);
     let (p1, i1) = soup(&mut rng, 500, 1.0);
     let (p2, i2) = soup(&mut rng, 300, 1.0);
-    let shapes = [
-        Shape::Sphere,
-        Shape::CappedCylinder,
-        Shape::CappedCone,
-        Shape::Box,
-        Shape::Disk,
-        Shape::Cylinder,
-    ];
+    let shapes = [Shape::Sphere, Shape::CappedCylinder, Shape::CappedCone, Shape::Box, Shape::Disk, Shape::Cylinder];
     let mut geoms = vec![
         Geometry::Mesh(MeshBvh::build(&p1, &i1, MeshOptions::default()).expect("b1")),
-        Geometry::Mesh(
-            MeshBvh::build(
-                &p2,
-                &i2,
-                MeshOptions {
-                    width: Width::W4,
-                    ..MeshOptions::default()
-                },
-            )
-            .expect("b2"),
-        ),
+        Geometry::Mesh(MeshBvh::build(&p2, &i2, MeshOptions { width: Width::W4, ..MeshOptions::default() }).expect("b2")),
     ];
     let mut refs = vec![RefGeometry::Mesh(&p1, &i1), RefGeometry::Mesh(&p2, &i2)];
     for s in shapes {
@@ -232,17 +147,8 @@ fn two_level_matches_reference() {
     for k in 0..60u32 {
         let g = k % geoms.len() as u32;
         let m = Affine3A::from_scale_rotation_translation(
-            Vec3::new(
-                rng.random_range(0.2..1.5),
-                rng.random_range(0.2..1.5),
-                rng.random_range(0.2..1.5),
-            ),
-            Quat::from_euler(
-                glam::EulerRot::XYZ,
-                rng.random(),
-                rng.random(),
-                rng.random(),
-            ),
+            Vec3::new(rng.random_range(0.2..1.5), rng.random_range(0.2..1.5), rng.random_range(0.2..1.5)),
+            Quat::from_euler(glam::EulerRot::XYZ, rng.random(), rng.random(), rng.random()),
             Vec3::new(rng.random(), rng.random(), rng.random()) * 20.0,
         );
         placed.push((g, m));
@@ -259,17 +165,9 @@ fn two_level_matches_reference() {
             match (want, got) {
                 (None, None) => {}
                 (Some(w), Some(g)) => {
-                    assert!(
-                        (w.t - g.t).abs() <= 1e-4 * w.t.abs().max(1.0),
-                        "{kernel:?}: t {} vs {}",
-                        w.t,
-                        g.t
-                    );
+                    assert!((w.t - g.t).abs() <= 1e-4 * w.t.abs().max(1.0), "{kernel:?}: t {} vs {}", w.t, g.t);
                     if w.inst != g.inst {
-                        assert!(
-                            (w.t - g.t).abs() <= 1e-5 * w.t.abs().max(1.0),
-                            "different instances at different t"
-                        );
+                        assert!((w.t - g.t).abs() <= 1e-5 * w.t.abs().max(1.0), "different instances at different t");
                     }
                 }
                 _ => panic!("{kernel:?}: hit/miss differs: {want:?} vs {got:?}"),
@@ -282,23 +180,10 @@ fn two_level_matches_reference() {
 #[test]
 fn moved_instance_is_hit_where_it_now_is() {
     let geoms = vec![Geometry::Shape(Shape::Sphere)];
-    let mut tl = TwoLevel::new(
-        geoms,
-        vec![Instance::new(
-            0,
-            Affine3A::from_translation(Vec3::new(0.0, 0.0, -5.0)),
-        )],
-    )
-    .expect("tlas");
+    let mut tl = TwoLevel::new(geoms, vec![Instance::new(0, Affine3A::from_translation(Vec3::new(0.0, 0.0, -5.0)))]).expect("tlas");
     let r = Ray::new(Vec3::ZERO, -Vec3::Z);
     assert!((tl.intersect(&r).expect("hit").t - 4.0).abs() < 1e-5);
-    tl.set_instances(vec![Instance::new(
-        0,
-        Affine3A::from_translation(Vec3::new(10.0, 0.0, -5.0)),
-    )])
-    .expect("rebuild");
+    tl.set_instances(vec![Instance::new(0, Affine3A::from_translation(Vec3::new(10.0, 0.0, -5.0)))]).expect("rebuild");
     assert!(tl.intersect(&r).is_none());
-    assert!(tl
-        .intersect(&Ray::new(Vec3::new(10.0, 0.0, 0.0), -Vec3::Z))
-        .is_some());
+    assert!(tl.intersect(&Ray::new(Vec3::new(10.0, 0.0, 0.0), -Vec3::Z)).is_some());
 }

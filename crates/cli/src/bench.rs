@@ -34,12 +34,7 @@ pub struct Batch {
 }
 
 fn u32_at(b: &[u8], off: usize, what: &str) -> Result<u32> {
-    let s = b.get(off..off + 4).with_context(|| {
-        format!(
-            "{what}: file ends at byte {} (wanted 4 bytes at {off})",
-            b.len()
-        )
-    })?;
+    let s = b.get(off..off + 4).with_context(|| format!("{what}: file ends at byte {} (wanted 4 bytes at {off})", b.len()))?;
     Ok(u32::from_le_bytes([s[0], s[1], s[2], s[3]]))
 }
 
@@ -54,15 +49,10 @@ pub fn read_mesh(path: &Path) -> Result<DumpMesh> {
     let nt = u32_at(&b, 12, &name)? as usize;
     let need = 16 + nv * 12 + nt * 12;
     if b.len() < need {
-        bail!(
-            "{name}: {} bytes, but {nv} vertices and {nt} triangles need {need}",
-            b.len()
-        );
+        bail!("{name}: {} bytes, but {nv} vertices and {nt} triangles need {need}", b.len());
     }
     let f = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
-    let positions = (0..nv)
-        .map(|i| Vec3::new(f(16 + i * 12), f(20 + i * 12), f(24 + i * 12)))
-        .collect();
+    let positions = (0..nv).map(|i| Vec3::new(f(16 + i * 12), f(20 + i * 12), f(24 + i * 12))).collect();
     let base = 16 + nv * 12;
     let mut indices = Vec::with_capacity(nt);
     for t in 0..nt {
@@ -84,40 +74,19 @@ pub fn read_rays(path: &Path) -> Result<Batch> {
     let nb = u32_at(&b, 16, &name)? as usize;
     let active = u32_at(&b, 20, &name)?;
     if b.len() < 24 + nb * 288 {
-        bail!(
-            "{name}: {} bytes, but {nb} blocks need {}",
-            b.len(),
-            24 + nb * 288
-        );
+        bail!("{name}: {} bytes, but {nb} blocks need {}", b.len(), 24 + nb * 288);
     }
     let mut blocks = Vec::with_capacity(nb);
     for k in 0..nb {
         let base = 24 + k * 288;
         let row = |r: usize| -> [u32; 8] {
-            std::array::from_fn(|l| {
-                u32::from_le_bytes(
-                    b[base + r * 32 + l * 4..base + r * 32 + l * 4 + 4]
-                        .try_into()
-                        .unwrap_or([0; 4]),
-                )
-            })
+            std::array::from_fn(|l| u32::from_le_bytes(b[base + r * 32 + l * 4..base + r * 32 + l * 4 + 4].try_into().unwrap_or([0; 4])))
         };
         let fr = |r: usize| row(r).map(f32::from_bits);
         let ir = |r: usize| row(r).map(|x| x as i32);
-        blocks.push(Block {
-            o: [fr(0), fr(1), fr(2)],
-            d: [fr(3), fr(4), fr(5)],
-            tfar: fr(6),
-            valid: ir(7),
-            pixel: ir(8),
-        });
+        blocks.push(Block { o: [fr(0), fr(1), fr(2)], d: [fr(3), fr(4), fr(5)], tfar: fr(6), valid: ir(7), pixel: ir(8) });
     }
-    Ok(Batch {
-        width,
-        height,
-        active,
-        blocks,
-    })
+    Ok(Batch { width, height, active, blocks })
 }
 
 impl Block {
@@ -151,28 +120,18 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn pool(threads: usize) -> Result<rayon::ThreadPool> {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("cannot start the thread pool")
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start the thread pool")
 }
 
 /// Runs the benchmark and prints JSON lines.
 pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
     let mesh = read_mesh(&dir.join("mesh.bin"))?;
     let tris = mesh.indices.len();
-    let opts = MeshOptions {
-        width: o.width,
-        test: o.test,
-    };
+    let opts = MeshOptions { width: o.width, test: o.test };
     let bvh_label = format!(
         "{}{}",
         if o.width == Width::W8 { "bvh8" } else { "bvh4" },
-        if o.test == TriangleTest::Watertight {
-            "-watertight"
-        } else {
-            ""
-        }
+        if o.test == TriangleTest::Watertight { "-watertight" } else { "" }
     );
     let mut bvh = None;
     for &threads in &o.threads {
@@ -195,20 +154,12 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
             st.bytes as f64 / tris.max(1) as f64
         );
     }
-    let Some(mut bvh) = bvh else {
-        bail!("no thread count given")
-    };
+    let Some(mut bvh) = bvh else { bail!("no thread count given") };
     bvh.set_kernel(o.kernel);
-    let api = if bvh.kernel() == Kernel::Simd {
-        "single"
-    } else {
-        "single-scalar"
-    };
-    let ref_ids = std::fs::read(dir.join("ref_ids.bin")).ok().map(|b| {
-        b.chunks_exact(4)
-            .map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect::<Vec<i32>>()
-    });
+    let api = if bvh.kernel() == Kernel::Simd { "single" } else { "single-scalar" };
+    let ref_ids = std::fs::read(dir.join("ref_ids.bin"))
+        .ok()
+        .map(|b| b.chunks_exact(4).map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect::<Vec<i32>>());
     for kind in &o.kinds {
         let path = dir.join(format!("rays_{kind}.bin"));
         let batch = read_rays(&path)?;
@@ -217,23 +168,18 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
             let p = pool(threads)?;
             let mut out = vec![-1i32; batch.blocks.len() * 8];
             let pass = |out: &mut [i32]| {
-                out.par_chunks_mut(CHUNK_BLOCKS * 8)
-                    .zip(batch.blocks.par_chunks(CHUNK_BLOCKS))
-                    .for_each(|(res, blocks)| {
-                        for (bi, b) in blocks.iter().enumerate() {
-                            for l in 0..8 {
-                                if b.valid[l] == 0 {
-                                    continue;
-                                }
-                                let r = b.ray(l);
-                                res[bi * 8 + l] = if shadow {
-                                    bvh.occluded(&r) as i32
-                                } else {
-                                    bvh.intersect(&r).map_or(-1, |h| h.prim as i32)
-                                };
+                out.par_chunks_mut(CHUNK_BLOCKS * 8).zip(batch.blocks.par_chunks(CHUNK_BLOCKS)).for_each(|(res, blocks)| {
+                    for (bi, b) in blocks.iter().enumerate() {
+                        for l in 0..8 {
+                            if b.valid[l] == 0 {
+                                continue;
                             }
+                            let r = b.ray(l);
+                            res[bi * 8 + l] =
+                                if shadow { bvh.occluded(&r) as i32 } else { bvh.intersect(&r).map_or(-1, |h| h.prim as i32) };
                         }
-                    });
+                    }
+                });
             };
             let times: Vec<f64> = p.install(|| {
                 for _ in 0..o.warmup {

@@ -99,48 +99,17 @@ enum BenchCmd {
 fn main() -> Result<()> {
     tracing_subscriber::fmt()
         .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
         )
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
     match cli.cmd {
-        Cmd::Render {
-            scene,
-            camera,
-            ortho,
-            size,
-            spp,
-            threads,
-            output,
-            max_depth,
-            no_shadows,
-            watertight,
-        } => render_cmd::run(render_cmd::RenderArgs {
-            scene,
-            camera,
-            ortho,
-            size,
-            spp,
-            threads,
-            output,
-            max_depth,
-            no_shadows,
-            watertight,
-        }),
+        Cmd::Render { scene, camera, ortho, size, spp, threads, output, max_depth, no_shadows, watertight } => {
+            render_cmd::run(render_cmd::RenderArgs { scene, camera, ortho, size, spp, threads, output, max_depth, no_shadows, watertight })
+        }
         Cmd::Info { scene } => render_cmd::info(scene.as_deref()),
-        Cmd::Bench(BenchCmd::Rays {
-            dir,
-            name,
-            threads,
-            frames,
-            warmup,
-            kinds,
-            width,
-            watertight,
-            scalar,
-        }) => bench::rays(
+        Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar }) => bench::rays(
             &dir,
             &bench::RaysOptions {
                 name,
@@ -148,21 +117,9 @@ fn main() -> Result<()> {
                 frames,
                 warmup,
                 kinds,
-                width: if width == 4 {
-                    lucent_accel::Width::W4
-                } else {
-                    lucent_accel::Width::W8
-                },
-                test: if watertight {
-                    lucent_accel::TriangleTest::Watertight
-                } else {
-                    lucent_accel::TriangleTest::UnitTriangle
-                },
-                kernel: if scalar {
-                    lucent_accel::Kernel::Scalar
-                } else {
-                    lucent_accel::Kernel::detect()
-                },
+                width: if width == 4 { lucent_accel::Width::W4 } else { lucent_accel::Width::W8 },
+                test: if watertight { lucent_accel::TriangleTest::Watertight } else { lucent_accel::TriangleTest::UnitTriangle },
+                kernel: if scalar { lucent_accel::Kernel::Scalar } else { lucent_accel::Kernel::detect() },
             },
         ),
     }

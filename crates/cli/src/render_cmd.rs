@@ -26,17 +26,9 @@ pub struct RenderArgs {
 
 /// Parses "WxH".
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT (e.g. 1024x768)"))?;
-    let w: u32 = w
-        .trim()
-        .parse()
-        .map_err(|_| format!("'{w}' is not a width"))?;
-    let h: u32 = h
-        .trim()
-        .parse()
-        .map_err(|_| format!("'{h}' is not a height"))?;
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT (e.g. 1024x768)"))?;
+    let w: u32 = w.trim().parse().map_err(|_| format!("'{w}' is not a width"))?;
+    let h: u32 = h.trim().parse().map_err(|_| format!("'{h}' is not a height"))?;
     if w == 0 || h == 0 || w > 16384 || h > 16384 {
         return Err(format!("{w}x{h}: each side must be 1..=16384"));
     }
@@ -56,10 +48,7 @@ pub fn choose_camera(scene: &Scene, camera: Option<&[f32]>, ortho: bool) -> Resu
     let mut desc = match camera {
         Some(c) => {
             if c.len() != 10 || c.iter().any(|v| !v.is_finite()) {
-                bail!(
-                    "--camera needs 10 finite numbers EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV (got {})",
-                    c.len()
-                );
+                bail!("--camera needs 10 finite numbers EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV (got {})", c.len());
             }
             CameraDesc {
                 eye: Vec3::new(c[0], c[1], c[2]),
@@ -84,10 +73,7 @@ pub fn choose_camera(scene: &Scene, camera: Option<&[f32]>, ortho: bool) -> Resu
 
 pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(t) = a.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(t.max(1))
-            .build_global()
-            .context("cannot set the thread count")?;
+        rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot set the thread count")?;
     }
     let t0 = Instant::now();
     let scene = load_scene(a.scene.as_deref())?;
@@ -95,14 +81,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let desc = choose_camera(&scene, a.camera.as_deref(), a.ortho)?;
     let st = scene.stats();
     let t1 = Instant::now();
-    let opts = MeshOptions {
-        test: if a.watertight {
-            TriangleTest::Watertight
-        } else {
-            TriangleTest::UnitTriangle
-        },
-        ..MeshOptions::default()
-    };
+    let opts =
+        MeshOptions { test: if a.watertight { TriangleTest::Watertight } else { TriangleTest::UnitTriangle }, ..MeshOptions::default() };
     let mut world = World::new(scene, opts)?;
     if world.ensure_light(desc.eye) {
         tracing::info!("the scene has no lights: using a headlight at the camera");
@@ -113,18 +93,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
         width: w,
         height: h,
         spp: a.spp.max(1),
-        whitted: WhittedSettings {
-            max_depth: a.max_depth,
-            shadows: !a.no_shadows,
-        },
+        whitted: WhittedSettings { max_depth: a.max_depth, shadows: !a.no_shadows },
     };
     let cam = Camera::new(&desc, w, h);
     let tiles = (w.div_ceil(lucent_render::TILE) * h.div_ceil(lucent_render::TILE)) as u64;
-    let bar = if std::io::stderr().is_terminal() {
-        ProgressBar::new(tiles)
-    } else {
-        ProgressBar::hidden()
-    };
+    let bar = if std::io::stderr().is_terminal() { ProgressBar::new(tiles) } else { ProgressBar::hidden() };
     bar.set_style(
         ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} tiles {elapsed}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
@@ -134,12 +107,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let render_s = t2.elapsed().as_secs_f64();
     bar.finish_and_clear();
     film.save(&a.output)?;
-    println!(
-        "scene: {} triangles, {} instances, {} lights",
-        st.triangles,
-        st.instances,
-        world.lights.len()
-    );
+    println!("scene: {} triangles, {} instances, {} lights", st.triangles, st.instances, world.lights.len());
     println!(
         "load {:.1} ms, build {:.1} ms, render {:.1} ms ({}x{}, {} spp, {} threads)",
         load_s * 1e3,
@@ -150,10 +118,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         settings.spp,
         rayon::current_num_threads()
     );
-    println!(
-        "{rays} rays, {:.2} Mrays/s",
-        rays as f64 / render_s.max(1e-9) * 1e-6
-    );
+    println!("{rays} rays, {:.2} Mrays/s", rays as f64 / render_s.max(1e-9) * 1e-6);
     println!("wrote {}", a.output.display());
     Ok(())
 }
@@ -161,14 +126,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
 pub fn info(path: Option<&Path>) -> Result<()> {
     let scene = load_scene(path)?;
     let st = scene.stats();
-    println!(
-        "scene:      {}",
-        path.map_or("(built-in demo)".to_string(), |p| p.display().to_string())
-    );
-    println!(
-        "triangles:  {} ({} instanced)",
-        st.triangles, st.instanced_triangles
-    );
+    println!("scene:      {}", path.map_or("(built-in demo)".to_string(), |p| p.display().to_string()));
+    println!("triangles:  {} ({} instanced)", st.triangles, st.instanced_triangles);
     println!("vertices:   {}", st.vertices);
     println!("meshes:     {}", st.meshes);
     println!("instances:  {}", st.instances);
@@ -176,10 +135,7 @@ pub fn info(path: Option<&Path>) -> Result<()> {
     println!("textures:   {}", st.textures);
     println!("lights:     {}", st.lights);
     match scene.bounds() {
-        Some((lo, hi)) => println!(
-            "bounds:     [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
-            lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
-        ),
+        Some((lo, hi)) => println!("bounds:     [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z),
         None => println!("bounds:     empty"),
     }
     if let Some(c) = scene.camera {
@@ -194,6 +150,15 @@ pub fn info(path: Option<&Path>) -> Result<()> {
     let t = Instant::now();
     let world = World::new(scene, MeshOptions::default())?;
     let (top, bottom) = world.accel.stats();
-    println!("accel:      {} bytes ({:.1} per triangle): BLAS {} nodes, {} bytes; TLAS {} nodes, {} bytes; built in {:.1} ms", top.bytes + bottom.bytes, (top.bytes + bottom.bytes) as f64 / st.triangles.max(1) as f64, bottom.nodes, bottom.bytes, top.nodes, top.bytes, t.elapsed().as_secs_f64() * 1e3);
+    println!(
+        "accel:      {} bytes ({:.1} per triangle): BLAS {} nodes, {} bytes; TLAS {} nodes, {} bytes; built in {:.1} ms",
+        top.bytes + bottom.bytes,
+        (top.bytes + bottom.bytes) as f64 / st.triangles.max(1) as f64,
+        bottom.nodes,
+        bottom.bytes,
+        top.nodes,
+        top.bytes,
+        t.elapsed().as_secs_f64() * 1e3
+    );
     Ok(())
 }

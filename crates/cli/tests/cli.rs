@@ -11,11 +11,7 @@ fn lucent() -> Command {
 fn render_demo_writes_a_real_picture() {
     let d = tempfile::tempdir().expect("tmp");
     let out = d.path().join("demo.png");
-    let o = lucent()
-        .args(["render", "--size", "160x120", "--threads", "2", "-o"])
-        .arg(&out)
-        .output()
-        .expect("run");
+    let o = lucent().args(["render", "--size", "160x120", "--threads", "2", "-o"]).arg(&out).output().expect("run");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("Mrays/s") && text.contains("build"), "{text}");
@@ -32,23 +28,14 @@ fn render_demo_writes_a_real_picture() {
 
 #[test]
 fn render_errors_are_clear() {
-    let o = lucent()
-        .args(["render", "/no/such/scene.obj", "-o", "/tmp/x.png"])
-        .output()
-        .expect("run");
+    let o = lucent().args(["render", "/no/such/scene.obj", "-o", "/tmp/x.png"]).output().expect("run");
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("/no/such/scene.obj"), "{e}");
-    let o = lucent()
-        .args(["render", "--size", "12"])
-        .output()
-        .expect("run");
+    let o = lucent().args(["render", "--size", "12"]).output().expect("run");
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("WIDTHxHEIGHT"));
-    let o = lucent()
-        .args(["render", "--camera", "1,2,3", "-o", "/tmp/x.png"])
-        .output()
-        .expect("run");
+    let o = lucent().args(["render", "--camera", "1,2,3", "-o", "/tmp/x.png"]).output().expect("run");
     assert!(String::from_utf8_lossy(&o.stderr).contains("10 finite numbers"));
 }
 
@@ -57,10 +44,7 @@ fn info_prints_counts() {
     let o = lucent().arg("info").output().expect("run");
     assert!(o.status.success());
     let t = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        t.contains("triangles:  2306") && t.contains("lights:     2") && t.contains("bytes"),
-        "{t}"
-    );
+    assert!(t.contains("triangles:  2306") && t.contains("lights:     2") && t.contains("bytes"), "{t}");
 }
 
 fn put_u32(b: &mut Vec<u8>, v: u32) {
@@ -131,54 +115,23 @@ fn bench_rays_reads_the_harness_format() {
     let o = lucent()
         .args(["bench", "rays"])
         .arg(d.path())
-        .args([
-            "--name",
-            "t",
-            "--threads",
-            "1,2",
-            "--frames",
-            "3",
-            "--warmup",
-            "1",
-        ])
+        .args(["--name", "t", "--threads", "1,2", "--frames", "3", "--warmup", "1"])
         .output()
         .expect("run");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let t = String::from_utf8_lossy(&o.stdout);
     let lines: Vec<&str> = t.lines().filter(|l| l.starts_with('{')).collect();
-    assert_eq!(
-        lines
-            .iter()
-            .filter(|l| l.contains("\"kind\":\"build\""))
-            .count(),
-        2,
-        "{t}"
-    );
-    let primary: Vec<&&str> = lines
-        .iter()
-        .filter(|l| l.contains("\"kind\":\"primary\""))
-        .collect();
+    assert_eq!(lines.iter().filter(|l| l.contains("\"kind\":\"build\"")).count(), 2, "{t}");
+    let primary: Vec<&&str> = lines.iter().filter(|l| l.contains("\"kind\":\"primary\"")).collect();
     assert_eq!(primary.len(), 2);
     for l in &primary {
-        assert!(
-            l.contains("\"hits\":10")
-                && l.contains("\"diff_px_vs_ref\":0")
-                && l.contains("\"mrays_s\":"),
-            "{l}"
-        );
+        assert!(l.contains("\"hits\":10") && l.contains("\"diff_px_vs_ref\":0") && l.contains("\"mrays_s\":"), "{l}");
     }
-    let shadow = lines
-        .iter()
-        .find(|l| l.contains("\"kind\":\"shadow\""))
-        .expect("shadow line");
+    let shadow = lines.iter().find(|l| l.contains("\"kind\":\"shadow\"")).expect("shadow line");
     assert!(shadow.contains("\"occluded\":10"), "{shadow}");
     // Bad input: a truncated file gives a clear error.
     std::fs::write(d.path().join("mesh.bin"), b"RTBMESH1\x05\0\0\0").expect("cut");
-    let o = lucent()
-        .args(["bench", "rays"])
-        .arg(d.path())
-        .output()
-        .expect("run");
+    let o = lucent().args(["bench", "rays"]).arg(d.path()).output().expect("run");
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("mesh.bin"));
 }

@@ -57,10 +57,7 @@ impl Camera {
         if self.ortho {
             Ray::new(self.eye + self.right * sx + self.up * sy, self.forward)
         } else {
-            Ray::new(
-                self.eye,
-                (self.forward + self.right * sx + self.up * sy).normalize(),
-            )
+            Ray::new(self.eye, (self.forward + self.right * sx + self.up * sy).normalize())
         }
     }
 
@@ -79,11 +76,5 @@ pub fn framing_camera(lo: Vec3, hi: Vec3) -> CameraDesc {
     let vfov: f32 = 45.0;
     let dist = r / (vfov.to_radians() * 0.5).sin();
     let eye = c + Vec3::new(0.35, 0.3, 1.0).normalize() * dist;
-    CameraDesc {
-        eye,
-        look_at: c,
-        up: Vec3::Y,
-        vfov_deg: vfov,
-        ortho_height: None,
-    }
+    CameraDesc { eye, look_at: c, up: Vec3::Y, vfov_deg: vfov, ortho_height: None }
 }

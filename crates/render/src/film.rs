@@ -44,11 +44,7 @@ impl Film {
     /// A black film.
     #[must_use]
     pub fn new(width: u32, height: u32) -> Self {
-        Self {
-            width,
-            height,
-            pixels: vec![Vec3::ZERO; width as usize * height as usize],
-        }
+        Self { width, height, pixels: vec![Vec3::ZERO; width as usize * height as usize] }
     }
 
     /// Pixel at (x, y).
@@ -63,14 +59,7 @@ impl Film {
         self.pixels
             .iter()
             .flat_map(|p| {
-                let q = |c: f32| {
-                    (linear_to_srgb(if c.is_finite() {
-                        c.clamp(0.0, 1.0)
-                    } else {
-                        0.0
-                    }) * 255.0
-                        + 0.5) as u8
-                };
+                let q = |c: f32| (linear_to_srgb(if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 }) * 255.0 + 0.5) as u8;
                 [q(p.x), q(p.y), q(p.z)]
             })
             .collect()
@@ -79,21 +68,13 @@ impl Film {
     /// Writes `.png` (8-bit sRGB) or `.exr` (linear f32).
     pub fn save(&self, path: &Path) -> Result<(), OutputError> {
         let name = path.display().to_string();
-        let ext = path
-            .extension()
-            .map(|e| e.to_string_lossy().to_lowercase())
-            .unwrap_or_default();
-        let err = |source| OutputError::Image {
-            path: name.clone(),
-            source,
-        };
+        let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
+        let err = |source| OutputError::Image { path: name.clone(), source };
         match ext.as_str() {
-            "png" => image::RgbImage::from_raw(self.width, self.height, self.to_srgb8())
-                .map_or(Ok(()), |img| img.save(path).map_err(err)),
+            "png" => image::RgbImage::from_raw(self.width, self.height, self.to_srgb8()).map_or(Ok(()), |img| img.save(path).map_err(err)),
             "exr" => {
                 let data: Vec<f32> = self.pixels.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
-                image::Rgb32FImage::from_raw(self.width, self.height, data)
-                    .map_or(Ok(()), |img| img.save(path).map_err(err))
+                image::Rgb32FImage::from_raw(self.width, self.height, data).map_or(Ok(()), |img| img.save(path).map_err(err))
             }
             _ => Err(OutputError::Format(name)),
         }

@@ -20,10 +20,7 @@ pub struct WhittedSettings {
 
 impl Default for WhittedSettings {
     fn default() -> Self {
-        Self {
-            max_depth: 6,
-            shadows: true,
-        }
+        Self { max_depth: 6, shadows: true }
     }
 }
 
@@ -65,12 +62,7 @@ pub fn li(w: &World, ray: &Ray, s: &WhittedSettings, depth: u32) -> Vec3 {
         return w.scene.background;
     };
     let surf = w.surface(ray, &hit);
-    let mat = w
-        .scene
-        .materials
-        .get(surf.material as usize)
-        .cloned()
-        .unwrap_or_default();
+    let mat = w.scene.materials.get(surf.material as usize).cloned().unwrap_or_default();
     shade(w, ray, &surf, &mat, s, depth)
 }
 
@@ -79,33 +71,19 @@ fn offset(w: &World, p: Vec3, n: Vec3) -> Vec3 {
     p + n * (p.abs().max_element() * 4e-6 + w.scale * 1e-6)
 }
 
-fn shade(
-    w: &World,
-    ray: &Ray,
-    surf: &Surface,
-    mat: &Material,
-    s: &WhittedSettings,
-    depth: u32,
-) -> Vec3 {
+fn shade(w: &World, ray: &Ray, surf: &Surface, mat: &Material, s: &WhittedSettings, depth: u32) -> Vec3 {
     let d = ray.dir.normalize();
     let front = d.dot(surf.ng) < 0.0;
     // Normals facing the viewer.
     let ng = if front { surf.ng } else { -surf.ng };
     let ns = if front { surf.ns } else { -surf.ns };
     let mut kd = mat.diffuse;
-    if let Some(t) = mat
-        .diffuse_tex
-        .and_then(|t| w.scene.textures.get(t as usize))
-    {
+    if let Some(t) = mat.diffuse_tex.and_then(|t| w.scene.textures.get(t as usize)) {
         kd *= sample(t, surf.uv).truncate();
     }
     let transmit = mat.transmit.max_element().clamp(0.0, 1.0);
     let opaque = 1.0 - transmit;
-    let ka = if mat.ambient != Vec3::ZERO {
-        mat.ambient
-    } else {
-        kd
-    };
+    let ka = if mat.ambient != Vec3::ZERO { mat.ambient } else { kd };
     let mut c = mat.emission.min(Vec3::ONE) + w.scene.ambient * ka * opaque;
     let v = -d;
     let p_out = offset(w, surf.p, ng);
@@ -116,25 +94,14 @@ fn shade(
                 let dist = to.length();
                 (to / dist, dist, l.color)
             }
-            LightKind::Directional { direction } => {
-                (-direction.normalize(), f32::INFINITY, l.color)
-            }
-            LightKind::Spot {
-                position,
-                direction,
-                inner,
-                outer,
-            } => {
+            LightKind::Directional { direction } => (-direction.normalize(), f32::INFINITY, l.color),
+            LightKind::Spot { position, direction, inner, outer } => {
                 let to = position - surf.p;
                 let dist = to.length();
                 let ldir = to / dist;
                 let cos = (-ldir).dot(direction.normalize());
                 let (ci, co) = (inner.cos(), outer.cos());
-                let f = if ci > co {
-                    ((cos - co) / (ci - co)).clamp(0.0, 1.0)
-                } else {
-                    (cos >= co) as u8 as f32
-                };
+                let f = if ci > co { ((cos - co) / (ci - co)).clamp(0.0, 1.0) } else { (cos >= co) as u8 as f32 };
                 (ldir, dist, l.color * f * f)
             }
         };
@@ -146,21 +113,13 @@ fn shade(
             continue;
         }
         if s.shadows {
-            let tmax = if dist.is_finite() {
-                (dist - (p_out - surf.p).length()) * (1.0 - 1e-4)
-            } else {
-                f32::INFINITY
-            };
+            let tmax = if dist.is_finite() { (dist - (p_out - surf.p).length()) * (1.0 - 1e-4) } else { f32::INFINITY };
             if w.occluded(&Ray::new(p_out, ldir).with_range(0.0, tmax)) {
                 continue;
             }
         }
         let r = reflect(-ldir, ns);
-        let spec = if mat.specular.max_element() > 0.0 {
-            mat.specular * r.dot(v).max(0.0).powf(mat.shininess)
-        } else {
-            Vec3::ZERO
-        };
+        let spec = if mat.specular.max_element() > 0.0 { mat.specular * r.dot(v).max(0.0).powf(mat.shininess) } else { Vec3::ZERO };
         c += rad * (kd * cos * opaque + spec);
     }
     if depth >= s.max_depth {
@@ -169,17 +128,9 @@ fn shade(
     let mut kr = mat.reflect;
     if transmit > 0.0 {
         // Entering when the ray meets the front side.
-        let eta = if front {
-            1.0 / mat.ior.max(1e-3)
-        } else {
-            mat.ior.max(1e-3)
-        };
+        let eta = if front { 1.0 / mat.ior.max(1e-3) } else { mat.ior.max(1e-3) };
         let cos_i = -d.dot(ns).clamp(-1.0, 1.0);
-        let f = if mat.fresnel {
-            fresnel_dielectric(cos_i.abs(), eta)
-        } else {
-            0.0
-        };
+        let f = if mat.fresnel { fresnel_dielectric(cos_i.abs(), eta) } else { 0.0 };
         match refract(d, ns, eta) {
             Some(t) if f < 1.0 => {
                 let p_in = offset(w, surf.p, -ng);

@@ -37,10 +37,7 @@ pub fn pcg_hash(x: u32) -> u32 {
 pub fn jitter(x: u32, y: u32, s: u32) -> (f32, f32) {
     let h = pcg_hash(x ^ pcg_hash(y ^ pcg_hash(s)));
     let h2 = pcg_hash(h);
-    (
-        (h >> 8) as f32 / (1u32 << 24) as f32,
-        (h2 >> 8) as f32 / (1u32 << 24) as f32,
-    )
+    ((h >> 8) as f32 / (1u32 << 24) as f32, (h2 >> 8) as f32 / (1u32 << 24) as f32)
 }
 
 /// Radiance of pixel (x, y) averaged over its samples.
@@ -49,11 +46,7 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
     let spp = s.spp.max(1);
     let mut c = Vec3::ZERO;
     for k in 0..spp {
-        let (jx, jy) = if spp == 1 {
-            (0.5, 0.5)
-        } else {
-            jitter(x, y, k)
-        };
+        let (jx, jy) = if spp == 1 { (0.5, 0.5) } else { jitter(x, y, k) };
         c += li(w, &cam.ray(x as f32 + jx, y as f32 + jy), &s.whitted, 0);
     }
     c / spp as f32
@@ -61,16 +54,9 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
 
 /// Renders a frame; `progress(tiles_done)` is called after each tile. Returns the film and
 /// the number of rays traced.
-pub fn render(
-    w: &World,
-    cam: &Camera,
-    s: &RenderSettings,
-    progress: &(dyn Fn(u64) + Sync),
-) -> (Film, u64) {
+pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u64) + Sync)) -> (Film, u64) {
     let (tw, th) = (s.width.div_ceil(TILE), s.height.div_ceil(TILE));
-    let tiles: Vec<(u32, u32)> = (0..th)
-        .flat_map(|ty| (0..tw).map(move |tx| (tx, ty)))
-        .collect();
+    let tiles: Vec<(u32, u32)> = (0..th).flat_map(|ty| (0..tw).map(move |tx| (tx, ty))).collect();
     let done: Vec<(u32, u32, Vec<Vec3>, u64)> = tiles
         .par_iter()
         .map(|&(tx, ty)| {

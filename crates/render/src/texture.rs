@@ -30,8 +30,7 @@ pub fn sample(t: &Texture, uv: Vec2) -> Vec4 {
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
     let texel = |xi: i64, yi: i64| {
-        let c =
-            t.texels[wrap(yi, t.height, t.wrap_v) * t.width as usize + wrap(xi, t.width, t.wrap_u)];
+        let c = t.texels[wrap(yi, t.height, t.wrap_v) * t.width as usize + wrap(xi, t.width, t.wrap_u)];
         Vec4::from(c)
     };
     let (xi, yi) = (x0 as i64, y0 as i64);

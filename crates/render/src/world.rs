@@ -80,10 +80,7 @@ impl World {
             .map(|m| {
                 MeshBvh::build(&m.positions, &m.indices, opts)
                     .map(Geometry::Mesh)
-                    .map_err(|source| WorldError::Build {
-                        mesh: m.name.clone(),
-                        source,
-                    })
+                    .map_err(|source| WorldError::Build { mesh: m.name.clone(), source })
             })
             .collect();
         let mut geoms = meshes?;
@@ -103,32 +100,15 @@ impl World {
         for i in &scene.instances {
             let g = match i.geom {
                 Geom::Mesh(m) => m,
-                Geom::Shape { kind, .. } => {
-                    shape_base + kinds.iter().position(|&k| k == kind).unwrap_or(0) as u32
-                }
+                Geom::Shape { kind, .. } => shape_base + kinds.iter().position(|&k| k == kind).unwrap_or(0) as u32,
             };
             insts.push(Instance::new(g, i.world_from_object));
-            info.push(InstInfo {
-                geom: i.geom,
-                normal_to_world: normal_matrix(&i.world_from_object),
-            });
+            info.push(InstInfo { geom: i.geom, normal_to_world: normal_matrix(&i.world_from_object) });
         }
         let accel = TwoLevel::new(geoms, insts).map_err(WorldError::Top)?;
-        let scale = scene
-            .bounds()
-            .map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
-        let mut w = Self {
-            scene,
-            accel,
-            info,
-            lights: Vec::new(),
-            scale,
-        };
-        w.lights = if w.scene.lights.is_empty() {
-            w.emitter_lights()
-        } else {
-            w.scene.lights.clone()
-        };
+        let scale = scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
+        let mut w = Self { scene, accel, info, lights: Vec::new(), scale };
+        w.lights = if w.scene.lights.is_empty() { w.emitter_lights() } else { w.scene.lights.clone() };
         Ok(w)
     }
 
@@ -138,11 +118,7 @@ impl World {
         if !self.lights.is_empty() {
             return false;
         }
-        self.lights.push(Light {
-            kind: LightKind::Point { position: eye },
-            color: Vec3::splat(0.9),
-            inverse_square: false,
-        });
+        self.lights.push(Light { kind: LightKind::Point { position: eye }, color: Vec3::splat(0.9), inverse_square: false });
         true
     }
 
@@ -173,15 +149,11 @@ impl World {
                 let idx = mesh.indices[tri];
                 let [a, b, c] = idx.map(|i| mesh.positions[i as usize]);
                 let ng_obj = (b - a).cross(c - a);
-                let ng = (inst.normal_to_world * glam::Vec3A::from(ng_obj))
-                    .normalize_or_zero()
-                    .into();
+                let ng = (inst.normal_to_world * glam::Vec3A::from(ng_obj)).normalize_or_zero().into();
                 let w = Vec3::new(1.0 - h.u - h.v, h.u, h.v);
                 let ns = match mesh.normals.corners(tri, &idx) {
                     Some([n0, n1, n2]) => {
-                        let n: Vec3 = (inst.normal_to_world
-                            * glam::Vec3A::from(n0 * w.x + n1 * w.y + n2 * w.z))
-                        .into();
+                        let n: Vec3 = (inst.normal_to_world * glam::Vec3A::from(n0 * w.x + n1 * w.y + n2 * w.z)).into();
                         let n = n.normalize_or_zero();
                         if n == Vec3::ZERO || !n.is_finite() {
                             ng
@@ -194,33 +166,14 @@ impl World {
                     }
                     None => ng,
                 };
-                let uv = mesh
-                    .uvs
-                    .corners(tri, &idx)
-                    .map_or(Vec2::new(h.u, h.v), |[t0, t1, t2]| {
-                        t0 * w.x + t1 * w.y + t2 * w.z
-                    });
-                Surface {
-                    p,
-                    ng,
-                    ns,
-                    uv,
-                    material: mesh.material.get(tri).copied().unwrap_or(0),
-                }
+                let uv = mesh.uvs.corners(tri, &idx).map_or(Vec2::new(h.u, h.v), |[t0, t1, t2]| t0 * w.x + t1 * w.y + t2 * w.z);
+                Surface { p, ng, ns, uv, material: mesh.material.get(tri).copied().unwrap_or(0) }
             }
             Geom::Shape { kind, material } => {
                 let p_obj = world_from_object.inverse().transform_point3(p);
                 let n_obj = shape_of(kind).normal_local(p_obj, h.prim);
-                let ng: Vec3 = (inst.normal_to_world * glam::Vec3A::from(n_obj))
-                    .normalize_or_zero()
-                    .into();
-                Surface {
-                    p,
-                    ng,
-                    ns: ng,
-                    uv: Vec2::new(h.u, h.v),
-                    material,
-                }
+                let ng: Vec3 = (inst.normal_to_world * glam::Vec3A::from(n_obj)).normalize_or_zero().into();
+                Surface { p, ng, ns: ng, uv: Vec2::new(h.u, h.v), material }
             }
         }
     }
@@ -241,10 +194,7 @@ impl World {
                 if mm.emission.max_element() <= 0.0 {
                     continue;
                 }
-                let [a, b, c] = idx.map(|i| {
-                    inst.world_from_object
-                        .transform_point3(mesh.positions[i as usize])
-                });
+                let [a, b, c] = idx.map(|i| inst.world_from_object.transform_point3(mesh.positions[i as usize]));
                 let n = (b - a).cross(c - a);
                 let area = n.length() * 0.5;
                 if area.is_nan() || area <= 0.0 {
@@ -265,11 +215,7 @@ impl World {
                     }
                 }
                 let position = pc / area + nn * (self.scale * 0.02);
-                out.push(Light {
-                    kind: LightKind::Point { position },
-                    color: em / em.max_element(),
-                    inverse_square: false,
-                });
+                out.push(Light { kind: LightKind::Point { position }, color: em / em.max_element(), inverse_square: false });
             }
         }
         out

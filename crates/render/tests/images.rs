@@ -6,17 +6,10 @@ use glam::{Affine3A, Vec3};
 use lucent_accel::MeshOptions;
 use lucent_render::integrator::{fresnel_dielectric, refract};
 use lucent_render::{render, Camera, Film, RenderSettings, WhittedSettings, World};
-use lucent_scene::{
-    demo_scene, load, CameraDesc, Geom, Instance, Light, LightKind, Material, Scene, ShapeKind,
-};
+use lucent_scene::{demo_scene, load, CameraDesc, Geom, Instance, Light, LightKind, Material, Scene, ShapeKind};
 
 fn settings(w: u32, h: u32) -> RenderSettings {
-    RenderSettings {
-        width: w,
-        height: h,
-        spp: 1,
-        whitted: WhittedSettings::default(),
-    }
+    RenderSettings { width: w, height: h, spp: 1, whitted: WhittedSettings::default() }
 }
 
 fn avg(f: &Film, x0: u32, y0: u32, x1: u32, y1: u32) -> Vec3 {
@@ -52,23 +45,14 @@ fn cornell_box_probes() {
     // Red left wall, green right wall.
     let left = avg(&f, 8, 50, 14, 70);
     let right = avg(&f, 114, 50, 120, 70);
-    assert!(
-        left.x > 0.3 && left.x > 3.0 * left.y && left.x > 3.0 * left.z,
-        "left wall {left}"
-    );
-    assert!(
-        right.y > 0.3 && right.y > 3.0 * right.x && right.y > 3.0 * right.z,
-        "right wall {right}"
-    );
+    assert!(left.x > 0.3 && left.x > 3.0 * left.y && left.x > 3.0 * left.z, "left wall {left}");
+    assert!(right.y > 0.3 && right.y > 3.0 * right.x && right.y > 3.0 * right.z, "right wall {right}");
     // Shadows: the floor beside the short box's base (in its shadow, lit only by ambient) is far
     // darker than the open floor near the front.
     let open = avg(&f, 28, 118, 34, 124);
     let shadowed = avg(&f, 40, 84, 44, 88);
     assert!(open.length() > 0.5, "open floor {open}");
-    assert!(
-        shadowed.length() < 0.5 * open.length(),
-        "shadow {shadowed} vs open floor {open}"
-    );
+    assert!(shadowed.length() < 0.5 * open.length(), "shadow {shadowed} vs open floor {open}");
 }
 
 /// A glass slab in front of a red/green split wall: the refracted view is shifted sideways
@@ -76,79 +60,31 @@ fn cornell_box_probes() {
 #[test]
 fn refraction_through_a_slab_shifts_the_view() {
     // Analytic pieces first.
-    assert!(
-        (fresnel_dielectric(1.0, 1.0 / 1.5) - 0.04).abs() < 1e-4,
-        "normal incidence 4%"
-    );
-    assert_eq!(
-        fresnel_dielectric(0.1, 1.5),
-        1.0,
-        "total internal reflection"
-    );
-    assert!(
-        refract(Vec3::new(0.8, -0.6, 0.0), Vec3::Y, 1.5).is_none(),
-        "TIR from glass at 53°"
-    );
+    assert!((fresnel_dielectric(1.0, 1.0 / 1.5) - 0.04).abs() < 1e-4, "normal incidence 4%");
+    assert_eq!(fresnel_dielectric(0.1, 1.5), 1.0, "total internal reflection");
+    assert!(refract(Vec3::new(0.8, -0.6, 0.0), Vec3::Y, 1.5).is_none(), "TIR from glass at 53°");
     let t = refract(Vec3::new(0.6, -0.8, 0.0), Vec3::Y, 1.0 / 1.5).expect("refracts");
     assert!((t.x - 0.6 / 1.5).abs() < 1e-5, "Snell: sin θt = sin θi / n");
 
     // Scene: a wall at z = -11, red for x < 0 and green for x >= 0 (two boxes), and a glass
     // slab 2 thick, turned 45° about y, that every camera ray crosses obliquely.
-    let mut s = Scene {
-        ambient: Vec3::ONE,
-        ..Scene::default()
-    };
-    s.materials.push(Material {
-        diffuse: Vec3::ZERO,
-        ambient: Vec3::new(1.0, 0.0, 0.0),
-        ..Material::default()
-    });
-    s.materials.push(Material {
-        diffuse: Vec3::ZERO,
-        ambient: Vec3::new(0.0, 1.0, 0.0),
-        ..Material::default()
-    });
-    s.materials.push(Material {
-        diffuse: Vec3::ZERO,
-        transmit: Vec3::ONE,
-        ior: 1.5,
-        fresnel: false,
-        ..Material::default()
-    });
-    let bx =
-        |t: Vec3, sc: Vec3| Affine3A::from_scale_rotation_translation(sc, glam::Quat::IDENTITY, t);
+    let mut s = Scene { ambient: Vec3::ONE, ..Scene::default() };
+    s.materials.push(Material { diffuse: Vec3::ZERO, ambient: Vec3::new(1.0, 0.0, 0.0), ..Material::default() });
+    s.materials.push(Material { diffuse: Vec3::ZERO, ambient: Vec3::new(0.0, 1.0, 0.0), ..Material::default() });
+    s.materials.push(Material { diffuse: Vec3::ZERO, transmit: Vec3::ONE, ior: 1.5, fresnel: false, ..Material::default() });
+    let bx = |t: Vec3, sc: Vec3| Affine3A::from_scale_rotation_translation(sc, glam::Quat::IDENTITY, t);
     s.instances.push(Instance {
-        geom: Geom::Shape {
-            kind: ShapeKind::Box,
-            material: 0,
-        },
+        geom: Geom::Shape { kind: ShapeKind::Box, material: 0 },
         world_from_object: bx(Vec3::new(-50.0, 0.0, -11.0), Vec3::new(50.0, 50.0, 1.0)),
     });
     s.instances.push(Instance {
-        geom: Geom::Shape {
-            kind: ShapeKind::Box,
-            material: 1,
-        },
+        geom: Geom::Shape { kind: ShapeKind::Box, material: 1 },
         world_from_object: bx(Vec3::new(50.0, 0.0, -11.0), Vec3::new(50.0, 50.0, 1.0)),
     });
-    let slab = Affine3A::from_rotation_translation(
-        glam::Quat::from_rotation_y(std::f32::consts::FRAC_PI_4),
-        Vec3::new(0.0, 0.0, -5.0),
-    ) * Affine3A::from_scale(Vec3::new(3.0, 20.0, 1.0));
-    s.instances.push(Instance {
-        geom: Geom::Shape {
-            kind: ShapeKind::Box,
-            material: 2,
-        },
-        world_from_object: slab,
-    });
-    s.lights.push(Light {
-        kind: LightKind::Directional {
-            direction: -Vec3::Z,
-        },
-        color: Vec3::ZERO,
-        inverse_square: false,
-    });
+    let slab = Affine3A::from_rotation_translation(glam::Quat::from_rotation_y(std::f32::consts::FRAC_PI_4), Vec3::new(0.0, 0.0, -5.0))
+        * Affine3A::from_scale(Vec3::new(3.0, 20.0, 1.0));
+    s.instances.push(Instance { geom: Geom::Shape { kind: ShapeKind::Box, material: 2 }, world_from_object: slab });
+    s.lights.push(Light { kind: LightKind::Directional { direction: -Vec3::Z }, color: Vec3::ZERO, inverse_square: false });
     // Orthographic camera, rays along -z, 4 units wide (pixel x ↔ world x = (px + 0.5) / 100 - 2).
     // θi = 45°, θt = asin(sin 45° / 1.5) = 28.13°; the ray leaves parallel to itself, displaced
     // sideways (along x) by d = T sin(θi - θt) / cos θt = 0.658 towards -x, so the red/green
@@ -164,86 +100,36 @@ fn refraction_through_a_slab_shifts_the_view() {
     // Find where red turns green.
     let row: Vec<Vec3> = (0..400).map(|x| f.get(x, 2)).collect();
     // Within the slab's face (|x| < 1.5; its rim refracts through the side faces).
-    assert!(
-        row[100].x > 0.99 && row[100].y == 0.0,
-        "x = -1 sees red through the slab: {}",
-        row[100]
-    );
-    let edge = (100
-        + row[100..350]
-            .iter()
-            .position(|c| c.y > c.x)
-            .expect("green somewhere")) as f32;
+    assert!(row[100].x > 0.99 && row[100].y == 0.0, "x = -1 sees red through the slab: {}", row[100]);
+    let edge = (100 + row[100..350].iter().position(|c| c.y > c.x).expect("green somewhere")) as f32;
     let world_x = (edge + 0.5) / 100.0 - 2.0;
     let ti = std::f32::consts::FRAC_PI_4;
     let tt = (ti.sin() / 1.5).asin();
     let shift = 2.0 * (ti - tt).sin() / tt.cos();
-    assert!(
-        (world_x - shift).abs() < 0.015,
-        "edge seen at x = {world_x}, Snell predicts {shift}"
-    );
+    assert!((world_x - shift).abs() < 0.015, "edge seen at x = {world_x}, Snell predicts {shift}");
 }
 
 #[test]
 fn mirror_shows_what_it_faces() {
     // A mirror disk facing the camera at 45° reflects a blue wall placed to the side.
-    let mut s = Scene {
-        ambient: Vec3::ONE,
-        background: Vec3::ZERO,
-        ..Scene::default()
-    };
-    s.materials.push(Material {
-        diffuse: Vec3::ZERO,
-        reflect: Vec3::ONE,
-        ..Material::default()
-    });
-    s.materials.push(Material {
-        diffuse: Vec3::ZERO,
-        ambient: Vec3::new(0.0, 0.0, 1.0),
-        ..Material::default()
-    });
-    let mirror = Affine3A::from_rotation_translation(
-        glam::Quat::from_rotation_y(std::f32::consts::FRAC_PI_4),
-        Vec3::new(0.0, 0.0, -5.0),
-    );
+    let mut s = Scene { ambient: Vec3::ONE, background: Vec3::ZERO, ..Scene::default() };
+    s.materials.push(Material { diffuse: Vec3::ZERO, reflect: Vec3::ONE, ..Material::default() });
+    s.materials.push(Material { diffuse: Vec3::ZERO, ambient: Vec3::new(0.0, 0.0, 1.0), ..Material::default() });
+    let mirror = Affine3A::from_rotation_translation(glam::Quat::from_rotation_y(std::f32::consts::FRAC_PI_4), Vec3::new(0.0, 0.0, -5.0));
+    s.instances.push(Instance { geom: Geom::Shape { kind: ShapeKind::Disk, material: 0 }, world_from_object: mirror });
     s.instances.push(Instance {
-        geom: Geom::Shape {
-            kind: ShapeKind::Disk,
-            material: 0,
-        },
-        world_from_object: mirror,
-    });
-    s.instances.push(Instance {
-        geom: Geom::Shape {
-            kind: ShapeKind::Box,
-            material: 1,
-        },
+        geom: Geom::Shape { kind: ShapeKind::Box, material: 1 },
         world_from_object: Affine3A::from_scale_rotation_translation(
             Vec3::new(1.0, 10.0, 10.0),
             glam::Quat::IDENTITY,
             Vec3::new(8.0, 0.0, -5.0),
         ),
     });
-    s.lights.push(Light {
-        kind: LightKind::Directional {
-            direction: -Vec3::Z,
-        },
-        color: Vec3::ZERO,
-        inverse_square: false,
-    });
-    let cam = CameraDesc {
-        eye: Vec3::ZERO,
-        look_at: -Vec3::Z,
-        up: Vec3::Y,
-        vfov_deg: 20.0,
-        ortho_height: None,
-    };
+    s.lights.push(Light { kind: LightKind::Directional { direction: -Vec3::Z }, color: Vec3::ZERO, inverse_square: false });
+    let cam = CameraDesc { eye: Vec3::ZERO, look_at: -Vec3::Z, up: Vec3::Y, vfov_deg: 20.0, ortho_height: None };
     let f = render_scene(s, cam, 32, 32);
     let c = f.get(16, 16);
-    assert!(
-        c.z > 0.99 && c.x < 0.01,
-        "mirror centre shows the blue wall: {c}"
-    );
+    assert!(c.z > 0.99 && c.x < 0.01, "mirror centre shows the blue wall: {c}");
     assert_eq!(f.get(0, 0), Vec3::ZERO, "corner sees the background");
 }
 
@@ -258,12 +144,8 @@ fn demo_scene_shows_its_parts() {
     let cyl = avg(&f, 36, 80, 56, 100);
     assert!(cyl.x > 2.0 * cyl.y && cyl.x > 0.2, "red cylinder {cyl}");
     // Checkered floor: both dark and light squares in the foreground.
-    let lum: Vec<f32> = (0..256)
-        .map(|x| f.get(x, 180).dot(Vec3::splat(1.0 / 3.0)))
-        .collect();
-    let (lo, hi) = lum
-        .iter()
-        .fold((f32::MAX, 0.0f32), |(a, b), &v| (a.min(v), b.max(v)));
+    let lum: Vec<f32> = (0..256).map(|x| f.get(x, 180).dot(Vec3::splat(1.0 / 3.0))).collect();
+    let (lo, hi) = lum.iter().fold((f32::MAX, 0.0f32), |(a, b), &v| (a.min(v), b.max(v)));
     assert!(hi > 0.4 && hi > 4.0 * lo, "checker contrast {lo}..{hi}");
 }
 
@@ -272,23 +154,10 @@ fn images_do_not_depend_on_thread_count() {
     let s = demo_scene();
     let cam = s.camera.expect("demo camera");
     let world = World::new(s, MeshOptions::default()).expect("world");
-    let st = RenderSettings {
-        width: 96,
-        height: 64,
-        spp: 3,
-        whitted: WhittedSettings::default(),
-    };
+    let st = RenderSettings { width: 96, height: 64, spp: 3, whitted: WhittedSettings::default() };
     let c = Camera::new(&cam, 96, 64);
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .expect("pool")
-        .install(|| render(&world, &c, &st, &|_| {}).0);
-    let two = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .expect("pool")
-        .install(|| render(&world, &c, &st, &|_| {}).0);
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool").install(|| render(&world, &c, &st, &|_| {}).0);
+    let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("pool").install(|| render(&world, &c, &st, &|_| {}).0);
     assert_eq!(one.pixels, two.pixels);
 }
 

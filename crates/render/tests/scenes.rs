@@ -35,77 +35,33 @@ fn every_shared_scene_loads_with_its_counts() {
         assert_eq!(st.vertices, verts, "{file}: vertices");
         assert!(!s.instances.is_empty(), "{file}: no instances");
         for m in &s.meshes {
-            assert_eq!(
-                m.material.len(),
-                m.indices.len(),
-                "{file}: one material per triangle"
-            );
-            assert!(
-                m.material.iter().all(|&i| (i as usize) < s.materials.len()),
-                "{file}: material out of range"
-            );
+            assert_eq!(m.material.len(), m.indices.len(), "{file}: one material per triangle");
+            assert!(m.material.iter().all(|&i| (i as usize) < s.materials.len()), "{file}: material out of range");
         }
     }
     // Textures and lights where the README says there are some.
-    assert_eq!(
-        load(&scene("sponza_dabrovic/sponza.obj.gz"))
-            .expect("sponza")
-            .textures
-            .len(),
-        10
-    );
+    assert_eq!(load(&scene("sponza_dabrovic/sponza.obj.gz")).expect("sponza").textures.len(), 10);
     let k = load(&scene("bart/kitchen/kitchen.gltf")).expect("kitchen");
     assert_eq!(k.textures.len(), 8);
     assert_eq!(k.lights.len(), 6);
     assert!(k.camera.is_some(), "the kitchen has an animated camera");
-    assert!(
-        k.materials
-            .iter()
-            .any(|m| m.transmit.max_element() > 0.0 && (m.ior - 1.55).abs() < 1e-6),
-        "transmission + ior read"
-    );
+    assert!(k.materials.iter().any(|m| m.transmit.max_element() > 0.0 && (m.ior - 1.55).abs() < 1e-6), "transmission + ior read");
 }
 
 /// Scenes with their README cameras (eye, look-at, up, vfov).
 const VIEWS: &[(&str, [f32; 10])] = &[
-    (
-        "cornell_box/cornell_box.obj",
-        [278.0, 273.0, -800.0, 278.0, 273.0, 0.0, 0.0, 1.0, 0.0, 39.3],
-    ),
-    (
-        "bart/museum/museum5_t0.obj.gz",
-        [0.0, 1.6, -6.0, 0.0, 1.6, 0.0, 0.0, 1.0, 0.0, 45.0],
-    ),
-    (
-        "bart/kitchen/kitchen_t0.obj.gz",
-        [
-            3.75, 2.3, 3.6, 3.4365, 1.8802, 2.7482, -0.1270, 0.9074, -0.4005, 40.0,
-        ],
-    ),
-    (
-        "sponza_dabrovic/sponza.obj.gz",
-        [-10.0, 2.5, 0.0, 0.0, 4.5, 0.0, 0.0, 1.0, 0.0, 70.0],
-    ),
-    (
-        "conference/conference.obj.gz",
-        [
-            1550.0, 420.0, -150.0, 300.0, 150.0, -200.0, 0.0, 1.0, 0.0, 60.0,
-        ],
-    ),
-    (
-        "stanford/bunny.ply",
-        [
-            -0.0168, 0.11, 0.40, -0.0168, 0.11, -0.0015, 0.0, 1.0, 0.0, 30.0,
-        ],
-    ),
+    ("cornell_box/cornell_box.obj", [278.0, 273.0, -800.0, 278.0, 273.0, 0.0, 0.0, 1.0, 0.0, 39.3]),
+    ("bart/museum/museum5_t0.obj.gz", [0.0, 1.6, -6.0, 0.0, 1.6, 0.0, 0.0, 1.0, 0.0, 45.0]),
+    ("bart/kitchen/kitchen_t0.obj.gz", [3.75, 2.3, 3.6, 3.4365, 1.8802, 2.7482, -0.1270, 0.9074, -0.4005, 40.0]),
+    ("sponza_dabrovic/sponza.obj.gz", [-10.0, 2.5, 0.0, 0.0, 4.5, 0.0, 0.0, 1.0, 0.0, 70.0]),
+    ("conference/conference.obj.gz", [1550.0, 420.0, -150.0, 300.0, 150.0, -200.0, 0.0, 1.0, 0.0, 60.0]),
+    ("stanford/bunny.ply", [-0.0168, 0.11, 0.40, -0.0168, 0.11, -0.0015, 0.0, 1.0, 0.0, 30.0]),
 ];
 
 #[test]
 fn kernels_match_reference_on_shared_scenes() {
-    let mut variants = vec![
-        (Width::W8, Kernel::Scalar, TriangleTest::UnitTriangle),
-        (Width::W4, Kernel::Scalar, TriangleTest::UnitTriangle),
-    ];
+    let mut variants =
+        vec![(Width::W8, Kernel::Scalar, TriangleTest::UnitTriangle), (Width::W4, Kernel::Scalar, TriangleTest::UnitTriangle)];
     if Kernel::simd_available() {
         variants.push((Width::W8, Kernel::Simd, TriangleTest::UnitTriangle));
         variants.push((Width::W4, Kernel::Simd, TriangleTest::UnitTriangle));
@@ -137,13 +93,9 @@ fn kernels_match_reference_on_shared_scenes() {
             let b = lo + (hi - lo) * Vec3::new(rng.random(), rng.random(), rng.random());
             rays.push(Ray::new(a, (b - a).normalize_or(Vec3::Y)));
         }
-        let want: Vec<_> = rays
-            .iter()
-            .map(|r| intersect_triangles(&m.positions, &m.indices, r))
-            .collect();
+        let want: Vec<_> = rays.iter().map(|r| intersect_triangles(&m.positions, &m.indices, r)).collect();
         for &(width, kernel, test) in &variants {
-            let mut bvh = MeshBvh::build(&m.positions, &m.indices, MeshOptions { width, test })
-                .expect("build");
+            let mut bvh = MeshBvh::build(&m.positions, &m.indices, MeshOptions { width, test }).expect("build");
             bvh.validate().expect("well formed");
             bvh.set_kernel(kernel);
             for (r, w) in rays.iter().zip(&want) {
@@ -152,21 +104,12 @@ fn kernels_match_reference_on_shared_scenes() {
                 // (nearly coplanar triangles a few ulps apart may be found in either order).
                 match (w, g) {
                     (None, None) => {}
-                    (Some(w), Some(g)) => assert!(
-                        (w.t - g.t).abs() <= 4e-6 * w.t,
-                        "{file} {width:?} {kernel:?}: t {} vs {} for {r:?}",
-                        w.t,
-                        g.t
-                    ),
-                    _ => panic!(
-                        "{file} {width:?} {kernel:?}: hit/miss differs for {r:?}: {w:?} vs {g:?}"
-                    ),
+                    (Some(w), Some(g)) => {
+                        assert!((w.t - g.t).abs() <= 4e-6 * w.t, "{file} {width:?} {kernel:?}: t {} vs {} for {r:?}", w.t, g.t)
+                    }
+                    _ => panic!("{file} {width:?} {kernel:?}: hit/miss differs for {r:?}: {w:?} vs {g:?}"),
                 }
-                assert_eq!(
-                    bvh.occluded(r),
-                    w.is_some(),
-                    "{file} {width:?} {kernel:?}: occluded"
-                );
+                assert_eq!(bvh.occluded(r), w.is_some(), "{file} {width:?} {kernel:?}: occluded");
             }
         }
     }

@@ -1,20 +1,13 @@
 //! The built-in demo scene (compiled in): a checkered floor texture, a mirror sphere, a
 //! glass sphere, a capped cylinder and cone, a triangle mesh (a torus) and two lights.
 
-use crate::model::{
-    Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene, ShapeKind, Texture,
-    Wrap,
-};
+use crate::model::{Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene, ShapeKind, Texture, Wrap};
 use glam::{Affine3A, Quat, Vec2, Vec3};
 
 /// Builds the demo scene.
 #[must_use]
 pub fn demo_scene() -> Scene {
-    let mut s = Scene {
-        ambient: Vec3::splat(0.08),
-        background: Vec3::new(0.25, 0.35, 0.55),
-        ..Scene::default()
-    };
+    let mut s = Scene { ambient: Vec3::splat(0.08), background: Vec3::new(0.25, 0.35, 0.55), ..Scene::default() };
     // Texture: 8x8 checker, 64 texels a square.
     let n = 512u32;
     let texels = (0..n * n)
@@ -27,14 +20,7 @@ pub fn demo_scene() -> Scene {
             }
         })
         .collect();
-    s.textures.push(Texture {
-        name: "checker".into(),
-        width: n,
-        height: n,
-        texels,
-        wrap_u: Wrap::Repeat,
-        wrap_v: Wrap::Repeat,
-    });
+    s.textures.push(Texture { name: "checker".into(), width: n, height: n, texels, wrap_u: Wrap::Repeat, wrap_v: Wrap::Repeat });
     let mat = |s: &mut Scene, m: Material| {
         s.materials.push(m);
         (s.materials.len() - 1) as u32
@@ -110,23 +96,10 @@ pub fn demo_scene() -> Scene {
     let h = 10.0;
     let floor_mesh = Mesh {
         name: "floor".into(),
-        positions: vec![
-            Vec3::new(-h, 0.0, -h),
-            Vec3::new(h, 0.0, -h),
-            Vec3::new(h, 0.0, h),
-            Vec3::new(-h, 0.0, h),
-        ],
+        positions: vec![Vec3::new(-h, 0.0, -h), Vec3::new(h, 0.0, -h), Vec3::new(h, 0.0, h), Vec3::new(-h, 0.0, h)],
         indices: vec![[0, 2, 1], [0, 3, 2]],
         normals: Attr::default(),
-        uvs: Attr {
-            values: vec![
-                Vec2::new(0.0, 0.0),
-                Vec2::new(4.0, 0.0),
-                Vec2::new(4.0, 4.0),
-                Vec2::new(0.0, 4.0),
-            ],
-            indices: None,
-        },
+        uvs: Attr { values: vec![Vec2::new(0.0, 0.0), Vec2::new(4.0, 0.0), Vec2::new(4.0, 4.0), Vec2::new(0.0, 4.0)], indices: None },
         material: vec![floor, floor],
     };
     s.add_mesh(floor_mesh);
@@ -134,53 +107,26 @@ pub fn demo_scene() -> Scene {
     let place = |t: Vec3, r: Quat, sc: Vec3| Affine3A::from_scale_rotation_translation(sc, r, t);
     let upright = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2); // z axis -> y axis
     let shapes = [
-        (
-            ShapeKind::Sphere,
-            mirror,
-            place(Vec3::new(-1.2, 1.0, 0.0), Quat::IDENTITY, Vec3::ONE),
-        ),
-        (
-            ShapeKind::Sphere,
-            glass,
-            place(Vec3::new(0.9, 0.8, 1.8), Quat::IDENTITY, Vec3::splat(0.8)),
-        ),
-        (
-            ShapeKind::CappedCylinder,
-            red,
-            place(
-                Vec3::new(-3.4, 0.9, -1.0),
-                upright,
-                Vec3::new(0.6, 0.6, 0.9),
-            ),
-        ),
+        (ShapeKind::Sphere, mirror, place(Vec3::new(-1.2, 1.0, 0.0), Quat::IDENTITY, Vec3::ONE)),
+        (ShapeKind::Sphere, glass, place(Vec3::new(0.9, 0.8, 1.8), Quat::IDENTITY, Vec3::splat(0.8))),
+        (ShapeKind::CappedCylinder, red, place(Vec3::new(-3.4, 0.9, -1.0), upright, Vec3::new(0.6, 0.6, 0.9))),
         // Cone with its apex up: flip z before standing it up; base on the floor.
         (
             ShapeKind::CappedCone,
             blue,
-            place(
-                Vec3::new(1.6, 1.6, -1.6),
-                Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
-                Vec3::new(0.8, 0.8, 1.6),
-            ),
+            place(Vec3::new(1.6, 1.6, -1.6), Quat::from_rotation_x(std::f32::consts::FRAC_PI_2), Vec3::new(0.8, 0.8, 1.6)),
         ),
     ];
     for (kind, material, m) in shapes {
-        s.instances.push(Instance {
-            geom: Geom::Shape { kind, material },
-            world_from_object: m,
-        });
+        s.instances.push(Instance { geom: Geom::Shape { kind, material }, world_from_object: m });
     }
     s.lights.push(Light {
-        kind: LightKind::Point {
-            position: Vec3::new(-4.0, 7.0, 5.0),
-        },
+        kind: LightKind::Point { position: Vec3::new(-4.0, 7.0, 5.0) },
         color: Vec3::new(0.75, 0.72, 0.65),
         inverse_square: false,
     });
     s.lights.push(Light {
-        kind: LightKind::Point {
-            position: Vec3::new(5.0, 5.0, 3.0),
-        },
+        kind: LightKind::Point { position: Vec3::new(5.0, 5.0, 3.0) },
         color: Vec3::new(0.3, 0.32, 0.4),
         inverse_square: false,
     });
@@ -197,10 +143,7 @@ pub fn demo_scene() -> Scene {
 /// A torus around the y axis with smooth normals.
 #[must_use]
 pub fn torus(center: Vec3, major: f32, minor: f32, nu: u32, nv: u32, material: u32) -> Mesh {
-    let mut m = Mesh {
-        name: "torus".into(),
-        ..Mesh::default()
-    };
+    let mut m = Mesh { name: "torus".into(), ..Mesh::default() };
     let mut normals = Vec::new();
     for i in 0..nu {
         let a = i as f32 / nu as f32 * std::f32::consts::TAU;
@@ -221,9 +164,6 @@ pub fn torus(center: Vec3, major: f32, minor: f32, nu: u32, nv: u32, material: u
         }
     }
     m.material = vec![material; m.indices.len()];
-    m.normals = Attr {
-        values: normals,
-        indices: None,
-    };
+    m.normals = Attr { values: normals, indices: None };
     m
 }

@@ -3,9 +3,7 @@
 //! textures, cameras and `KHR_lights_punctual`.
 
 use crate::error::ImportError;
-use crate::model::{
-    Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene, Wrap,
-};
+use crate::model::{Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene, Wrap};
 use crate::texture::texture_from_image;
 use base64::Engine as _;
 use glam::{Affine3A, Mat4, Vec2, Vec3};
@@ -13,31 +11,17 @@ use std::path::Path;
 
 /// Loads a glTF or GLB file.
 pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
-    let invalid = |at: &str, msg: String| ImportError::Invalid {
-        path: path.to_path_buf(),
-        at: at.to_string(),
-        msg,
-    };
-    let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let invalid = |at: &str, msg: String| ImportError::Invalid { path: path.to_path_buf(), at: at.to_string(), msg };
+    let bytes = std::fs::read(path).map_err(|source| ImportError::Io { path: path.to_path_buf(), source })?;
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| invalid("document", e.to_string()))?;
     let base = path.parent().unwrap_or(Path::new("."));
     let doc = &gltf.document;
     let buffers = load_buffers(path, doc, base, gltf.blob.clone())?;
-    let extras = |e: &gltf::json::Extras| -> Option<serde_json::Value> {
-        e.as_ref().and_then(|r| serde_json::from_str(r.get()).ok())
-    };
+    let extras = |e: &gltf::json::Extras| -> Option<serde_json::Value> { e.as_ref().and_then(|r| serde_json::from_str(r.get()).ok()) };
     let asset_extras = extras(&doc.as_json().asset.extras);
-    let bart = asset_extras
-        .as_ref()
-        .is_some_and(|e| e.get("aff_time_offset").is_some());
+    let bart = asset_extras.as_ref().is_some_and(|e| e.get("aff_time_offset").is_some());
 
-    let mut scene = Scene {
-        ambient: crate::model::DEFAULT_AMBIENT,
-        ..Scene::default()
-    };
+    let mut scene = Scene { ambient: crate::model::DEFAULT_AMBIENT, ..Scene::default() };
     // Textures: one per glTF texture; missing images give a warning and no texture.
     let mut tex_map: Vec<Option<u32>> = Vec::new();
     for t in doc.textures() {
@@ -57,16 +41,12 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
             }
             gltf::image::Source::Uri { uri, .. } => {
                 if let Some(data) = uri.strip_prefix("data:") {
-                    data.split_once(";base64,")
-                        .ok_or_else(|| "unsupported data URI".to_string())
-                        .and_then(|(_, b64)| {
-                            base64::engine::general_purpose::STANDARD
-                                .decode(b64)
-                                .map_err(|e| e.to_string())
-                                .and_then(|b| {
-                                    image::load_from_memory(&b).map_err(|e| e.to_string())
-                                })
-                        })
+                    data.split_once(";base64,").ok_or_else(|| "unsupported data URI".to_string()).and_then(|(_, b64)| {
+                        base64::engine::general_purpose::STANDARD
+                            .decode(b64)
+                            .map_err(|e| e.to_string())
+                            .and_then(|b| image::load_from_memory(&b).map_err(|e| e.to_string()))
+                    })
                 } else {
                     image::open(base.join(percent_decode(uri))).map_err(|e| e.to_string())
                 }
@@ -105,9 +85,7 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
         let mut mat = Material {
             name: m.name().unwrap_or("material").to_string(),
             diffuse: base * (1.0 - metallic),
-            diffuse_tex: pbr
-                .base_color_texture()
-                .and_then(|t| tex_map.get(t.texture().index()).copied().flatten()),
+            diffuse_tex: pbr.base_color_texture().and_then(|t| tex_map.get(t.texture().index()).copied().flatten()),
             specular: Vec3::splat(0.04 * (1.0 - metallic)) + base * metallic,
             shininess: (2.0 / (rough * rough * rough * rough) - 2.0).clamp(1.0, 4096.0),
             emission: Vec3::from(m.emissive_factor()),
@@ -123,11 +101,7 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
         }
         if let Some(fm) = extras(m.extras()).and_then(|e| e.get("aff_fm").cloned()) {
             // BART/NFF material: use its Phong terms directly.
-            let v3 = |k: &str| {
-                fm.get(k)
-                    .and_then(|v| serde_json::from_value::<[f32; 3]>(v.clone()).ok())
-                    .map(Vec3::from)
-            };
+            let v3 = |k: &str| fm.get(k).and_then(|v| serde_json::from_value::<[f32; 3]>(v.clone()).ok()).map(Vec3::from);
             let f = |k: &str| fm.get(k).and_then(|v| v.as_f64()).map(|x| x as f32);
             mat.ambient = v3("ambient").unwrap_or(mat.ambient);
             // A texture modulates the AFF diffuse term (the glTF base colour factor is 1).
@@ -147,33 +121,19 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
     // Meshes: all primitives of a glTF mesh become one mesh with per-triangle materials.
     let mut mesh_map: Vec<Option<u32>> = Vec::new();
     for m in doc.meshes() {
-        let mut mesh = Mesh {
-            name: m.name().unwrap_or("mesh").to_string(),
-            ..Mesh::default()
-        };
+        let mut mesh = Mesh { name: m.name().unwrap_or("mesh").to_string(), ..Mesh::default() };
         let (mut normals, mut uvs) = (Vec::new(), Vec::new());
         let (mut all_n, mut all_uv) = (true, true);
         for (pi, p) in m.primitives().enumerate() {
             let at = format!("meshes[{}].primitives[{pi}]", m.index());
             let mode = p.mode();
-            if !matches!(
-                mode,
-                gltf::mesh::Mode::Triangles
-                    | gltf::mesh::Mode::TriangleStrip
-                    | gltf::mesh::Mode::TriangleFan
-            ) {
-                tracing::warn!(
-                    "{}: {at}: mode {mode:?} is not triangles; skipped",
-                    path.display()
-                );
+            if !matches!(mode, gltf::mesh::Mode::Triangles | gltf::mesh::Mode::TriangleStrip | gltf::mesh::Mode::TriangleFan) {
+                tracing::warn!("{}: {at}: mode {mode:?} is not triangles; skipped", path.display());
                 continue;
             }
             let reader = p.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
-            let pos: Vec<Vec3> = reader
-                .read_positions()
-                .ok_or_else(|| invalid(&at, "no POSITION attribute".into()))?
-                .map(Vec3::from)
-                .collect();
+            let pos: Vec<Vec3> =
+                reader.read_positions().ok_or_else(|| invalid(&at, "no POSITION attribute".into()))?.map(Vec3::from).collect();
             let base = mesh.positions.len() as u32;
             let n = pos.len();
             let idx: Vec<u32> = match reader.read_indices() {
@@ -181,24 +141,13 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
                 None => (0..n as u32).collect(),
             };
             if let Some(bad) = idx.iter().find(|&&i| i as usize >= n) {
-                return Err(invalid(
-                    &at,
-                    format!("index {bad} out of range ({n} vertices)"),
-                ));
+                return Err(invalid(&at, format!("index {bad} out of range ({n} vertices)")));
             }
             let tris: Vec<[u32; 3]> = match mode {
                 gltf::mesh::Mode::TriangleStrip => (2..idx.len())
-                    .map(|k| {
-                        if k % 2 == 0 {
-                            [idx[k - 2], idx[k - 1], idx[k]]
-                        } else {
-                            [idx[k - 1], idx[k - 2], idx[k]]
-                        }
-                    })
+                    .map(|k| if k % 2 == 0 { [idx[k - 2], idx[k - 1], idx[k]] } else { [idx[k - 1], idx[k - 2], idx[k]] })
                     .collect(),
-                gltf::mesh::Mode::TriangleFan => (2..idx.len())
-                    .map(|k| [idx[0], idx[k - 1], idx[k]])
-                    .collect(),
+                gltf::mesh::Mode::TriangleFan => (2..idx.len()).map(|k| [idx[0], idx[k - 1], idx[k]]).collect(),
                 _ => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
             };
             let mat = p.material().index().map_or(0, |i| i as u32 + 1);
@@ -218,8 +167,7 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
                 }
             }
             mesh.positions.extend(pos);
-            mesh.indices
-                .extend(tris.iter().map(|t| t.map(|i| i + base)));
+            mesh.indices.extend(tris.iter().map(|t| t.map(|i| i + base)));
             mesh.material.extend(std::iter::repeat_n(mat, tris.len()));
         }
         if mesh.indices.is_empty() {
@@ -227,45 +175,29 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
             continue;
         }
         if all_n {
-            mesh.normals = Attr {
-                values: normals,
-                indices: None,
-            };
+            mesh.normals = Attr { values: normals, indices: None };
         }
         if all_uv {
-            mesh.uvs = Attr {
-                values: uvs,
-                indices: None,
-            };
+            mesh.uvs = Attr { values: uvs, indices: None };
         }
         mesh_map.push(Some(scene.meshes.len() as u32));
         scene.meshes.push(mesh);
     }
     // Node hierarchy.
-    let root_nodes: Vec<gltf::Node<'_>> = match doc.default_scene().or_else(|| doc.scenes().next())
-    {
+    let root_nodes: Vec<gltf::Node<'_>> = match doc.default_scene().or_else(|| doc.scenes().next()) {
         Some(s) => s.nodes().collect(),
         None => doc.nodes().collect(),
     };
-    let mut stack: Vec<(gltf::Node<'_>, Mat4, usize)> = root_nodes
-        .into_iter()
-        .map(|n| (n, Mat4::IDENTITY, 0))
-        .collect();
+    let mut stack: Vec<(gltf::Node<'_>, Mat4, usize)> = root_nodes.into_iter().map(|n| (n, Mat4::IDENTITY, 0)).collect();
     while let Some((node, parent, depth)) = stack.pop() {
         if depth > 256 {
-            return Err(invalid(
-                &format!("nodes[{}]", node.index()),
-                "node hierarchy deeper than 256 (a cycle?)".into(),
-            ));
+            return Err(invalid(&format!("nodes[{}]", node.index()), "node hierarchy deeper than 256 (a cycle?)".into()));
         }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         let affine = Affine3A::from_mat4(world);
         if let Some(m) = node.mesh() {
             if let Some(Some(id)) = mesh_map.get(m.index()) {
-                scene.instances.push(Instance {
-                    geom: Geom::Mesh(*id),
-                    world_from_object: affine,
-                });
+                scene.instances.push(Instance { geom: Geom::Mesh(*id), world_from_object: affine });
             }
         }
         if let Some(cam) = node.camera() {
@@ -274,20 +206,12 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
                 let fwd = affine.transform_vector3(-Vec3::Z);
                 let up = affine.transform_vector3(Vec3::Y);
                 scene.camera = Some(match cam.projection() {
-                    gltf::camera::Projection::Perspective(p) => CameraDesc {
-                        eye,
-                        look_at: eye + fwd,
-                        up,
-                        vfov_deg: p.yfov().to_degrees(),
-                        ortho_height: None,
-                    },
-                    gltf::camera::Projection::Orthographic(o) => CameraDesc {
-                        eye,
-                        look_at: eye + fwd,
-                        up,
-                        vfov_deg: 45.0,
-                        ortho_height: Some(2.0 * o.ymag()),
-                    },
+                    gltf::camera::Projection::Perspective(p) => {
+                        CameraDesc { eye, look_at: eye + fwd, up, vfov_deg: p.yfov().to_degrees(), ortho_height: None }
+                    }
+                    gltf::camera::Projection::Orthographic(o) => {
+                        CameraDesc { eye, look_at: eye + fwd, up, vfov_deg: 45.0, ortho_height: Some(2.0 * o.ymag()) }
+                    }
                 });
             }
         }
@@ -297,35 +221,19 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
             let direction = affine.transform_vector3(-Vec3::Z).normalize_or(-Vec3::Z);
             let kind = match l.kind() {
                 gltf::khr_lights_punctual::Kind::Point => LightKind::Point { position },
-                gltf::khr_lights_punctual::Kind::Directional => {
-                    LightKind::Directional { direction }
+                gltf::khr_lights_punctual::Kind::Directional => LightKind::Directional { direction },
+                gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => {
+                    LightKind::Spot { position, direction, inner: inner_cone_angle, outer: outer_cone_angle }
                 }
-                gltf::khr_lights_punctual::Kind::Spot {
-                    inner_cone_angle,
-                    outer_cone_angle,
-                } => LightKind::Spot {
-                    position,
-                    direction,
-                    inner: inner_cone_angle,
-                    outer: outer_cone_angle,
-                },
             };
-            scene.lights.push(Light {
-                kind,
-                color,
-                inverse_square: !bart && !matches!(kind, LightKind::Directional { .. }),
-            });
+            scene.lights.push(Light { kind, color, inverse_square: !bart && !matches!(kind, LightKind::Directional { .. }) });
         }
         for c in node.children() {
             stack.push((c, world, depth + 1));
         }
     }
     if let Some(e) = &asset_extras {
-        let v3 = |k: &str| {
-            e.get(k)
-                .and_then(|v| serde_json::from_value::<[f32; 3]>(v.clone()).ok())
-                .map(Vec3::from)
-        };
+        let v3 = |k: &str| e.get(k).and_then(|v| serde_json::from_value::<[f32; 3]>(v.clone()).ok()).map(Vec3::from);
         if let Some(a) = v3("aff_ambient") {
             scene.ambient = a;
         }
@@ -336,45 +244,25 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
     Ok(scene)
 }
 
-fn load_buffers(
-    path: &Path,
-    doc: &gltf::Document,
-    base: &Path,
-    mut blob: Option<Vec<u8>>,
-) -> Result<Vec<Vec<u8>>, ImportError> {
+fn load_buffers(path: &Path, doc: &gltf::Document, base: &Path, mut blob: Option<Vec<u8>>) -> Result<Vec<Vec<u8>>, ImportError> {
     let mut out = Vec::new();
     for b in doc.buffers() {
         let at = format!("buffers[{}]", b.index());
-        let invalid = |msg: String| ImportError::Invalid {
-            path: path.to_path_buf(),
-            at: at.clone(),
-            msg,
-        };
+        let invalid = |msg: String| ImportError::Invalid { path: path.to_path_buf(), at: at.clone(), msg };
         let data = match b.source() {
-            gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
-                invalid("refers to the GLB binary chunk, but there is none".into())
-            })?,
+            gltf::buffer::Source::Bin => blob.take().ok_or_else(|| invalid("refers to the GLB binary chunk, but there is none".into()))?,
             gltf::buffer::Source::Uri(uri) => {
                 if let Some(data) = uri.strip_prefix("data:") {
-                    let (_, b64) = data
-                        .split_once(";base64,")
-                        .ok_or_else(|| invalid("data URI is not base64".into()))?;
-                    base64::engine::general_purpose::STANDARD
-                        .decode(b64)
-                        .map_err(|e| invalid(format!("bad base64: {e}")))?
+                    let (_, b64) = data.split_once(";base64,").ok_or_else(|| invalid("data URI is not base64".into()))?;
+                    base64::engine::general_purpose::STANDARD.decode(b64).map_err(|e| invalid(format!("bad base64: {e}")))?
                 } else {
                     let file = base.join(percent_decode(uri));
-                    std::fs::read(&file)
-                        .map_err(|e| invalid(format!("cannot read '{}': {e}", file.display())))?
+                    std::fs::read(&file).map_err(|e| invalid(format!("cannot read '{}': {e}", file.display())))?
                 }
             }
         };
         if data.len() < b.length() {
-            return Err(invalid(format!(
-                "has {} bytes, but byteLength says {}",
-                data.len(),
-                b.length()
-            )));
+            return Err(invalid(format!("has {} bytes, but byteLength says {}", data.len(), b.length())));
         }
         out.push(data);
     }

@@ -26,10 +26,7 @@ use std::path::Path;
 
 /// Loads a scene file, choosing the importer by extension.
 pub fn load(path: &Path) -> Result<Scene, ImportError> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_lowercase())
-        .unwrap_or_default();
+    let name = path.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
     let stem = name.strip_suffix(".gz").unwrap_or(&name);
     if stem.ends_with(".obj") {
         load_obj(path)

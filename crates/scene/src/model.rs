@@ -23,11 +23,7 @@ impl<T: Copy> Attr<T> {
             Some(v) => v.get(tri)?,
             None => pos_idx,
         };
-        Some([
-            *self.values.get(idx[0] as usize)?,
-            *self.values.get(idx[1] as usize)?,
-            *self.values.get(idx[2] as usize)?,
-        ])
+        Some([*self.values.get(idx[0] as usize)?, *self.values.get(idx[1] as usize)?, *self.values.get(idx[2] as usize)?])
     }
 }
 
@@ -274,13 +270,7 @@ impl Scene {
             instanced_triangles: self
                 .instances
                 .iter()
-                .map(|i| {
-                    if let Geom::Mesh(m) = i.geom {
-                        self.meshes.get(m as usize).map_or(0, |m| m.indices.len())
-                    } else {
-                        0
-                    }
-                })
+                .map(|i| if let Geom::Mesh(m) = i.geom { self.meshes.get(m as usize).map_or(0, |m| m.indices.len()) } else { 0 })
                 .sum(),
             materials: self.materials.len(),
             textures: self.textures.len(),
@@ -331,10 +321,7 @@ impl Scene {
     pub fn add_mesh(&mut self, mesh: Mesh) -> u32 {
         let id = self.meshes.len() as u32;
         self.meshes.push(mesh);
-        self.instances.push(Instance {
-            geom: Geom::Mesh(id),
-            world_from_object: Affine3A::IDENTITY,
-        });
+        self.instances.push(Instance { geom: Geom::Mesh(id), world_from_object: Affine3A::IDENTITY });
         id
     }
 }

@@ -12,20 +12,12 @@ use std::path::{Path, PathBuf};
 
 /// Reads a file, gunzipping names that end in `.gz`.
 pub(crate) fn read_maybe_gz(path: &Path) -> Result<Vec<u8>, ImportError> {
-    let io = |source| ImportError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
+    let io = |source| ImportError::Io { path: path.to_path_buf(), source };
     let raw = std::fs::read(path).map_err(io)?;
-    if path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gz"))
-    {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz")) {
         use std::io::Read;
         let mut out = Vec::new();
-        flate2::read::GzDecoder::new(raw.as_slice())
-            .read_to_end(&mut out)
-            .map_err(io)?;
+        flate2::read::GzDecoder::new(raw.as_slice()).read_to_end(&mut out).map_err(io)?;
         Ok(out)
     } else {
         Ok(raw)
@@ -38,11 +30,7 @@ struct Lines<'a> {
 
 impl Lines<'_> {
     fn err(&self, line: usize, msg: impl Into<String>) -> ImportError {
-        ImportError::Parse {
-            path: self.path.to_path_buf(),
-            line,
-            msg: msg.into(),
-        }
+        ImportError::Parse { path: self.path.to_path_buf(), line, msg: msg.into() }
     }
     fn floats<const N: usize>(
         &self,
@@ -54,17 +42,8 @@ impl Lines<'_> {
         let mut out = [0.0f32; N];
         for (k, slot) in out.iter_mut().enumerate() {
             match it.next() {
-                Some(tok) => {
-                    *slot = tok.parse::<f32>().map_err(|_| {
-                        self.err(line, format!("'{what}' record: '{tok}' is not a number"))
-                    })?
-                }
-                None if k < need => {
-                    return Err(self.err(
-                        line,
-                        format!("'{what}' record needs {need} numbers, found {k}"),
-                    ))
-                }
+                Some(tok) => *slot = tok.parse::<f32>().map_err(|_| self.err(line, format!("'{what}' record: '{tok}' is not a number")))?,
+                None if k < need => return Err(self.err(line, format!("'{what}' record needs {need} numbers, found {k}"))),
                 None => break,
             }
         }
@@ -76,16 +55,8 @@ impl Lines<'_> {
 pub fn load_obj(path: &Path) -> Result<Scene, ImportError> {
     let bytes = read_maybe_gz(path)?;
     let text = std::str::from_utf8(&bytes).map_err(|e| {
-        let line = bytes[..e.valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-            + 1;
-        ImportError::Parse {
-            path: path.to_path_buf(),
-            line,
-            msg: "not UTF-8 text".into(),
-        }
+        let line = bytes[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count() + 1;
+        ImportError::Parse { path: path.to_path_buf(), line, msg: "not UTF-8 text".into() }
     })?;
     let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     parse_obj(path, &dir, text)
@@ -94,20 +65,10 @@ pub fn load_obj(path: &Path) -> Result<Scene, ImportError> {
 /// Parses OBJ text; `dir` is where `mtllib` and textures are looked up.
 pub fn parse_obj(path: &Path, dir: &Path, text: &str) -> Result<Scene, ImportError> {
     let lx = Lines { path };
-    let mut scene = Scene {
-        materials: vec![Material::default()],
-        ambient: crate::model::DEFAULT_AMBIENT,
-        ..Scene::default()
-    };
+    let mut scene = Scene { materials: vec![Material::default()], ambient: crate::model::DEFAULT_AMBIENT, ..Scene::default() };
     let mut textures = TextureCache::default();
     let mut mat_ids: HashMap<String, u32> = HashMap::new();
-    let mut mesh = Mesh {
-        name: path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default(),
-        ..Mesh::default()
-    };
+    let mut mesh = Mesh { name: path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(), ..Mesh::default() };
     let mut vt: Vec<Vec2> = Vec::new();
     let mut vn: Vec<Vec3> = Vec::new();
     let mut uv_idx: Vec<[u32; 3]> = Vec::new();
@@ -142,24 +103,13 @@ pub fn parse_obj(path: &Path, dir: &Path, text: &str) -> Result<Scene, ImportErr
                         match parts.next() {
                             Some("") | None if k > 0 => *slot = 0,
                             Some(p) => {
-                                *slot = p.parse::<i64>().map_err(|_| {
-                                    lx.err(
-                                        line,
-                                        format!("face corner '{tok}': '{p}' is not an index"),
-                                    )
-                                })?
+                                *slot = p.parse::<i64>().map_err(|_| lx.err(line, format!("face corner '{tok}': '{p}' is not an index")))?
                             }
-                            None => {
-                                return Err(lx
-                                    .err(line, format!("face corner '{tok}' has no vertex index")))
-                            }
+                            None => return Err(lx.err(line, format!("face corner '{tok}' has no vertex index"))),
                         }
                     }
                     if idx[0] == 0 {
-                        return Err(lx.err(
-                            line,
-                            format!("face corner '{tok}': index 0 (OBJ indices start at 1)"),
-                        ));
+                        return Err(lx.err(line, format!("face corner '{tok}': index 0 (OBJ indices start at 1)")));
                     }
                     let resolve = |i: i64, n: usize, what: &str| -> Result<i64, ImportError> {
                         if i == 0 {
@@ -178,26 +128,15 @@ pub fn parse_obj(path: &Path, dir: &Path, text: &str) -> Result<Scene, ImportErr
                     ]);
                 }
                 if corners.len() < 3 {
-                    return Err(lx.err(
-                        line,
-                        format!("a face needs at least 3 corners, found {}", corners.len()),
-                    ));
+                    return Err(lx.err(line, format!("a face needs at least 3 corners, found {}", corners.len())));
                 }
                 for k in 2..corners.len() {
                     let c = [corners[0], corners[k - 1], corners[k]];
                     mesh.indices.push(c.map(|c| c[0] as u32));
                     any_uv |= c.iter().all(|c| c[1] >= 0);
                     any_n |= c.iter().all(|c| c[2] >= 0);
-                    uv_idx.push(if c.iter().all(|c| c[1] >= 0) {
-                        c.map(|c| c[1] as u32)
-                    } else {
-                        [u32::MAX; 3]
-                    });
-                    n_idx.push(if c.iter().all(|c| c[2] >= 0) {
-                        c.map(|c| c[2] as u32)
-                    } else {
-                        [u32::MAX; 3]
-                    });
+                    uv_idx.push(if c.iter().all(|c| c[1] >= 0) { c.map(|c| c[1] as u32) } else { [u32::MAX; 3] });
+                    n_idx.push(if c.iter().all(|c| c[2] >= 0) { c.map(|c| c[2] as u32) } else { [u32::MAX; 3] });
                     mesh.material.push(cur_mat);
                 }
             }
@@ -206,15 +145,9 @@ pub fn parse_obj(path: &Path, dir: &Path, text: &str) -> Result<Scene, ImportErr
                 cur_mat = match mat_ids.get(&name) {
                     Some(&id) => id,
                     None => {
-                        tracing::warn!(
-                            "{}:{line}: material '{name}' is not defined; using a default",
-                            path.display()
-                        );
+                        tracing::warn!("{}:{line}: material '{name}' is not defined; using a default", path.display());
                         let id = scene.materials.len() as u32;
-                        scene.materials.push(Material {
-                            name: name.clone(),
-                            ..Material::default()
-                        });
+                        scene.materials.push(Material { name: name.clone(), ..Material::default() });
                         mat_ids.insert(name, id);
                         id
                     }
@@ -224,9 +157,7 @@ pub fn parse_obj(path: &Path, dir: &Path, text: &str) -> Result<Scene, ImportErr
                 for file in it {
                     let mpath = dir.join(file);
                     match std::fs::read_to_string(&mpath) {
-                        Ok(t) => {
-                            parse_mtl(&mpath, &t, dir, &mut scene, &mut mat_ids, &mut textures)?
-                        }
+                        Ok(t) => parse_mtl(&mpath, &t, dir, &mut scene, &mut mat_ids, &mut textures)?,
                         Err(e) => tracing::warn!(
                             "{}:{line}: cannot read material library {}: {e}; using defaults",
                             path.display(),
@@ -235,24 +166,17 @@ pub fn parse_obj(path: &Path, dir: &Path, text: &str) -> Result<Scene, ImportErr
                     }
                 }
             }
-            "o" | "g" | "s" | "l" | "p" | "cstype" | "deg" | "curv" | "surf" | "parm" | "end"
-            | "mg" | "vp" | "usemap" | "maplib" | "shadow_obj" | "trace_obj" | "lod" | "bevel"
-            | "c_interp" | "d_interp" => {}
+            "o" | "g" | "s" | "l" | "p" | "cstype" | "deg" | "curv" | "surf" | "parm" | "end" | "mg" | "vp" | "usemap" | "maplib"
+            | "shadow_obj" | "trace_obj" | "lod" | "bevel" | "c_interp" | "d_interp" => {}
             other => tracing::debug!("{}:{line}: ignoring '{other}' record", path.display()),
         }
     }
     // A triangle whose corner lacks an attribute gets [MAX; 3] and is shaded without it.
     if any_uv {
-        mesh.uvs = Attr {
-            values: vt,
-            indices: Some(uv_idx),
-        };
+        mesh.uvs = Attr { values: vt, indices: Some(uv_idx) };
     }
     if any_n {
-        mesh.normals = Attr {
-            values: vn,
-            indices: Some(n_idx),
-        };
+        mesh.normals = Attr { values: vn, indices: Some(n_idx) };
     }
     scene.textures = textures.into_textures();
     scene.add_mesh(mesh);
@@ -278,11 +202,7 @@ fn parse_mtl(
         if tag == "newmtl" {
             let name = it.collect::<Vec<_>>().join(" ");
             let id = scene.materials.len();
-            scene.materials.push(Material {
-                name: name.clone(),
-                specular: Vec3::ZERO,
-                ..Material::default()
-            });
+            scene.materials.push(Material { name: name.clone(), specular: Vec3::ZERO, ..Material::default() });
             ids.insert(name, id as u32);
             cur = Some(id);
             continue;
@@ -293,16 +213,11 @@ fn parse_mtl(
             }
             continue;
         };
-        let rgb =
-            |it: &mut std::str::SplitWhitespace<'_>, what: &str| -> Result<Vec3, ImportError> {
-                let v = lx.floats::<3>(line, what, it, 1)?;
-                // "Kd 0.5" means grey; "Kd r g b" is a colour.
-                Ok(if l.split_whitespace().count() == 2 {
-                    Vec3::splat(v[0])
-                } else {
-                    Vec3::from(v)
-                })
-            };
+        let rgb = |it: &mut std::str::SplitWhitespace<'_>, what: &str| -> Result<Vec3, ImportError> {
+            let v = lx.floats::<3>(line, what, it, 1)?;
+            // "Kd 0.5" means grey; "Kd r g b" is a colour.
+            Ok(if l.split_whitespace().count() == 2 { Vec3::splat(v[0]) } else { Vec3::from(v) })
+        };
         let mat = &mut scene.materials[m];
         match tag {
             "Kd" => mat.diffuse = rgb(&mut it, tag)?,
@@ -341,8 +256,7 @@ fn parse_mtl(
                     return Err(lx.err(line, "map_Kd without a file name"));
                 }
                 let tpath: PathBuf = dir.join(file.replace('\\', "/"));
-                mat.diffuse_tex =
-                    textures.load(&tpath, wrap, true, &format!("{}:{line}", path.display()));
+                mat.diffuse_tex = textures.load(&tpath, wrap, true, &format!("{}:{line}", path.display()));
             }
             _ => {}
         }

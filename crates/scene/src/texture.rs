@@ -15,42 +15,11 @@ pub fn srgb_to_linear(c: f32) -> f32 {
 }
 
 /// Decodes an image into a texture (`srgb`: colour data to linearize).
-pub fn texture_from_image(
-    name: String,
-    img: image::DynamicImage,
-    wrap_u: Wrap,
-    wrap_v: Wrap,
-    srgb: bool,
-) -> Texture {
+pub fn texture_from_image(name: String, img: image::DynamicImage, wrap_u: Wrap, wrap_v: Wrap, srgb: bool) -> Texture {
     let rgba = img.to_rgba8();
-    let lut: Vec<f32> = (0..256)
-        .map(|i| {
-            if srgb {
-                srgb_to_linear(i as f32 / 255.0)
-            } else {
-                i as f32 / 255.0
-            }
-        })
-        .collect();
-    let texels = rgba
-        .pixels()
-        .map(|p| {
-            [
-                lut[p[0] as usize],
-                lut[p[1] as usize],
-                lut[p[2] as usize],
-                p[3] as f32 / 255.0,
-            ]
-        })
-        .collect();
-    Texture {
-        name,
-        width: rgba.width(),
-        height: rgba.height(),
-        texels,
-        wrap_u,
-        wrap_v,
-    }
+    let lut: Vec<f32> = (0..256).map(|i| if srgb { srgb_to_linear(i as f32 / 255.0) } else { i as f32 / 255.0 }).collect();
+    let texels = rgba.pixels().map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize], p[3] as f32 / 255.0]).collect();
+    Texture { name, width: rgba.width(), height: rgba.height(), texels, wrap_u, wrap_v }
 }
 
 /// Loads each texture file once; missing or broken files give a warning and no texture.
@@ -61,32 +30,17 @@ pub(crate) struct TextureCache {
 }
 
 impl TextureCache {
-    pub(crate) fn load(
-        &mut self,
-        path: &Path,
-        wrap: Wrap,
-        srgb: bool,
-        referrer: &str,
-    ) -> Option<u32> {
+    pub(crate) fn load(&mut self, path: &Path, wrap: Wrap, srgb: bool, referrer: &str) -> Option<u32> {
         if let Some(&id) = self.by_path.get(path) {
             return id;
         }
         let id = match image::open(path) {
             Ok(img) => {
-                self.textures.push(texture_from_image(
-                    path.display().to_string(),
-                    img,
-                    wrap,
-                    wrap,
-                    srgb,
-                ));
+                self.textures.push(texture_from_image(path.display().to_string(), img, wrap, wrap, srgb));
                 Some((self.textures.len() - 1) as u32)
             }
             Err(e) => {
-                tracing::warn!(
-                    "{referrer}: texture {} not loaded ({e}); using the plain colour",
-                    path.display()
-                );
+                tracing::warn!("{referrer}: texture {} not loaded ({e}); using the plain colour", path.display());
                 None
             }
         };

@@ -21,16 +21,10 @@ fn truncated_obj() {
     let d = tempfile::tempdir().expect("tmp");
     let p = write(d.path(), "cut.obj", b"v 0 0 0\nv 1 0 0\nv 0 1\n");
     let e = err_of(&p);
-    assert!(
-        e.contains("cut.obj:3:") && e.contains("needs 3 numbers, found 2"),
-        "{e}"
-    );
+    assert!(e.contains("cut.obj:3:") && e.contains("needs 3 numbers, found 2"), "{e}");
     let p = write(d.path(), "cut2.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2");
     let e = err_of(&p);
-    assert!(
-        e.contains("cut2.obj:4:") && e.contains("at least 3 corners"),
-        "{e}"
-    );
+    assert!(e.contains("cut2.obj:4:") && e.contains("at least 3 corners"), "{e}");
     let p = write(d.path(), "bad.obj", b"v 0 0 zero\n");
     assert!(err_of(&p).contains("bad.obj:1: 'v' record: 'zero' is not a number"));
 }
@@ -38,38 +32,19 @@ fn truncated_obj() {
 #[test]
 fn obj_index_out_of_range() {
     let d = tempfile::tempdir().expect("tmp");
-    let p = write(
-        d.path(),
-        "oor.obj",
-        b"v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2 4\n",
-    );
+    let p = write(d.path(), "oor.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2 4\n");
     let e = err_of(&p);
-    assert!(
-        e.contains("oor.obj:5:") && e.contains("vertex index 4 out of range (there are 3 so far)"),
-        "{e}"
-    );
-    let p = write(
-        d.path(),
-        "neg.obj",
-        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n",
-    );
+    assert!(e.contains("oor.obj:5:") && e.contains("vertex index 4 out of range (there are 3 so far)"), "{e}");
+    let p = write(d.path(), "neg.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n");
     assert!(err_of(&p).contains("vertex index -4 out of range"));
-    let p = write(
-        d.path(),
-        "zero.obj",
-        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n",
-    );
+    let p = write(d.path(), "zero.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n");
     assert!(err_of(&p).contains("index 0"));
 }
 
 #[test]
 fn obj_good_with_relative_indices_and_missing_mtl() {
     let d = tempfile::tempdir().expect("tmp");
-    let p = write(
-        d.path(),
-        "ok.obj",
-        b"mtllib nowhere.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nf -4/1 -3/1 -1/1 -2/1\n",
-    );
+    let p = write(d.path(), "ok.obj", b"mtllib nowhere.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nf -4/1 -3/1 -1/1 -2/1\n");
     let s = load(&p).expect("loads with a warning");
     assert_eq!(s.meshes[0].indices, vec![[0, 1, 3], [0, 3, 2]]);
 }
@@ -77,16 +52,8 @@ fn obj_good_with_relative_indices_and_missing_mtl() {
 #[test]
 fn missing_texture_is_a_warning() {
     let d = tempfile::tempdir().expect("tmp");
-    write(
-        d.path(),
-        "m.mtl",
-        b"newmtl a\nKd 0.5 0.25 1\nmap_Kd -bm 1 missing.png\n",
-    );
-    let p = write(
-        d.path(),
-        "t.obj",
-        b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n",
-    );
+    write(d.path(), "m.mtl", b"newmtl a\nKd 0.5 0.25 1\nmap_Kd -bm 1 missing.png\n");
+    let p = write(d.path(), "t.obj", b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n");
     let s = load(&p).expect("loads");
     let m = &s.materials[s.meshes[0].material[0] as usize];
     assert_eq!(m.diffuse_tex, None);
@@ -96,27 +63,18 @@ fn missing_texture_is_a_warning() {
 #[test]
 fn bad_ply_header() {
     let d = tempfile::tempdir().expect("tmp");
-    let p = write(
-        d.path(),
-        "bad.ply",
-        b"ply\nformat ascii 1.0\nelement vertex three\nend_header\n",
-    );
+    let p = write(d.path(), "bad.ply", b"ply\nformat ascii 1.0\nelement vertex three\nend_header\n");
     let e = err_of(&p);
     assert!(e.starts_with(&format!("{}:", p.display())), "{e}");
-    let p = write(
-        d.path(),
-        "nomagic.ply",
-        b"plx\nformat ascii 1.0\nend_header\n",
-    );
+    let p = write(d.path(), "nomagic.ply", b"plx\nformat ascii 1.0\nend_header\n");
     err_of(&p);
     let p = write(d.path(), "oor.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
     let e = err_of(&p);
-    assert!(
-        e.contains("face 0") && e.contains("vertex index 7 out of range"),
-        "{e}"
-    );
+    assert!(e.contains("face 0") && e.contains("vertex index 7 out of range"), "{e}");
     // Truncated binary payload.
-    let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+    let mut b =
+        b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
+            .to_vec();
     b.extend_from_slice(&[0u8; 20]);
     let p = write(d.path(), "short.ply", &b);
     err_of(&p);
@@ -131,10 +89,7 @@ fn gltf_with_missing_buffer() {
         "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}],"scene":0}"#;
     let p = write(d.path(), "m.gltf", json);
     let e = err_of(&p);
-    assert!(
-        e.contains("m.gltf") && e.contains("buffers[0]") && e.contains("gone.bin"),
-        "{e}"
-    );
+    assert!(e.contains("m.gltf") && e.contains("buffers[0]") && e.contains("gone.bin"), "{e}");
     // The same file with the buffer present but too short.
     write(d.path(), "gone.bin", &[0u8; 12]);
     let e = err_of(&p);
@@ -154,10 +109,7 @@ fn gltf_with_missing_buffer() {
 
 #[test]
 fn unknown_format_and_missing_file() {
-    assert!(matches!(
-        load(Path::new("scene.xyz")),
-        Err(ImportError::UnknownFormat(_))
-    ));
+    assert!(matches!(load(Path::new("scene.xyz")), Err(ImportError::UnknownFormat(_))));
     let e = err_of(Path::new("/nonexistent/dir/x.obj"));
     assert!(e.contains("/nonexistent/dir/x.obj"), "{e}");
 }

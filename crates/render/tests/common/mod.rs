@@ -7,11 +7,7 @@ pub fn scenes_dir() -> PathBuf {
         return PathBuf::from(d);
     }
     let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes");
-    assert!(
-        d.is_dir(),
-        "shared scenes not found at {} (set LUCENT_SCENES)",
-        d.display()
-    );
+    assert!(d.is_dir(), "shared scenes not found at {} (set LUCENT_SCENES)", d.display());
     d
 }
 
