@@ -15,7 +15,7 @@ pub const BINS: usize = 32;
 /// Subtrees with more primitives than this are built as separate rayon tasks.
 pub const PARALLEL_MIN: usize = 4096;
 /// Nodes with more primitives than this are binned in parallel.
-const PARALLEL_BIN_MIN: usize = 1 << 16;
+const PARALLEL_BIN_MIN: usize = 1 << 14;
 /// Beyond this depth the builder splits at the object median, which bounds the depth
 /// (and so the traversal stack) on pathological input.
 pub const MEDIAN_DEPTH: u32 = 40;
@@ -253,18 +253,18 @@ fn bounds_of(prims: &[PrimRef]) -> (Box4, Box4) {
 }
 
 #[derive(Clone, Copy)]
-struct Bins {
-    b: [[Box4; BINS]; 3],
-    n: [[u32; BINS]; 3],
+struct Bins<const N: usize> {
+    b: [[Box4; N]; 3],
+    n: [[u32; N]; 3],
 }
 
-impl Bins {
+impl<const N: usize> Bins<N> {
     fn new() -> Self {
-        Self { b: [[Box4::EMPTY; BINS]; 3], n: [[0; BINS]; 3] }
+        Self { b: [[Box4::EMPTY; N]; 3], n: [[0; N]; 3] }
     }
     fn merge(mut self, o: &Self) -> Self {
         for k in 0..3 {
-            for i in 0..BINS {
+            for i in 0..N {
                 self.b[k][i] = self.b[k][i].union(o.b[k][i]);
                 self.n[k][i] += o.n[k][i];
             }
@@ -278,39 +278,46 @@ impl Bins {
 struct Binner {
     origin: Vec4,
     scale: Vec4,
-    /// Bins in use: fewer for small nodes, where the sweep would dominate.
+    /// Bins in use.
     nb: usize,
 }
 
 impl Binner {
-    fn new(cb: &Box4, n: usize) -> Self {
-        let nb = if n < 64 {
-            8
-        } else if n < 1024 {
-            16
-        } else {
-            BINS
-        };
+    fn new(cb: &Box4, nb: usize) -> Self {
         let ext = cb.hi - cb.lo;
         let s = |e: f32| if e > 0.0 { (nb as f32 * 0.9999) / e } else { 0.0 };
         Self { origin: cb.lo, scale: Vec4::new(s(ext.x), s(ext.y), s(ext.z), 0.0), nb }
     }
-    /// Bin indices on all three axes.
+    /// Bin indices on all three axes (each below `nb`).
     #[inline(always)]
     fn bins(&self, c2: Vec4) -> [usize; 3] {
+        // max/min also turn a NaN into 0 (SSE semantics), so the truncation below is in range.
         let f = ((c2 - self.origin) * self.scale).max(Vec4::ZERO).min(Vec4::splat((self.nb - 1) as f32));
-        [f.x as usize, f.y as usize, f.z as usize]
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_cvttps_epi32, _mm_storeu_si128};
+            // PERF: one truncating SIMD conversion instead of three saturating `as` casts.
+            let mut out = [0i32; 4];
+            // SAFETY: SSE2 is baseline on x86-64; `out` holds four i32.
+            unsafe { _mm_storeu_si128(out.as_mut_ptr().cast(), _mm_cvttps_epi32(f.into())) };
+            [out[0] as usize, out[1] as usize, out[2] as usize]
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            [f.x as usize, f.y as usize, f.z as usize]
+        }
     }
     #[inline(always)]
     fn bin(&self, c2: Vec4, axis: usize) -> usize {
-        let f = (c2[axis] - self.origin[axis]) * self.scale[axis];
-        (f.max(0.0) as usize).min(self.nb - 1)
+        self.bins(c2)[axis]
     }
-    fn fill(&self, prims: &[PrimRef]) -> Bins {
-        let mut bins = Bins::new();
+    fn fill<const N: usize>(&self, prims: &[PrimRef]) -> Bins<N> {
+        let mut bins = Bins::<N>::new();
         for p in prims {
             let idx = self.bins(p.centroid2());
             for (k, &i) in idx.iter().enumerate() {
+                // `i < nb <= N`; the `min` lets the compiler drop the bounds check.
+                let i = i.min(N - 1);
                 bins.b[k][i].add(p);
                 bins.n[k][i] += 1;
             }
@@ -325,25 +332,33 @@ struct Split {
     cost: f32,
 }
 
+/// Best SAH split of `prims` (bins: fewer for small nodes, where the sweep would dominate).
 fn find_split(prims: &[PrimRef], cb: &Box4, cfg: &BuildConfig) -> (Option<Split>, Binner) {
-    let binner = Binner::new(cb, prims.len());
-    let nb = binner.nb;
+    match prims.len() {
+        0..64 => find_split_n::<8>(prims, cb, cfg),
+        64..1024 => find_split_n::<16>(prims, cb, cfg),
+        _ => find_split_n::<BINS>(prims, cb, cfg),
+    }
+}
+
+fn find_split_n<const N: usize>(prims: &[PrimRef], cb: &Box4, cfg: &BuildConfig) -> (Option<Split>, Binner) {
+    let binner = Binner::new(cb, N);
     let bins = if prims.len() > PARALLEL_BIN_MIN {
         use rayon::prelude::*;
-        prims.par_chunks(PARALLEL_BIN_MIN / 4).map(|c| binner.fill(c)).reduce(Bins::new, |a, b| a.merge(&b))
+        prims.par_chunks(PARALLEL_BIN_MIN / 4).map(|c| binner.fill::<N>(c)).reduce(Bins::new, |a, b| a.merge(&b))
     } else {
-        binner.fill(prims)
+        binner.fill::<N>(prims)
     };
     let mut best: Option<Split> = None;
     for k in 0..3 {
         if binner.scale[k] == 0.0 {
             continue;
         }
-        let mut right_area = [0.0f32; BINS];
-        let mut right_n = [0usize; BINS];
+        let mut right_area = [0.0f32; N];
+        let mut right_n = [0usize; N];
         let mut acc = Box4::EMPTY;
         let mut n = 0usize;
-        for i in (1..nb).rev() {
+        for i in (1..N).rev() {
             acc = acc.union(bins.b[k][i]);
             n += bins.n[k][i] as usize;
             right_area[i] = acc.half_area();
@@ -351,7 +366,7 @@ fn find_split(prims: &[PrimRef], cb: &Box4, cfg: &BuildConfig) -> (Option<Split>
         }
         let mut acc = Box4::EMPTY;
         let mut n = 0usize;
-        for i in 1..nb {
+        for i in 1..N {
             acc = acc.union(bins.b[k][i - 1]);
             n += bins.n[k][i - 1] as usize;
             if n == 0 || right_n[i] == 0 {
@@ -404,10 +419,12 @@ fn build_rec(
 ) -> u32 {
     let n = prims.len();
     let max_leaf = cfg.max_leaf.max(1);
-    if n <= 1 {
+    // One block fits: a split costs at least cost_traverse·A ≥ the leaf's one block·A, so
+    // no SAH evaluation is needed (this skips binning for the many tiny nodes).
+    if n <= 1 || (n <= cfg.leaf_block.min(max_leaf) && cfg.cost_traverse >= 1.0) {
         return make_leaf(nodes, bounds, offset, n);
     }
-    let (split, binner) = if depth >= MEDIAN_DEPTH { (None, Binner::new(&cbounds, n)) } else { find_split(prims, &cbounds, cfg) };
+    let (split, binner) = if depth >= MEDIAN_DEPTH { (None, Binner::new(&cbounds, 2)) } else { find_split(prims, &cbounds, cfg) };
     let area = bounds.half_area();
     let leaf_cost = blocks(n, cfg.leaf_block) as f32 * area;
     let (nl, sides) = match split {
@@ -429,7 +446,8 @@ fn build_rec(
     let (left, right) = prims.split_at_mut(nl);
     let [(bl, cl), (br, cr)] = sides;
     let (li, ri) = if n > PARALLEL_MIN {
-        let (mut ln, mut rn) = (Vec::new(), Vec::new());
+        // Sized for a typical tree (about one node per primitive at most) so they do not regrow.
+        let (mut ln, mut rn) = (Vec::with_capacity(nl), Vec::with_capacity(n - nl));
         rayon::join(
             || build_rec(cfg, left, offset, bl, cl, depth + 1, &mut ln),
             || build_rec(cfg, right, offset + nl, br, cr, depth + 1, &mut rn),

@@ -7,7 +7,7 @@ use crate::traverse::{BoxTest, ScalarBox};
 pub enum Kernel {
     /// Portable scalar code (same answers as `Simd`).
     Scalar,
-    /// SSE/AVX2 code; chosen only when the CPU has AVX2.
+    /// SSE/AVX2/FMA code; chosen only when the CPU has AVX2 and FMA.
     Simd,
 }
 
@@ -27,7 +27,7 @@ impl Kernel {
     pub fn simd_available() -> bool {
         #[cfg(target_arch = "x86_64")]
         {
-            std::is_x86_feature_detected!("avx2")
+            std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
         }
         #[cfg(not(target_arch = "x86_64"))]
         {

@@ -180,7 +180,7 @@ impl TwoLevel {
         let mut hit = Hit::none(ray.tmax);
         let pre = RayPre::new(ray);
         match self.kernel {
-            // SAFETY: `Kernel::Simd` is only set when AVX2 was detected.
+            // SAFETY: `Kernel::Simd` is only set when AVX2 and FMA were detected.
             #[cfg(target_arch = "x86_64")]
             Kernel::Simd => unsafe { simd_intersect(self, &pre, &mut hit) },
             _ => self.intersect_k::<ScalarSet>(&pre, &mut hit),
@@ -220,13 +220,13 @@ impl TwoLevel {
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn simd_intersect(t: &TwoLevel, pre: &RayPre, hit: &mut Hit) {
     t.intersect_k::<crate::kernel::SimdSet>(pre, hit);
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn simd_occluded(t: &TwoLevel, pre: &RayPre, tmax: f32) -> bool {
     t.occluded_k::<crate::kernel::SimdSet>(pre, tmax)
 }

@@ -14,8 +14,12 @@
 //! The **watertight** test (Woop, Benthin & Wald, "Watertight Ray/Triangle Intersection",
 //! JCGT 2013) is the selectable alternative: no gaps or double hits on shared edges.
 //!
-//! PERF: the scalar and SSE versions evaluate exactly the same operations in the same
-//! order without fused multiply-adds, so they return bit-identical answers (tested).
+//! PERF: the test is evaluated without a division: with `s = sign(D'z)` the conditions are
+//! multiplied through by `|D'z|` (`U = (O'x D'z − O'z D'x)·s ≥ 0`, `V = (O'y D'z − O'z D'y)·s ≥ 0`,
+//! `U + V ≤ |D'z|`, `tmin |D'z| ≤ −O'z s < tmax |D'z|`), and `t, u, v` are divided out only
+//! when a lane hits. `t = (−O'z s)/|D'z|` equals `−O'z/D'z` to the bit. The scalar and SSE
+//! versions evaluate exactly the same operations in the same order without fused
+//! multiply-adds, so they return bit-identical answers (tested).
 
 use glam::{DVec3, Vec3};
 
@@ -75,15 +79,18 @@ impl UnitTriangle {
 pub fn unit_triangle_hit(m: &[f32; 12], o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<(f32, f32, f32)> {
     let dz = m[8] * d.x + m[9] * d.y + m[10] * d.z;
     let oz = m[8] * o.x + m[9] * o.y + m[10] * o.z + m[11];
-    let t = -oz / dz;
     let dx = m[0] * d.x + m[1] * d.y + m[2] * d.z;
     let ox = m[0] * o.x + m[1] * o.y + m[2] * o.z + m[3];
-    let u = ox + t * dx;
     let dy = m[4] * d.x + m[5] * d.y + m[6] * d.z;
     let oy = m[4] * o.x + m[5] * o.y + m[6] * o.z + m[7];
-    let v = oy + t * dy;
-    let ok = u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t >= tmin && t < tmax;
-    ok.then_some((t, u, v))
+    let s = dz.to_bits() & 0x8000_0000;
+    let sgn = |x: f32| f32::from_bits(x.to_bits() ^ s);
+    let adz = sgn(dz);
+    let uu = sgn(ox * dz - oz * dx);
+    let vv = sgn(oy * dz - oz * dy);
+    let tt = sgn(-oz);
+    let ok = uu >= 0.0 && vv >= 0.0 && uu + vv <= adz && tt >= tmin * adz && tt < tmax * adz;
+    ok.then(|| (tt / adz, uu / adz, vv / adz))
 }
 
 /// Four unit triangles in SoA form (component-major): 208 bytes.
@@ -164,9 +171,9 @@ pub(crate) mod sse {
     use glam::Vec3;
     use std::arch::x86_64::*;
 
-    /// The lane mask of hits and the t, u, v of all lanes.
+    /// The lane mask of hits and the scaled `T, U, V` and `|D'z|` of all lanes.
     #[inline(always)]
-    fn eval(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> (i32, __m128, __m128, __m128) {
+    fn eval(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> (i32, [__m128; 4]) {
         // SAFETY: SSE2 is always available on x86-64; `Tri4` is 16-byte aligned so the
         // aligned loads are in bounds and aligned.
         unsafe {
@@ -176,28 +183,31 @@ pub(crate) mod sse {
             let dot3 = |r: usize, x, y, z| _mm_add_ps(_mm_add_ps(_mm_mul_ps(ld(r), x), _mm_mul_ps(ld(r + 1), y)), _mm_mul_ps(ld(r + 2), z));
             let dzp = dot3(8, dx, dy, dz);
             let ozp = _mm_add_ps(dot3(8, ox, oy, oz), ld(11));
-            let t = _mm_div_ps(_mm_xor_ps(ozp, _mm_set1_ps(-0.0)), dzp);
             let dxp = dot3(0, dx, dy, dz);
             let oxp = _mm_add_ps(dot3(0, ox, oy, oz), ld(3));
-            let u = _mm_add_ps(oxp, _mm_mul_ps(t, dxp));
             let dyp = dot3(4, dx, dy, dz);
             let oyp = _mm_add_ps(dot3(4, ox, oy, oz), ld(7));
-            let v = _mm_add_ps(oyp, _mm_mul_ps(t, dyp));
+            let signbit = _mm_set1_ps(-0.0);
+            let s = _mm_and_ps(dzp, signbit);
+            let adz = _mm_xor_ps(dzp, s);
+            let uu = _mm_xor_ps(_mm_sub_ps(_mm_mul_ps(oxp, dzp), _mm_mul_ps(ozp, dxp)), s);
+            let vv = _mm_xor_ps(_mm_sub_ps(_mm_mul_ps(oyp, dzp), _mm_mul_ps(ozp, dyp)), s);
+            let tt = _mm_xor_ps(_mm_xor_ps(ozp, signbit), s);
             let zero = _mm_setzero_ps();
             let m = _mm_and_ps(
-                _mm_and_ps(_mm_cmpge_ps(u, zero), _mm_cmpge_ps(v, zero)),
+                _mm_and_ps(_mm_cmpge_ps(uu, zero), _mm_cmpge_ps(vv, zero)),
                 _mm_and_ps(
-                    _mm_cmple_ps(_mm_add_ps(u, v), _mm_set1_ps(1.0)),
-                    _mm_and_ps(_mm_cmpge_ps(t, _mm_set1_ps(tmin)), _mm_cmplt_ps(t, _mm_set1_ps(tmax))),
+                    _mm_cmple_ps(_mm_add_ps(uu, vv), adz),
+                    _mm_and_ps(_mm_cmpge_ps(tt, _mm_mul_ps(_mm_set1_ps(tmin), adz)), _mm_cmplt_ps(tt, _mm_mul_ps(_mm_set1_ps(tmax), adz))),
                 ),
             );
-            (_mm_movemask_ps(m), t, u, v)
+            (_mm_movemask_ps(m), [tt, uu, vv, adz])
         }
     }
 
     #[inline(always)]
     pub(crate) fn intersect(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<LaneHit> {
-        let (mask, t, u, v) = eval(t4, o, d, tmin, tmax);
+        let (mask, [tt, uu, vv, adz]) = eval(t4, o, d, tmin, tmax);
         if mask == 0 {
             return None;
         }
@@ -205,10 +215,11 @@ pub(crate) mod sse {
         let mut us = [0f32; 4];
         let mut vs = [0f32; 4];
         // SAFETY: the arrays hold exactly four f32; unaligned stores allow any alignment.
+        // The divisions run only here, when some lane hits.
         unsafe {
-            _mm_storeu_ps(ts.as_mut_ptr(), t);
-            _mm_storeu_ps(us.as_mut_ptr(), u);
-            _mm_storeu_ps(vs.as_mut_ptr(), v);
+            _mm_storeu_ps(ts.as_mut_ptr(), _mm_div_ps(tt, adz));
+            _mm_storeu_ps(us.as_mut_ptr(), _mm_div_ps(uu, adz));
+            _mm_storeu_ps(vs.as_mut_ptr(), _mm_div_ps(vv, adz));
         }
         let mut best = 4;
         let mut bt = f32::INFINITY;

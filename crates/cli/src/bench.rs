@@ -110,6 +110,8 @@ pub struct RaysOptions {
     pub width: Width,
     pub test: TriangleTest,
     pub kernel: Kernel,
+    /// Write the per-pixel primary hit ids here (i32 little-endian, like `embree_bench --dump-ids`).
+    pub dump_ids: Option<std::path::PathBuf>,
 }
 
 const CHUNK_BLOCKS: usize = 32;
@@ -217,6 +219,10 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
             } else {
                 line += &format!(",\"hits\":{}", px.iter().filter(|&&v| v >= 0).count());
                 if kind == "primary" {
+                    if let Some(path) = &o.dump_ids {
+                        let bytes: Vec<u8> = px.iter().flat_map(|v| v.to_le_bytes()).collect();
+                        std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
+                    }
                     if let Some(r) = &ref_ids {
                         let diff = px.iter().zip(r.iter()).filter(|(a, b)| a != b).count();
                         line += &format!(",\"diff_px_vs_ref\":{diff}");

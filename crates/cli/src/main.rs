@@ -93,6 +93,9 @@ enum BenchCmd {
         /// Force the scalar kernel.
         #[arg(long)]
         scalar: bool,
+        /// Write the primary hit id of every pixel to this file (i32 little-endian, -1 = miss).
+        #[arg(long)]
+        dump_ids: Option<PathBuf>,
     },
 }
 
@@ -109,7 +112,7 @@ fn main() -> Result<()> {
             render_cmd::run(render_cmd::RenderArgs { scene, camera, ortho, size, spp, threads, output, max_depth, no_shadows, watertight })
         }
         Cmd::Info { scene } => render_cmd::info(scene.as_deref()),
-        Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar }) => bench::rays(
+        Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar, dump_ids }) => bench::rays(
             &dir,
             &bench::RaysOptions {
                 name,
@@ -120,6 +123,7 @@ fn main() -> Result<()> {
                 width: if width == 4 { lucent_accel::Width::W4 } else { lucent_accel::Width::W8 },
                 test: if watertight { lucent_accel::TriangleTest::Watertight } else { lucent_accel::TriangleTest::UnitTriangle },
                 kernel: if scalar { lucent_accel::Kernel::Scalar } else { lucent_accel::Kernel::detect() },
+                dump_ids,
             },
         ),
     }
