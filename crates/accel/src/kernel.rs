@@ -9,17 +9,48 @@ pub enum Kernel {
     Scalar,
     /// SSE/AVX2/FMA code; chosen only when the CPU has AVX2 and FMA.
     Simd,
+    /// The same kernels compiled for AVX-512VL (32 vector registers: no spills); same
+    /// answers as `Simd`. Chosen only when the CPU has AVX-512F and AVX-512VL.
+    Avx512,
 }
 
 impl Kernel {
     /// The fastest kernel this CPU supports.
     #[must_use]
     pub fn detect() -> Self {
-        if Self::simd_available() {
+        if Self::avx512_available() {
+            Kernel::Avx512
+        } else if Self::simd_available() {
             Kernel::Simd
         } else {
             Kernel::Scalar
         }
+    }
+
+    /// True when the AVX-512VL build of the kernels can run here.
+    #[must_use]
+    pub fn avx512_available() -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            Self::simd_available() && std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512vl")
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
+    }
+
+    /// Every kernel this CPU can run (for tests and benchmarks).
+    #[must_use]
+    pub fn available() -> Vec<Self> {
+        let mut v = vec![Kernel::Scalar];
+        if Self::simd_available() {
+            v.push(Kernel::Simd);
+        }
+        if Self::avx512_available() {
+            v.push(Kernel::Avx512);
+        }
+        v
     }
 
     /// True when the SIMD kernel can run here.
@@ -35,13 +66,23 @@ impl Kernel {
         }
     }
 
-    /// `self` if the CPU supports it, else `Scalar`.
+    /// `self` if the CPU supports it, else the best lesser kernel.
     #[must_use]
     pub fn supported(self) -> Self {
-        if self == Kernel::Simd && !Self::simd_available() {
-            Kernel::Scalar
-        } else {
-            self
+        match self {
+            Kernel::Avx512 if !Self::avx512_available() => Kernel::Simd.supported(),
+            Kernel::Simd if !Self::simd_available() => Kernel::Scalar,
+            k => k,
+        }
+    }
+
+    /// Short name for reports.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Kernel::Scalar => "scalar",
+            Kernel::Simd => "avx2",
+            Kernel::Avx512 => "avx512",
         }
     }
 }

@@ -31,7 +31,7 @@ mod mesh;
 pub mod reference;
 mod shape;
 mod tlas;
-pub(crate) mod traverse;
+pub mod traverse;
 pub mod triangle;
 pub mod wide;
 
@@ -41,3 +41,4 @@ pub use kernel::Kernel;
 pub use mesh::{BuildError, BvhStats, MeshBvh, MeshOptions, TriangleTest, Width};
 pub use shape::{Shape, ShapeHit};
 pub use tlas::{Geometry, Instance, TwoLevel};
+pub use traverse::TraversalStats;

@@ -3,7 +3,7 @@
 use crate::build::{build_binary, BuildConfig, PrimRef};
 use crate::geom::{Aabb, Hit, Ray};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
-use crate::traverse::{self, Leaves, RayPre};
+use crate::traverse::{self, Counters, Leaves, RayPre, TraversalStats};
 use crate::triangle::{
     tri4_intersect, tri4_intersect_scalar, tri4_occluded, tri4_occluded_scalar, Tri4, UnitTriangle, WatertightRay, NEVER_HIT,
 };
@@ -206,66 +206,85 @@ impl MeshBvh {
     /// Closest hit of `ray` (`inst` is `INVALID`).
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let mut hit = Hit::none(ray.tmax);
-        let pre = RayPre::new(ray);
+        // PERF: the ray constants are made inside the kernel function, so they stay in
+        // registers instead of a store and reload across the call.
         match self.kernel {
             // SAFETY: `Kernel::Simd` is only ever set when AVX2 and FMA were detected.
             #[cfg(target_arch = "x86_64")]
-            Kernel::Simd => unsafe { simd_intersect(self, &pre, &mut hit) },
+            Kernel::Simd => unsafe { simd_intersect(self, ray) },
+            // SAFETY: `Kernel::Avx512` is only set when AVX-512F/VL (and AVX2, FMA) were detected.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512 => unsafe { avx512_intersect(self, ray) },
             _ => {
-                self.intersect_k::<ScalarSet>(&pre, &mut hit);
+                let mut hit = Hit::none(ray.tmax);
+                self.intersect_k::<ScalarSet, ()>(&RayPre::new(ray), &mut hit, &mut ());
+                hit.is_hit().then_some(hit)
             }
         }
-        hit.is_hit().then_some(hit)
     }
 
     /// True when anything blocks `ray` within `[tmin, tmax)`.
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        let pre = RayPre::new(ray);
         match self.kernel {
             // SAFETY: as in `intersect`.
             #[cfg(target_arch = "x86_64")]
-            Kernel::Simd => unsafe { simd_occluded(self, &pre, ray.tmax) },
-            _ => self.occluded_k::<ScalarSet>(&pre, ray.tmax),
+            Kernel::Simd => unsafe { simd_occluded(self, ray) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512 => unsafe { avx512_occluded(self, ray) },
+            _ => self.occluded_k::<ScalarSet, ()>(&RayPre::new(ray), ray.tmax, &mut ()),
         }
     }
 
     /// Closest-hit query with kernel set `K`; returns true when `hit` was narrowed.
     #[inline(always)]
-    pub(crate) fn intersect_k<K: KernelSet>(&self, pre: &RayPre, hit: &mut Hit) -> bool {
+    pub(crate) fn intersect_k<K: KernelSet, C: Counters>(&self, pre: &RayPre, hit: &mut Hit, c: &mut C) -> bool {
         let before = hit.t;
         // SAFETY (all arms): the caller selected K for this CPU.
         match (self.test, &self.nodes) {
             (TriangleTest::UnitTriangle, Nodes::W8(n)) => unsafe {
-                traverse::intersect::<8, K::B8, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, hit)
+                traverse::intersect::<8, K::B8, _, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, hit, c)
             },
             (TriangleTest::UnitTriangle, Nodes::W4(n)) => unsafe {
-                traverse::intersect::<4, K::B4, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, hit)
+                traverse::intersect::<4, K::B4, _, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, hit, c)
             },
-            (TriangleTest::Watertight, Nodes::W8(n)) => unsafe { traverse::intersect::<8, K::B8, _>(n, &self.wt_leaves(pre), pre, hit) },
-            (TriangleTest::Watertight, Nodes::W4(n)) => unsafe { traverse::intersect::<4, K::B4, _>(n, &self.wt_leaves(pre), pre, hit) },
+            (TriangleTest::Watertight, Nodes::W8(n)) => unsafe { traverse::intersect::<8, K::B8, _, _>(n, &self.wt_leaves(), pre, hit, c) },
+            (TriangleTest::Watertight, Nodes::W4(n)) => unsafe { traverse::intersect::<4, K::B4, _, _>(n, &self.wt_leaves(), pre, hit, c) },
         }
         hit.t < before
     }
 
     #[inline(always)]
-    pub(crate) fn occluded_k<K: KernelSet>(&self, pre: &RayPre, tmax: f32) -> bool {
+    pub(crate) fn occluded_k<K: KernelSet, C: Counters>(&self, pre: &RayPre, tmax: f32, c: &mut C) -> bool {
         // SAFETY (all arms): the caller selected K for this CPU.
         match (self.test, &self.nodes) {
             (TriangleTest::UnitTriangle, Nodes::W8(n)) => unsafe {
-                traverse::occluded::<8, K::B8, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, tmax)
+                traverse::occluded::<8, K::B8, _, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, tmax, c)
             },
             (TriangleTest::UnitTriangle, Nodes::W4(n)) => unsafe {
-                traverse::occluded::<4, K::B4, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, tmax)
+                traverse::occluded::<4, K::B4, _, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, tmax, c)
             },
-            (TriangleTest::Watertight, Nodes::W8(n)) => unsafe { traverse::occluded::<8, K::B8, _>(n, &self.wt_leaves(pre), pre, tmax) },
-            (TriangleTest::Watertight, Nodes::W4(n)) => unsafe { traverse::occluded::<4, K::B4, _>(n, &self.wt_leaves(pre), pre, tmax) },
+            (TriangleTest::Watertight, Nodes::W8(n)) => unsafe { traverse::occluded::<8, K::B8, _, _>(n, &self.wt_leaves(), pre, tmax, c) },
+            (TriangleTest::Watertight, Nodes::W4(n)) => unsafe { traverse::occluded::<4, K::B4, _, _>(n, &self.wt_leaves(), pre, tmax, c) },
         }
     }
 
-    fn wt_leaves(&self, pre: &RayPre) -> WtLeaves<'_> {
-        WtLeaves { verts: &self.wt_verts, ids: &self.wt_ids, ray: WatertightRay::new(pre.org, pre.dir) }
+    /// Closest hit, counting the work into `stats` (scalar kernel: same answers as the
+    /// fast ones, and the same nodes visited).
+    pub fn intersect_with_stats(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<Hit> {
+        let mut hit = Hit::none(ray.tmax);
+        self.intersect_k::<ScalarSet, _>(&RayPre::new(ray), &mut hit, stats);
+        hit.is_hit().then_some(hit)
+    }
+
+    /// Any-hit query counting the work into `stats` (scalar kernel).
+    pub fn occluded_with_stats(&self, ray: &Ray, stats: &mut TraversalStats) -> bool {
+        self.occluded_k::<ScalarSet, _>(&RayPre::new(ray), ray.tmax, stats)
+    }
+
+    fn wt_leaves(&self) -> WtLeaves<'_> {
+        WtLeaves { verts: &self.wt_verts, ids: &self.wt_ids, ray: std::cell::Cell::new(None) }
     }
 
     /// Checks the node structure: every child index in range, every leaf range in range.
@@ -298,14 +317,32 @@ impl MeshBvh {
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn simd_intersect(b: &MeshBvh, pre: &RayPre, hit: &mut Hit) {
-    b.intersect_k::<crate::kernel::SimdSet>(pre, hit);
+fn simd_intersect(b: &MeshBvh, ray: &Ray) -> Option<Hit> {
+    let mut hit = Hit::none(ray.tmax);
+    b.intersect_k::<crate::kernel::SimdSet, ()>(&RayPre::new(ray), &mut hit, &mut ());
+    hit.is_hit().then_some(hit)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn simd_occluded(b: &MeshBvh, pre: &RayPre, tmax: f32) -> bool {
-    b.occluded_k::<crate::kernel::SimdSet>(pre, tmax)
+fn simd_occluded(b: &MeshBvh, ray: &Ray) -> bool {
+    b.occluded_k::<crate::kernel::SimdSet, ()>(&RayPre::new(ray), ray.tmax, &mut ())
+}
+
+// PERF: the same generic kernels compiled with AVX-512VL: 32 vector registers, so the ray
+// constants stay in registers; the arithmetic (and so every answer) is the AVX2 kernel's.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+fn avx512_intersect(b: &MeshBvh, ray: &Ray) -> Option<Hit> {
+    let mut hit = Hit::none(ray.tmax);
+    b.intersect_k::<crate::kernel::SimdSet, ()>(&RayPre::new(ray), &mut hit, &mut ());
+    hit.is_hit().then_some(hit)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+fn avx512_occluded(b: &MeshBvh, ray: &Ray) -> bool {
+    b.occluded_k::<crate::kernel::SimdSet, ()>(&RayPre::new(ray), ray.tmax, &mut ())
 }
 
 struct UnitLeaves<'a, K> {
@@ -349,22 +386,41 @@ impl<K: KernelSet> Leaves for UnitLeaves<'_, K> {
 struct WtLeaves<'a> {
     verts: &'a [[Vec3; 3]],
     ids: &'a [u32],
-    ray: WatertightRay,
+    /// The ray's shear constants, made at the first leaf reached.
+    // PERF: made lazily so the three divisions are not paid by rays that reach no leaf
+    // (and cannot be hoisted into the unit-triangle path).
+    ray: std::cell::Cell<Option<WatertightRay>>,
+}
+
+impl WtLeaves<'_> {
+    #[inline(always)]
+    fn ray(&self, r: &RayPre) -> WatertightRay {
+        match self.ray.get() {
+            Some(w) => w,
+            None => {
+                let w = WatertightRay::new(r.org, r.dir);
+                self.ray.set(Some(w));
+                w
+            }
+        }
+    }
 }
 
 impl Leaves for WtLeaves<'_> {
     fn intersect(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit) {
+        let w = self.ray(r);
         for i in first as usize..(first + count) as usize {
             let [a, b, c] = self.verts[i];
-            if let Some((t, u, v)) = self.ray.hit(a, b, c, r.tmin, hit.t) {
+            if let Some((t, u, v)) = w.hit(a, b, c, r.tmin, hit.t) {
                 *hit = Hit { t, u, v, prim: self.ids[i], inst: hit.inst };
             }
         }
     }
     fn occluded(&self, first: u32, count: u32, r: &RayPre, tmax: f32) -> bool {
+        let w = self.ray(r);
         (first as usize..(first + count) as usize).any(|i| {
             let [a, b, c] = self.verts[i];
-            self.ray.hit(a, b, c, r.tmin, tmax).is_some()
+            w.hit(a, b, c, r.tmin, tmax).is_some()
         })
     }
 }

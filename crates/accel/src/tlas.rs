@@ -177,26 +177,33 @@ impl TwoLevel {
     /// Closest hit over all instances.
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let mut hit = Hit::none(ray.tmax);
-        let pre = RayPre::new(ray);
+        // PERF: ray constants are made inside the kernel function (kept in registers).
         match self.kernel {
             // SAFETY: `Kernel::Simd` is only set when AVX2 and FMA were detected.
             #[cfg(target_arch = "x86_64")]
-            Kernel::Simd => unsafe { simd_intersect(self, &pre, &mut hit) },
-            _ => self.intersect_k::<ScalarSet>(&pre, &mut hit),
+            Kernel::Simd => unsafe { simd_intersect(self, ray) },
+            // SAFETY: `Kernel::Avx512` is only set when AVX-512F/VL (and AVX2, FMA) were detected.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512 => unsafe { avx512_intersect(self, ray) },
+            _ => {
+                let mut hit = Hit::none(ray.tmax);
+                self.intersect_k::<ScalarSet>(&RayPre::new(ray), &mut hit);
+                hit.is_hit().then_some(hit)
+            }
         }
-        hit.is_hit().then_some(hit)
     }
 
     /// True when anything blocks `ray` within `[tmin, tmax)`.
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        let pre = RayPre::new(ray);
         match self.kernel {
             // SAFETY: as in `intersect`.
             #[cfg(target_arch = "x86_64")]
-            Kernel::Simd => unsafe { simd_occluded(self, &pre, ray.tmax) },
-            _ => self.occluded_k::<ScalarSet>(&pre, ray.tmax),
+            Kernel::Simd => unsafe { simd_occluded(self, ray) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512 => unsafe { avx512_occluded(self, ray) },
+            _ => self.occluded_k::<ScalarSet>(&RayPre::new(ray), ray.tmax),
         }
     }
 
@@ -204,7 +211,7 @@ impl TwoLevel {
     fn intersect_k<K: KernelSet>(&self, pre: &RayPre, hit: &mut Hit) {
         let leaves = InstLeaves::<K> { tl: self, k: std::marker::PhantomData };
         // SAFETY: the caller selected K for this CPU.
-        unsafe { traverse::intersect::<8, K::B8, _>(&self.nodes, &leaves, pre, hit) };
+        unsafe { traverse::intersect::<8, K::B8, _, _>(&self.nodes, &leaves, pre, hit, &mut ()) };
         for &i in &self.unbounded {
             leaves.hit_instance(i, pre, hit);
         }
@@ -215,20 +222,36 @@ impl TwoLevel {
         let leaves = InstLeaves::<K> { tl: self, k: std::marker::PhantomData };
         // SAFETY: the caller selected K for this CPU.
         self.unbounded.iter().any(|&i| leaves.occludes(i, pre, tmax))
-            || unsafe { traverse::occluded::<8, K::B8, _>(&self.nodes, &leaves, pre, tmax) }
+            || unsafe { traverse::occluded::<8, K::B8, _, _>(&self.nodes, &leaves, pre, tmax, &mut ()) }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn simd_intersect(t: &TwoLevel, pre: &RayPre, hit: &mut Hit) {
-    t.intersect_k::<crate::kernel::SimdSet>(pre, hit);
+fn simd_intersect(t: &TwoLevel, ray: &Ray) -> Option<Hit> {
+    let mut hit = Hit::none(ray.tmax);
+    t.intersect_k::<crate::kernel::SimdSet>(&RayPre::new(ray), &mut hit);
+    hit.is_hit().then_some(hit)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn simd_occluded(t: &TwoLevel, pre: &RayPre, tmax: f32) -> bool {
-    t.occluded_k::<crate::kernel::SimdSet>(pre, tmax)
+fn simd_occluded(t: &TwoLevel, ray: &Ray) -> bool {
+    t.occluded_k::<crate::kernel::SimdSet>(&RayPre::new(ray), ray.tmax)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+fn avx512_intersect(t: &TwoLevel, ray: &Ray) -> Option<Hit> {
+    let mut hit = Hit::none(ray.tmax);
+    t.intersect_k::<crate::kernel::SimdSet>(&RayPre::new(ray), &mut hit);
+    hit.is_hit().then_some(hit)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+fn avx512_occluded(t: &TwoLevel, ray: &Ray) -> bool {
+    t.occluded_k::<crate::kernel::SimdSet>(&RayPre::new(ray), ray.tmax)
 }
 
 struct InstLeaves<'a, K> {
@@ -249,7 +272,7 @@ impl<K: KernelSet> InstLeaves<'_, K> {
         let lp = self.local(inst, pre);
         match &self.tl.geometries[inst.geometry as usize] {
             Geometry::Mesh(m) => {
-                if m.intersect_k::<K>(&lp, hit) {
+                if m.intersect_k::<K, ()>(&lp, hit, &mut ()) {
                     hit.inst = id;
                 }
             }
@@ -266,7 +289,7 @@ impl<K: KernelSet> InstLeaves<'_, K> {
         let inst = &self.tl.instances[id as usize];
         let lp = self.local(inst, pre);
         match &self.tl.geometries[inst.geometry as usize] {
-            Geometry::Mesh(m) => m.occluded_k::<K>(&lp, tmax),
+            Geometry::Mesh(m) => m.occluded_k::<K, ()>(&lp, tmax, &mut ()),
             Geometry::Shape(s) => s.intersect_local(lp.org, lp.dir, lp.tmin, tmax).is_some(),
         }
     }

@@ -49,6 +49,11 @@ impl RayPre {
         // gathered component by component: callers write rays as separate floats, and one
         // 16-byte load of freshly stored floats defeats store forwarding (a ~15-cycle stall).
         let d = glam::Vec3A::new(r.dir.x, r.dir.y, r.dir.z);
+        // A zero component would make 1/d infinite and o·(1/d) ∞ or NaN, and the NaN-ignoring
+        // min/max would then drop that axis from the slab test (a ray along an axis would
+        // visit the whole tree). As Embree's `rcp_safe`, keep |d| ≥ 1e-18 for the box test.
+        let tiny = glam::Vec3A::splat(1e-18);
+        let d = glam::Vec3A::select(d.abs().cmplt(tiny), tiny.copysign(d), d);
         let inv: Vec3 = (glam::Vec3A::ONE / d).into();
         let neg = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
         let near = std::array::from_fn(|k| k + 3 * neg[k] as usize);
@@ -130,9 +135,11 @@ mod simd {
         #[target_feature(enable = "avx2,fma")]
         unsafe fn test(node: &WideNode<8>, r: &RayPre, tmax: f32, dist: &mut [f32; 8]) -> u32 {
             // SAFETY: `WideNode<8>` is 32-byte aligned and each bounds row is 32 bytes at a
-            // multiple of 32, so the aligned loads are valid; AVX2 and FMA are enabled here.
+            // multiple of 32, so the aligned loads are valid; row indices are < 6; AVX2 and
+            // FMA are enabled here.
             unsafe {
-                let row = |k: usize| _mm256_load_ps(node.bounds[k].as_ptr());
+                // `near`/`far` entries are k or k + 3 for k < 3 (RayPre::new): always < 6.
+                let row = |k: usize| _mm256_load_ps(node.bounds.get_unchecked(k).as_ptr());
                 let mut tn = _mm256_set1_ps(r.tmin);
                 let mut tf = _mm256_set1_ps(tmax);
                 for k in 0..3 {
@@ -161,7 +168,8 @@ mod simd {
         unsafe fn test(node: &WideNode<4>, r: &RayPre, tmax: f32, dist: &mut [f32; 4]) -> u32 {
             // SAFETY: rows are 16 bytes at 16-byte aligned offsets; FMA is enabled here.
             unsafe {
-                let row = |k: usize| _mm_load_ps(node.bounds[k].as_ptr());
+                // `near`/`far` entries are always < 6 (RayPre::new).
+                let row = |k: usize| _mm_load_ps(node.bounds.get_unchecked(k).as_ptr());
                 let mut tn = _mm_set1_ps(r.tmin);
                 let mut tf = _mm_set1_ps(tmax);
                 for k in 0..3 {
@@ -182,6 +190,43 @@ mod simd {
     }
 }
 
+/// Counters of traversal work. Kernels are generic over this: the unit type `()` counts
+/// nothing and compiles away, [`TraversalStats`] counts (for tests, reports and the
+/// hardware study).
+pub trait Counters {
+    /// One inner node's children were box-tested.
+    fn node(&mut self);
+    /// `n` leaf items (triangle groups, instances) were tested.
+    fn items(&mut self, n: u32);
+}
+
+impl Counters for () {
+    #[inline(always)]
+    fn node(&mut self) {}
+    #[inline(always)]
+    fn items(&mut self, _: u32) {}
+}
+
+/// Work done by one or more traversals.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraversalStats {
+    /// Inner nodes visited (each one wide box test).
+    pub nodes: u64,
+    /// Leaf items tested (4-triangle groups, triangles or instances).
+    pub items: u64,
+}
+
+impl Counters for TraversalStats {
+    #[inline(always)]
+    fn node(&mut self) {
+        self.nodes += 1;
+    }
+    #[inline(always)]
+    fn items(&mut self, n: u32) {
+        self.items += n as u64;
+    }
+}
+
 /// What sits in the leaves: triangles, shapes or instances.
 pub(crate) trait Leaves {
     /// Closest hit among items `first..first+count`; narrows `hit.t` when one is found.
@@ -195,7 +240,13 @@ pub(crate) trait Leaves {
 /// # Safety
 /// The CPU must support `B`'s instructions.
 #[inline(always)]
-pub(crate) unsafe fn intersect<const W: usize, B: BoxTest<W>, L: Leaves>(nodes: &[WideNode<W>], leaves: &L, r: &RayPre, hit: &mut Hit) {
+pub(crate) unsafe fn intersect<const W: usize, B: BoxTest<W>, L: Leaves, C: Counters>(
+    nodes: &[WideNode<W>],
+    leaves: &L,
+    r: &RayPre,
+    hit: &mut Hit,
+    c: &mut C,
+) {
     if nodes.is_empty() {
         return;
     }
@@ -212,6 +263,7 @@ pub(crate) unsafe fn intersect<const W: usize, B: BoxTest<W>, L: Leaves>(nodes: 
             // `validate` in tests); the caller guarantees B's CPU features.
             let node = unsafe { nodes.get_unchecked(cur as usize) };
             let mut mask = unsafe { B::test(node, r, hit.t, &mut dist) };
+            c.node();
             if mask != 0 {
                 let i = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
@@ -219,7 +271,19 @@ pub(crate) unsafe fn intersect<const W: usize, B: BoxTest<W>, L: Leaves>(nodes: 
                     cur = node.child[i];
                     continue;
                 }
-                // Two or more: push all, nearest on top (insertion sort of at most W).
+                let j = mask.trailing_zeros() as usize;
+                if mask & (mask - 1) == 0 {
+                    // PERF: exactly two (the common case): go to the nearer, push the farther.
+                    let (ci, cj, di, dj) = (node.child[i], node.child[j], dist[i], dist[j]);
+                    let near_first = di <= dj;
+                    let (cn, cf, df) = if near_first { (ci, cj, dj) } else { (cj, ci, di) };
+                    st_t[sp].write(df);
+                    st_code[sp].write(cf);
+                    sp += 1;
+                    cur = cn;
+                    continue;
+                }
+                // Three or more: push all, nearest on top (insertion sort of at most W).
                 let base = sp;
                 let mut push = |code: u32, d: f32, sp: &mut usize| {
                     let mut j = *sp;
@@ -246,6 +310,7 @@ pub(crate) unsafe fn intersect<const W: usize, B: BoxTest<W>, L: Leaves>(nodes: 
             }
         } else if cur != EMPTY {
             let (first, count) = leaf_range(cur);
+            c.items(count);
             leaves.intersect(first, count, r, hit);
         }
         // Pop the nearest entry that can still hold a closer hit.
@@ -269,7 +334,13 @@ pub(crate) unsafe fn intersect<const W: usize, B: BoxTest<W>, L: Leaves>(nodes: 
 /// # Safety
 /// The CPU must support `B`'s instructions.
 #[inline(always)]
-pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves>(nodes: &[WideNode<W>], leaves: &L, r: &RayPre, tmax: f32) -> bool {
+pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves, C: Counters>(
+    nodes: &[WideNode<W>],
+    leaves: &L,
+    r: &RayPre,
+    tmax: f32,
+    c: &mut C,
+) -> bool {
     if nodes.is_empty() {
         return false;
     }
@@ -283,6 +354,7 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves>(nodes: &
             // SAFETY: as in `intersect`.
             let node = unsafe { nodes.get_unchecked(cur as usize) };
             let mut mask = unsafe { B::test(node, r, tmax, &mut dist) };
+            c.node();
             if mask != 0 {
                 let i = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
@@ -297,6 +369,7 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves>(nodes: &
             }
         } else if cur != EMPTY {
             let (first, count) = leaf_range(cur);
+            c.items(count);
             if leaves.occluded(first, count, r, tmax) {
                 return true;
             }

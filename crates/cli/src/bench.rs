@@ -158,7 +158,10 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
     }
     let Some(mut bvh) = bvh else { bail!("no thread count given") };
     bvh.set_kernel(o.kernel);
-    let api = if bvh.kernel() == Kernel::Simd { "single" } else { "single-scalar" };
+    let api = match bvh.kernel() {
+        Kernel::Scalar => "single-scalar".to_string(),
+        k => format!("single-{}", k.name()),
+    };
     let ref_ids = std::fs::read(dir.join("ref_ids.bin"))
         .ok()
         .map(|b| b.chunks_exact(4).map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect::<Vec<i32>>());

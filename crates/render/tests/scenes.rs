@@ -4,7 +4,7 @@
 mod common;
 use common::scene;
 use glam::Vec3;
-use lucent_accel::reference::intersect_triangles;
+use lucent_accel::reference::{intersect_triangles, intersect_triangles_watertight};
 use lucent_accel::{Kernel, MeshBvh, MeshOptions, Ray, TriangleTest, Width};
 use lucent_render::Camera;
 use lucent_scene::{load, CameraDesc};
@@ -60,12 +60,12 @@ const VIEWS: &[(&str, [f32; 10])] = &[
 
 #[test]
 fn kernels_match_reference_on_shared_scenes() {
-    let mut variants =
-        vec![(Width::W8, Kernel::Scalar, TriangleTest::UnitTriangle), (Width::W4, Kernel::Scalar, TriangleTest::UnitTriangle)];
-    if Kernel::simd_available() {
-        variants.push((Width::W8, Kernel::Simd, TriangleTest::UnitTriangle));
-        variants.push((Width::W4, Kernel::Simd, TriangleTest::UnitTriangle));
-    }
+    let mut variants: Vec<(Width, Kernel, TriangleTest)> = Kernel::available()
+        .into_iter()
+        .flat_map(|k| [(Width::W8, k, TriangleTest::UnitTriangle), (Width::W4, k, TriangleTest::UnitTriangle)])
+        .collect();
+    variants.push((Width::W8, Kernel::detect(), TriangleTest::Watertight));
+    variants.push((Width::W4, Kernel::Scalar, TriangleTest::Watertight));
     for &(file, c) in VIEWS {
         let s = load(&scene(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
         let m = &s.meshes[0];
@@ -93,12 +93,14 @@ fn kernels_match_reference_on_shared_scenes() {
             let b = lo + (hi - lo) * Vec3::new(rng.random(), rng.random(), rng.random());
             rays.push(Ray::new(a, (b - a).normalize_or(Vec3::Y)));
         }
-        let want: Vec<_> = rays.iter().map(|r| intersect_triangles(&m.positions, &m.indices, r)).collect();
+        let want_unit: Vec<_> = rays.iter().map(|r| intersect_triangles(&m.positions, &m.indices, r)).collect();
+        let want_wt: Vec<_> = rays.iter().map(|r| intersect_triangles_watertight(&m.positions, &m.indices, r)).collect();
         for &(width, kernel, test) in &variants {
             let mut bvh = MeshBvh::build(&m.positions, &m.indices, MeshOptions { width, test }).expect("build");
             bvh.validate().expect("well formed");
             bvh.set_kernel(kernel);
-            for (r, w) in rays.iter().zip(&want) {
+            let want = if test == TriangleTest::Watertight { &want_wt } else { &want_unit };
+            for (r, w) in rays.iter().zip(want) {
                 let g = bvh.intersect(r);
                 // Same hit or miss; the same distance up to the triangle test's own rounding
                 // (nearly coplanar triangles a few ulps apart may be found in either order).
