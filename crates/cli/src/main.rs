@@ -4,6 +4,7 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
 mod bench;
+mod isa_cmd;
 mod render_cmd;
 
 #[derive(Parser)]
@@ -53,6 +54,33 @@ enum Cmd {
         #[arg(long)]
         watertight: bool,
     },
+    /// Assemble a REND3R program (.rdr) into instruction words (.mem text or raw binary).
+    Asm {
+        /// REND3R assembly source.
+        program: PathBuf,
+        /// Output file (default: the program with .mem, or .bin with --format bin).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// mem: 8 hex digits per line, as REND3R wrote them; bin: u32 words, network byte order.
+        /// Default: from the output's extension.
+        #[arg(long, value_enum)]
+        format: Option<isa_cmd::WordFormat>,
+        /// Camera property table: `final` (quaternion, raytracing branch) or `old`
+        /// (forward/up vectors, main and taping branches).
+        #[arg(long, default_value = "final", value_parser = ["final", "old"])]
+        camera_table: String,
+    },
+    /// Turn REND3R instruction words (.mem/.hex text, or raw big-endian .bin) back into assembly.
+    Disasm {
+        /// Word file.
+        file: PathBuf,
+        /// Camera property table (final or old).
+        #[arg(long, default_value = "final", value_parser = ["final", "old"])]
+        camera_table: String,
+        /// Show shape/triangle sets as `tr` (rasterization) instead of `sp`.
+        #[arg(long)]
+        triangles: bool,
+    },
     /// Print a scene's counts, bounds, camera and acceleration-structure size.
     Info {
         /// Scene file. Without it: the built-in demo scene.
@@ -99,7 +127,18 @@ enum BenchCmd {
     },
 }
 
-fn main() -> Result<()> {
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            // User errors: one clear message (with its causes), no backtrace.
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> Result<()> {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
@@ -112,6 +151,8 @@ fn main() -> Result<()> {
             render_cmd::run(render_cmd::RenderArgs { scene, camera, ortho, size, spp, threads, output, max_depth, no_shadows, watertight })
         }
         Cmd::Info { scene } => render_cmd::info(scene.as_deref()),
+        Cmd::Asm { program, output, format, camera_table } => isa_cmd::asm(&program, output, format, isa_cmd::table(camera_table == "old")),
+        Cmd::Disasm { file, camera_table, triangles } => isa_cmd::disasm(&file, isa_cmd::table(camera_table == "old"), triangles),
         Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar, dump_ids }) => bench::rays(
             &dir,
             &bench::RaysOptions {

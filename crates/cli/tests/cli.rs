@@ -135,3 +135,52 @@ fn bench_rays_reads_the_harness_format() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("mesh.bin"));
 }
+
+fn rend3r(rel: &str) -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/rend3r/programs").join(rel)
+}
+
+#[test]
+fn asm_and_disasm_commands() {
+    let d = tempfile::tempdir().expect("tmp");
+    let mem = d.path().join("rt.mem");
+    let o = lucent().arg("asm").arg(rend3r("raytracing/sw/raytrace.rdr")).arg("-o").arg(&mem).output().expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read(&mem).expect("mem"), std::fs::read(rend3r("raytracing/data/main.mem")).expect("ref"));
+    // Binary output: network byte order.
+    let bin = d.path().join("rt.bin");
+    assert!(lucent().arg("asm").arg(rend3r("raytracing/sw/raytrace.rdr")).arg("-o").arg(&bin).status().expect("run").success());
+    assert_eq!(&std::fs::read(&bin).expect("bin")[..8], &[0, 0, 2, 0, 0, 0, 8, 1]);
+    // Old camera table.
+    let old = d.path().join("old.mem");
+    assert!(lucent()
+        .arg("asm")
+        .arg(rend3r("taping/sw/raster.rdr"))
+        .args(["--camera-table", "old", "-o"])
+        .arg(&old)
+        .status()
+        .expect("run")
+        .success());
+    assert_eq!(std::fs::read(&old).expect("mem"), std::fs::read(rend3r("taping-min-dram/data/main.mem")).expect("ref"));
+    // Disassembly of both forms reassembles to the same words.
+    for f in [&mem, &bin] {
+        let o = lucent().arg("disasm").arg(f).output().expect("run");
+        assert!(o.status.success());
+        let src = d.path().join("back.rdr");
+        std::fs::write(&src, &o.stdout).expect("write");
+        let again = d.path().join("back.mem");
+        assert!(lucent().arg("asm").arg(&src).arg("-o").arg(&again).status().expect("run").success());
+        assert_eq!(std::fs::read(&again).expect("again"), std::fs::read(&mem).expect("mem"));
+    }
+    // Errors: line:column, and no backtrace.
+    let bad = d.path().join("bad.rdr");
+    std::fs::write(&bad, "nr\nlt 99, xfor, 1\n").expect("write");
+    let o = lucent().arg("asm").arg(&bad).env("RUST_BACKTRACE", "1").output().expect("run");
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("bad.rdr:2:4: light index 99 out of range (0..=63)") && !e.contains("backtrace"), "{e}");
+    let cut = d.path().join("cut.bin");
+    std::fs::write(&cut, [0u8, 0, 0x1b, 0x45]).expect("write");
+    let o = lucent().arg("disasm").arg(&cut).output().expect("run");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("word 0: shape/triangle set"), "{}", String::from_utf8_lossy(&o.stderr));
+}
