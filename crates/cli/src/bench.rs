@@ -5,7 +5,6 @@
 use anyhow::{bail, Context, Result};
 use lucent_accel::glam::Vec3;
 use lucent_accel::{Kernel, MeshBvh, MeshOptions, Ray, TriangleTest, Width};
-use rayon::prelude::*;
 use std::path::Path;
 use std::time::Instant;
 
@@ -172,16 +171,29 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
         for &threads in &o.threads {
             let p = pool(threads)?;
             let mut out = vec![-1i32; batch.blocks.len() * 8];
-            let pass = |out: &mut [i32]| {
-                out.par_chunks_mut(CHUNK_BLOCKS * 8).zip(batch.blocks.par_chunks(CHUNK_BLOCKS)).for_each(|(res, blocks)| {
-                    for (bi, b) in blocks.iter().enumerate() {
+            // Like the Embree harness: every worker pulls chunks of 32 blocks (4 tiles, 256
+            // rays) from an atomic counter, so both tracers pay the same scheduling cost.
+            let out_cells: Vec<std::sync::atomic::AtomicI32> =
+                (0..batch.blocks.len() * 8).map(|_| std::sync::atomic::AtomicI32::new(-1)).collect();
+            let pass = |_: &mut [i32]| {
+                let next = std::sync::atomic::AtomicUsize::new(0);
+                let nchunks = batch.blocks.len().div_ceil(CHUNK_BLOCKS);
+                rayon::broadcast(|_| loop {
+                    let c = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    if c >= nchunks {
+                        break;
+                    }
+                    let b0 = c * CHUNK_BLOCKS;
+                    let b1 = (b0 + CHUNK_BLOCKS).min(batch.blocks.len());
+                    for bi in b0..b1 {
+                        let b = &batch.blocks[bi];
                         for l in 0..8 {
                             if b.valid[l] == 0 {
                                 continue;
                             }
                             let r = b.ray(l);
-                            res[bi * 8 + l] =
-                                if shadow { bvh.occluded(&r) as i32 } else { bvh.intersect(&r).map_or(-1, |h| h.prim as i32) };
+                            let v = if shadow { bvh.occluded(&r) as i32 } else { bvh.intersect(&r).map_or(-1, |h| h.prim as i32) };
+                            out_cells[bi * 8 + l].store(v, std::sync::atomic::Ordering::Relaxed);
                         }
                     }
                 });
@@ -199,6 +211,9 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
                     .collect()
             });
             let med = median(times);
+            for (o, c) in out.iter_mut().zip(&out_cells) {
+                *o = c.load(std::sync::atomic::Ordering::Relaxed);
+            }
             let npix = (batch.width * batch.height) as usize;
             let mut px = vec![-1i32; npix];
             for (bi, b) in batch.blocks.iter().enumerate() {

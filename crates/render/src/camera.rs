@@ -15,9 +15,12 @@ pub struct Camera {
     forward: Vec3,
     right: Vec3,
     up: Vec3,
+    half_w: f32,
     half_h: f32,
-    aspect: f32,
     ortho: bool,
+    normalize: bool,
+    tmin: f32,
+    tmax: f32,
     width: u32,
     height: u32,
 }
@@ -36,14 +39,52 @@ impl Camera {
             Some(h) => (h * 0.5, true),
             None => ((desc.vfov_deg.to_radians() * 0.5).tan(), false),
         };
+        let aspect = width as f32 / height.max(1) as f32;
         Self {
             eye: desc.eye,
             forward,
             right,
             up,
+            half_w: half_h * aspect,
             half_h,
-            aspect: width as f32 / height.max(1) as f32,
             ortho,
+            normalize: true,
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+            width: width.max(1),
+            height: height.max(1),
+        }
+    }
+
+    /// A camera with an explicit frame: rays `forward + sx·right + sy·up` over the viewport
+    /// `[-half_w, half_w] × [-half_h, half_h]` at distance 1, *not* normalized, so `t` is the
+    /// depth along `forward`; `[tmin, tmax)` bounds them (near and far clip). This is
+    /// REND3R's camera.
+    #[allow(clippy::too_many_arguments)]
+    #[must_use]
+    pub fn viewport(
+        eye: Vec3,
+        right: Vec3,
+        up: Vec3,
+        forward: Vec3,
+        half_w: f32,
+        half_h: f32,
+        tmin: f32,
+        tmax: f32,
+        width: u32,
+        height: u32,
+    ) -> Self {
+        Self {
+            eye,
+            forward,
+            right,
+            up,
+            half_w,
+            half_h,
+            ortho: false,
+            normalize: false,
+            tmin,
+            tmax,
             width: width.max(1),
             height: height.max(1),
         }
@@ -52,13 +93,41 @@ impl Camera {
     /// The ray through image position (`x`, `y`) in pixels (pixel centres at +0.5).
     #[must_use]
     pub fn ray(&self, x: f32, y: f32) -> Ray {
-        let sx = (2.0 * x / self.width as f32 - 1.0) * self.half_h * self.aspect;
+        let sx = (2.0 * x / self.width as f32 - 1.0) * self.half_w;
         let sy = (1.0 - 2.0 * y / self.height as f32) * self.half_h;
-        if self.ortho {
+        let r = if self.ortho {
             Ray::new(self.eye + self.right * sx + self.up * sy, self.forward)
         } else {
-            Ray::new(self.eye, (self.forward + self.right * sx + self.up * sy).normalize())
-        }
+            let d = self.forward + self.right * sx + self.up * sy;
+            Ray::new(self.eye, if self.normalize { d.normalize() } else { d })
+        };
+        r.with_range(self.tmin, self.tmax)
+    }
+
+    /// Projects a world point to image coordinates (pixels, y down) and its depth along
+    /// the view axis; `None` behind the eye (perspective cameras).
+    #[must_use]
+    pub fn project(&self, p: Vec3) -> Option<(f32, f32, f32)> {
+        let v = p - self.eye;
+        let (x, y, z) = (v.dot(self.right), v.dot(self.up), v.dot(self.forward));
+        let (sx, sy) = if self.ortho {
+            (x, y)
+        } else {
+            if z <= 0.0 {
+                return None;
+            }
+            // Directions are forward + sx·right + sy·up with unit right/up/forward.
+            (x / z, y / z)
+        };
+        let px = (sx / self.half_w + 1.0) * 0.5 * self.width as f32;
+        let py = (1.0 - sy / self.half_h) * 0.5 * self.height as f32;
+        Some((px, py, z))
+    }
+
+    /// Near and far clip.
+    #[must_use]
+    pub fn clip(&self) -> (f32, f32) {
+        (self.tmin, self.tmax)
     }
 
     /// Eye position.

@@ -1,0 +1,83 @@
+//! `lucent run`: executes a REND3R program and writes one PNG per `nf`.
+
+use anyhow::{Context, Result};
+use lucent_engine::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
+use lucent_isa::{assemble_words, AsmOptions, CameraTable};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+pub struct RunArgs {
+    pub program: PathBuf,
+    pub mode: Mode,
+    pub sets: Option<SetKind>,
+    pub size: (u32, u32),
+    pub frames: u64,
+    pub seconds: Option<f64>,
+    pub painter: bool,
+    pub spp: u32,
+    pub camera_table: CameraTable,
+    pub output: PathBuf,
+}
+
+/// Words of a program, and whether its source used `tr` (triangles) rather than `sp`.
+pub fn load_program(path: &Path, camera_table: CameraTable) -> Result<(Vec<u32>, Option<SetKind>)> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
+    if ext == "rdr" {
+        let src = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+        let words = assemble_words(&src, AsmOptions { camera_table }).map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))?;
+        let first = |m: &str| src.lines().any(|l| l.trim().to_lowercase().split(' ').next() == Some(m));
+        let sets = match (first("sp"), first("tr")) {
+            (false, true) => Some(SetKind::Triangles),
+            (true, false) => Some(SetKind::Shapes),
+            _ => None,
+        };
+        Ok((words, sets))
+    } else {
+        Ok((crate::isa_cmd::read_words(path)?, None))
+    }
+}
+
+pub fn run(a: RunArgs) -> Result<()> {
+    let (words, from_source) = load_program(&a.program, a.camera_table)?;
+    let sets = a.sets.or(from_source).unwrap_or(if a.mode == Mode::Raster { SetKind::Triangles } else { SetKind::Shapes });
+    let mut p = Processor::new(words, a.camera_table).map_err(|e| anyhow::anyhow!("{}: {e}", a.program.display()))?;
+    std::fs::create_dir_all(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
+    let fs = FrameSettings { width: a.size.0, height: a.size.1, mode: a.mode, sets, painter: a.painter, spp: a.spp };
+    let start = Instant::now();
+    let mut frame = 0u64;
+    let mut warned = false;
+    loop {
+        if frame >= a.frames || a.seconds.is_some_and(|s| start.elapsed().as_secs_f64() >= s) {
+            println!("stopped after {frame} frames (limit reached)");
+            break;
+        }
+        match p.run_to_frame(50_000_000) {
+            Step::Frame => {}
+            _ => {
+                println!("program halted after {frame} frames ({} words executed)", p.executed);
+                break;
+            }
+        }
+        frame += 1;
+        let t = Instant::now();
+        let (film, info) = render_frame(&p.state, &fs)?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        if info.skipped > 0 && !warned {
+            tracing::warn!("{} shape records have an undefined type (4-15) or non-finite data: skipped", info.skipped);
+            warned = true;
+        }
+        let out = a.output.join(format!("frame-{frame:04}.png"));
+        film.save(&out)?;
+        println!(
+            "frame {frame}: {} {}, {} lights, {ms:.1} ms -> {}",
+            info.shapes,
+            if sets == SetKind::Shapes { "shapes" } else { "triangles" },
+            info.lights,
+            out.display()
+        );
+    }
+    if p.ignored > 0 {
+        println!("note: {} words were not instructions and were ignored", p.ignored);
+    }
+    Ok(())
+}

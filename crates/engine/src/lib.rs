@@ -1,0 +1,15 @@
+//! # lucent_engine
+//!
+//! Where everything meets: the REND3R device. [`Processor`] executes instruction words
+//! (from `lucent_isa`) into a [`DeviceState`]; [`render_frame`] turns the state into a
+//! frame, ray traced by lucent's engine ([`Mode::Raytrace`]) or rasterized
+//! ([`Mode::Raster`]). `frame` documents every decision lucent takes where REND3R's paper
+//! is silent.
+#![warn(missing_docs)]
+
+pub mod frame;
+mod processor;
+pub mod raster;
+
+pub use frame::{camera, render_frame, rgb565, scene, FrameInfo, FrameSettings, Mode, SetKind};
+pub use processor::{DeviceState, Processor, Record, Step, LIGHTS, MAX_SETS};

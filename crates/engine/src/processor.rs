@@ -1,0 +1,165 @@
+//! The instruction processor: executes REND3R word streams with the semantics of SPEC.md
+//! §4 (update and compute modes, SE/SD pairs, `nr`, `nf`, `lr`, the two-zero-word halt),
+//! with lucent's limits instead of the board's (2^19 shapes and triangles, 64 lights, any
+//! program length).
+
+use lucent_isa::{decode_lenient, CameraTable, DecodeError, Flow, Instr};
+
+/// One record (camera, light, or shape/triangle): 32 property slots of raw 16-bit data,
+/// and which slots a program has written (a slot never written means "default").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Record {
+    /// Raw data per property index.
+    pub vals: [u16; 32],
+    /// Bit `i` set when property `i` was written.
+    pub written: u32,
+}
+
+impl Record {
+    /// Writes property `p`.
+    pub fn set(&mut self, p: u8, v: u16) {
+        let p = (p & 31) as usize;
+        self.vals[p] = v;
+        self.written |= 1 << p;
+    }
+    /// True when property `p` was written.
+    #[must_use]
+    pub fn has(&self, p: u8) -> bool {
+        self.written & (1 << (p & 31)) != 0
+    }
+    /// Property `p` as binary16, as f32.
+    #[must_use]
+    pub fn f(&self, p: u8) -> f32 {
+        half::f16::from_bits(self.vals[(p & 31) as usize]).to_f32()
+    }
+    /// Property `p` raw.
+    #[must_use]
+    pub fn u(&self, p: u8) -> u16 {
+        self.vals[(p & 31) as usize]
+    }
+    /// True when anything was written.
+    #[must_use]
+    pub fn used(&self) -> bool {
+        self.written != 0
+    }
+}
+
+/// Number of lights.
+pub const LIGHTS: usize = 64;
+/// Most shape/triangle records (the 19-bit index).
+pub const MAX_SETS: usize = 1 << 19;
+
+/// Everything a program has set.
+#[derive(Clone, Debug)]
+pub struct DeviceState {
+    /// Camera record.
+    pub camera: Record,
+    /// Camera table the program was written for.
+    pub camera_table: CameraTable,
+    /// Lights 0..64.
+    pub lights: Vec<Record>,
+    /// Shape or triangle records set by SE/SD (interpreted at render time).
+    pub sets: Vec<Record>,
+}
+
+impl DeviceState {
+    /// The reset state: everything zero, nothing written.
+    #[must_use]
+    pub fn new(camera_table: CameraTable) -> Self {
+        Self { camera: Record::default(), camera_table, lights: vec![Record::default(); LIGHTS], sets: Vec::new() }
+    }
+    /// Set records written so far.
+    #[must_use]
+    pub fn used_sets(&self) -> usize {
+        self.sets.iter().filter(|r| r.used()).count()
+    }
+    /// Lights written so far.
+    #[must_use]
+    pub fn used_lights(&self) -> usize {
+        self.lights.iter().filter(|r| r.used()).count()
+    }
+}
+
+/// What one step of execution produced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// An instruction ran; continue.
+    Continue,
+    /// `nf`: a frame should be rendered from the current state.
+    Frame,
+    /// The program halted (two zero words, or the end of the words).
+    Halt,
+}
+
+/// Executes a word stream.
+#[derive(Clone, Debug)]
+pub struct Processor {
+    words: Vec<u32>,
+    pc: usize,
+    /// The device state.
+    pub state: DeviceState,
+    /// Words executed so far.
+    pub executed: u64,
+    /// Words that are no instruction (ignored, as the board does).
+    pub ignored: u64,
+}
+
+impl Processor {
+    /// A processor for `words`; an SE word with no SD word at the end is an error.
+    pub fn new(words: Vec<u32>, camera_table: CameraTable) -> Result<Self, DecodeError> {
+        decode_lenient(&words)?;
+        Ok(Self { words, pc: 0, state: DeviceState::new(camera_table), executed: 0, ignored: 0 })
+    }
+
+    /// Runs one instruction.
+    pub fn step(&mut self) -> Step {
+        let Some(&w) = self.words.get(self.pc) else { return Step::Halt };
+        // Validated in `new`: an SE word always has its SD word.
+        let (instr, n) = match lucent_isa::decode_one(&self.words, self.pc) {
+            Ok(x) => x,
+            Err(_) => (Instr::Raw(w), 1),
+        };
+        let at = self.pc;
+        self.pc += n;
+        self.executed += n as u64;
+        match instr {
+            Instr::Flow(Flow::End) => {
+                // Halt only on two zero words in a row (SPEC §4.2); beyond the end reads zero.
+                if self.words.get(at + 1).is_none_or(|&next| next == 0) {
+                    return Step::Halt;
+                }
+            }
+            Instr::Flow(Flow::NewRender) => {
+                // lucent: `nr` clears the scene and the frame.
+                self.state = DeviceState::new(self.state.camera_table);
+            }
+            Instr::Flow(Flow::NewFrame) => return Step::Frame,
+            Instr::Flow(Flow::Loop) => self.pc = 1,
+            Instr::Camera { prop, data } => self.state.camera.set(prop, data),
+            Instr::Light { index, prop, data } => self.state.lights[index as usize % LIGHTS].set(prop, data),
+            Instr::Set { index, p1, p2, d1, d2 } => {
+                let i = index as usize % MAX_SETS;
+                if self.state.sets.len() <= i {
+                    self.state.sets.resize(i + 1, Record::default());
+                }
+                self.state.sets[i].set(p1, d1);
+                self.state.sets[i].set(p2, d2);
+            }
+            Instr::Raw(_) => self.ignored += 1,
+        }
+        Step::Continue
+    }
+
+    /// Runs until the next frame or halt (at most `max_words` words, so a program that
+    /// loops without `nf` cannot hang the caller).
+    pub fn run_to_frame(&mut self, max_words: u64) -> Step {
+        let stop = self.executed + max_words;
+        while self.executed < stop {
+            match self.step() {
+                Step::Continue => {}
+                s => return s,
+            }
+        }
+        Step::Halt
+    }
+}
