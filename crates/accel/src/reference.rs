@@ -66,8 +66,8 @@ pub fn intersect_instances(geoms: &[RefGeometry<'_>], instances: &[(u32, Affine3
             RefGeometry::Mesh(p, i) => intersect_triangles(p, i, &local),
             RefGeometry::Shape(s) => s.intersect_local(local.org, local.dir, local.tmin, local.tmax).map(|h| Hit {
                 t: h.t,
-                u: h.u,
-                v: h.v,
+                u: 0.0,
+                v: 0.0,
                 prim: h.part,
                 inst: 0,
             }),

@@ -35,15 +35,12 @@ pub enum Shape {
     Disk,
 }
 
-/// A hit on a shape: distance, surface parameters and the part hit (side, cap, face).
+/// A hit on a shape: distance and the part hit (side, cap, face). Surface parameters come
+/// from [`Shape::uv_local`] at the hit point, only where they are needed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShapeHit {
     /// Distance.
     pub t: f32,
-    /// Surface parameter u in [0, 1].
-    pub u: f32,
-    /// Surface parameter v in [0, 1].
-    pub v: f32,
     /// Part: 0 = main surface; cylinder 1/2 = bottom/top cap; cone 1 = cap; box 0..6 = face.
     pub part: u32,
 }
@@ -104,14 +101,13 @@ impl Shape {
                 let a = d.x * d.x + d.y * d.y - d.z * d.z;
                 let b = d.x * o.x + d.y * o.y - d.z * o.z;
                 let c = o.x * o.x + o.y * o.y - o.z * o.z;
-                let roots: [Option<f64>; 2] = if a.abs() < 1e-12 * d.length_squared() {
+                let roots: [f64; 2] = if a.abs() < 1e-12 * d.length_squared() {
                     // Ray parallel to the surface: one crossing.
-                    [(b != 0.0).then(|| -c / (2.0 * b)), None]
+                    [if b != 0.0 { -c / (2.0 * b) } else { f64::NAN }, f64::NAN]
                 } else {
-                    let r = quadric(a, b, c);
-                    [r.first().copied(), r.get(1).copied()]
+                    quadric(a, b, c)
                 };
-                for t in roots.into_iter().flatten() {
+                for t in roots {
                     let z = o.z + t * d.z;
                     consider(t, 0, !capped || (0.0..=1.0).contains(&z));
                 }
@@ -163,9 +159,15 @@ impl Shape {
             }
         }
         let (t, part) = best?;
-        let p = o + d * t;
-        let (u, v) = self.uv(p, part);
-        Some(ShapeHit { t: t as f32, u: u as f32, v: v as f32, part })
+        Some(ShapeHit { t: t as f32, part })
+    }
+
+    /// Surface parameters (u, v) in [0, 1] of an object-space point on part `part`
+    /// (spherical angles, heights, face coordinates).
+    #[must_use]
+    pub fn uv_local(self, p: Vec3, part: u32) -> (f32, f32) {
+        let (u, v) = self.uv(p.as_dvec3(), part);
+        (u as f32, v as f32)
     }
 
     fn uv(self, p: DVec3, part: u32) -> (f64, f64) {
@@ -206,14 +208,17 @@ impl Shape {
     }
 }
 
-/// Real roots of `a t² + 2 b t + c = 0`, ascending, computed without cancellation.
-fn quadric(a: f64, b: f64, c: f64) -> Vec<f64> {
+/// Real roots of `a t² + 2 b t + c = 0`, ascending, computed without cancellation
+/// (missing roots are NaN, which no range test accepts).
+// PERF: a fixed array, not a Vec: this runs for every shape a ray meets.
+fn quadric(a: f64, b: f64, c: f64) -> [f64; 2] {
+    const NONE: [f64; 2] = [f64::NAN, f64::NAN];
     if a == 0.0 {
-        return if b != 0.0 { vec![-c / (2.0 * b)] } else { vec![] };
+        return if b != 0.0 { [-c / (2.0 * b), f64::NAN] } else { NONE };
     }
     let disc = b * b - a * c;
     if disc < 0.0 {
-        return vec![];
+        return NONE;
     }
     let sign = if b >= 0.0 { 1.0 } else { -1.0 };
     let q = -(b + sign * disc.sqrt());
@@ -221,7 +226,7 @@ fn quadric(a: f64, b: f64, c: f64) -> Vec<f64> {
     if t0 > t1 {
         std::mem::swap(&mut t0, &mut t1);
     }
-    vec![t0, t1]
+    [t0, t1]
 }
 
 #[cfg(test)]

@@ -278,7 +278,7 @@ impl<K: KernelSet> InstLeaves<'_, K> {
             }
             Geometry::Shape(s) => {
                 if let Some(h) = s.intersect_local(lp.org, lp.dir, lp.tmin, hit.t) {
-                    *hit = Hit { t: h.t, u: h.u, v: h.v, prim: h.part, inst: id };
+                    *hit = Hit { t: h.t, u: 0.0, v: 0.0, prim: h.part, inst: id };
                 }
             }
         }

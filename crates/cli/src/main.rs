@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 mod bench;
 mod isa_cmd;
+mod rend3r_bench;
 mod render_cmd;
 mod run_cmd;
 
@@ -128,6 +129,16 @@ enum Cmd {
 
 #[derive(Subcommand)]
 enum BenchCmd {
+    /// REND3R's Table IV scenes (1..4096 spheres, 0/1 lights): frame times, and words per
+    /// second through the assembler and the processor.
+    Rend3r {
+        /// Timed frames per scene (median reported).
+        #[arg(long, default_value_t = 5)]
+        frames: usize,
+        /// Frame size.
+        #[arg(long, default_value = "512x384", value_parser = render_cmd::parse_size)]
+        size: (u32, u32),
+    },
     /// Trace the rays dumped by the Embree harness (shared/bench) and print JSON lines.
     Rays {
         /// Folder with mesh.bin, rays_*.bin and ref_ids.bin.
@@ -200,6 +211,7 @@ fn run() -> Result<()> {
             output,
         }),
         Cmd::Disasm { file, camera_table, triangles } => isa_cmd::disasm(&file, isa_cmd::table(camera_table == "old"), triangles),
+        Cmd::Bench(BenchCmd::Rend3r { frames, size }) => rend3r_bench::run(frames, size),
         Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar, dump_ids }) => bench::rays(
             &dir,
             &bench::RaysOptions {

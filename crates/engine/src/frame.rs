@@ -9,8 +9,8 @@
 //! - Lights: `src` written 0 = off, 1 directional (along `forward`), 2 point (at `loc`).
 //!   A light whose `src` was never written but whose forward (or position) was is taken as
 //!   directional (or point): that is how the board lights `raytrace.rdr`. Colour never
-//!   written = white, intensity never written = 1. No distance falloff. A program with no
-//!   light at all gets a white headlight along the view direction.
+//!   written = white, intensity never written = 1. No distance falloff. A program that
+//!   writes no light record at all gets a white headlight along the view direction.
 //! - Shapes: type 0 off, 1 sphere, 2 cylinder, 3 cone (REND3R's infinite normal forms,
 //!   SPEC §6.3) under translate · rotate(q) · scale, the stored scale being the inverse
 //!   factor. A quaternion never written (or zero) is the identity, a scale never written
@@ -120,13 +120,13 @@ pub fn camera(state: &DeviceState, width: u32, height: u32) -> Camera {
     Camera::viewport(eye, right, up, forward, 5.0 * scale(hfov), 3.75 * scale(vfov), tmin, tmax, width, height)
 }
 
-/// The lights of the state (see the module notes for defaults). A program that defines
-/// no light at all gets a white headlight along the view direction, so it is not black.
+/// The lights of the state (see the module notes for defaults). A program that writes
+/// no light record at all gets a white headlight along the view direction, so it is not
+/// black (`lt 0, src, 0` is an explicit "no light").
 #[must_use]
 pub fn lights(state: &DeviceState) -> Vec<Light> {
-    let ls = program_lights(state);
-    if !ls.is_empty() {
-        return ls;
+    if state.used_lights() > 0 {
+        return program_lights(state);
     }
     let cam = camera(state, 2, 2);
     let d = cam.ray(1.0, 1.0).dir.normalize_or(-Vec3::Z);

@@ -62,8 +62,10 @@ pub fn li(w: &World, ray: &Ray, s: &WhittedSettings, depth: u32) -> Vec3 {
         return w.scene.background;
     };
     let surf = w.surface(ray, &hit);
-    let mat = w.scene.materials.get(surf.material as usize).cloned().unwrap_or_default();
-    shade(w, ray, &surf, &mat, s, depth)
+    // PERF: borrowed, not cloned (a clone allocates the name on every hit).
+    static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
+    let mat = w.scene.materials.get(surf.material as usize).unwrap_or_else(|| DEFAULT.get_or_init(Material::default));
+    shade(w, ray, &surf, mat, s, depth)
 }
 
 fn offset(w: &World, p: Vec3, n: Vec3) -> Vec3 {

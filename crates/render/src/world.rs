@@ -173,7 +173,8 @@ impl World {
                 let p_obj = world_from_object.inverse().transform_point3(p);
                 let n_obj = shape_of(kind).normal_local(p_obj, h.prim);
                 let ng: Vec3 = (inst.normal_to_world * glam::Vec3A::from(n_obj)).normalize_or_zero().into();
-                Surface { p, ng, ns: ng, uv: Vec2::new(h.u, h.v), material }
+                let (u, v) = shape_of(kind).uv_local(p_obj, h.prim);
+                Surface { p, ng, ns: ng, uv: Vec2::new(u, v), material }
             }
         }
     }

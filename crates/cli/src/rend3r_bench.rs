@@ -1,0 +1,89 @@
+//! `lucent bench rend3r`: REND3R's Table IV scenes (1, 16, 256, 4096 spheres; 0 and 1
+//! lights) at 512×384, and words per second through the assembler and the processor.
+
+use anyhow::Result;
+use lucent_engine::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
+use lucent_isa::{assemble_words, AsmOptions, CameraTable};
+use std::fmt::Write as _;
+use std::time::Instant;
+
+/// A program with `n` spheres in a grid filling the view, and `lights` lights.
+#[must_use]
+pub fn spheres_program(n: usize, lights: usize) -> String {
+    let mut s = String::from("nr\n");
+    if lights == 0 {
+        s += "lt 0, src, 0\n";
+    } else {
+        s += "lt 0, src, 1\nlt 0, xfor, 1\nlt 0, yfor, -1\nlt 0, zfor, -1\n";
+    }
+    let side = (n as f64).sqrt().ceil() as usize;
+    // The viewport is 10 × 7.5 at distance 1: at depth 20 the view is 200 × 150 wide.
+    let step = 180.0 / side as f64;
+    for i in 0..n {
+        let (gx, gy) = (i % side, i / side);
+        let x = -90.0 + step * (gx as f64 + 0.5);
+        let y = -67.5 + step * 0.75 * (gy as f64 + 0.5);
+        let z = -20.0 - (i % 3) as f64;
+        let r = step * 0.4;
+        let col = (i * 2654435761) as u16 | 0x0841;
+        let _ = writeln!(s, "sp {i}, xloc, yloc, {x:.3}, {y:.3}");
+        let _ = writeln!(s, "sp {i}, zloc, type, {z:.3}, 1");
+        let _ = writeln!(s, "sp {i}, xscl, yscl, {:.4}, {:.4}", 1.0 / r, 1.0 / r);
+        let _ = writeln!(s, "sp {i}, zscl, col, {:.4}, {col:#06x}", 1.0 / r);
+        let _ = writeln!(s, "sp {i}, rrot, mat, 1, 0");
+    }
+    s += "nf\ner\ner\n";
+    s
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+pub fn run(frames: usize, size: (u32, u32)) -> Result<()> {
+    println!("REND3R Table IV scenes at {}x{}, {} threads, median of {frames} frames", size.0, size.1, rayon::current_num_threads());
+    println!("| spheres | lights | frame ms (process + render) | x faster than 0.405 s | x faster than 16.9 s |");
+    println!("|---|---|---|---|---|");
+    for lights in [0usize, 1] {
+        for n in [1usize, 16, 256, 4096] {
+            let src = spheres_program(n, lights);
+            let words = assemble_words(&src, AsmOptions::default()).map_err(|e| anyhow::anyhow!("generated program: {e}"))?;
+            let fs = FrameSettings { width: size.0, height: size.1, mode: Mode::Raytrace, sets: SetKind::Shapes, painter: false, spp: 1 };
+            let mut times = Vec::new();
+            for _ in 0..frames.max(1) {
+                let t = Instant::now();
+                let mut p = Processor::new(words.clone(), CameraTable::Final)?;
+                if p.run_to_frame(u64::MAX) != Step::Frame {
+                    anyhow::bail!("generated program did not reach nf");
+                }
+                let (_film, _) = render_frame(&p.state, &fs)?;
+                times.push(t.elapsed().as_secs_f64());
+            }
+            let ms = median(times) * 1e3;
+            println!("| {n} | {lights} | {ms:.2} | {:.0} | {:.0} |", 405.0 / ms, 16900.0 / ms);
+            eprintln!(
+                "{{\"kind\":\"rend3r_frame\",\"spheres\":{n},\"lights\":{lights},\"width\":{},\"height\":{},\"median_ms\":{ms:.3}}}",
+                size.0, size.1
+            );
+        }
+    }
+    // Words per second: assembler and processor on the largest program.
+    let src = spheres_program(4096, 1);
+    let t = Instant::now();
+    let mut words = Vec::new();
+    for _ in 0..5 {
+        words = assemble_words(&src, AsmOptions::default()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    let asm_wps = 5.0 * words.len() as f64 / t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let mut executed = 0u64;
+    for _ in 0..20 {
+        let mut p = Processor::new(words.clone(), CameraTable::Final)?;
+        while p.step() != Step::Halt {}
+        executed += p.executed;
+    }
+    let proc_wps = executed as f64 / t.elapsed().as_secs_f64();
+    println!("assembler: {:.1} M words/s; processor: {:.1} M words/s ({} words per program)", asm_wps * 1e-6, proc_wps * 1e-6, words.len());
+    Ok(())
+}
