@@ -116,6 +116,14 @@ enum Cmd {
         /// Output folder for frame-0001.png, frame-0002.png, ...
         #[arg(short, long, default_value = "frames")]
         output: PathBuf,
+        /// `board`: show what REND3R's FPGA board would have shown (its 32/128-word program
+        /// memory, 2 shapes/2 lights/8 triangles, binary16 datapath, one shadow ray, fixed-point
+        /// shading, RGB444 display and documented bugs). See lucent_engine::board.
+        #[arg(long, value_parser = ["board"])]
+        compat: Option<String>,
+        /// With --compat board: the 16 board switches, shown as background (RGB565 bits).
+        #[arg(long, default_value = "0", value_parser = parse_u16)]
+        switches: u16,
     },
     /// Print a scene's counts, bounds, camera and acceleration-structure size.
     Info {
@@ -198,18 +206,21 @@ fn run() -> Result<()> {
         }
         Cmd::Info { scene } => render_cmd::info(scene.as_deref()),
         Cmd::Asm { program, output, format, camera_table } => isa_cmd::asm(&program, output, format, isa_cmd::table(camera_table == "old")),
-        Cmd::Run { program, mode, sets, size, frames, seconds, painter, spp, camera_table, output } => run_cmd::run(run_cmd::RunArgs {
-            program,
-            mode: if mode == "raster" { lucent_engine::Mode::Raster } else { lucent_engine::Mode::Raytrace },
-            sets: sets.map(|s| if s == "triangles" { lucent_engine::SetKind::Triangles } else { lucent_engine::SetKind::Shapes }),
-            size,
-            frames,
-            seconds,
-            painter,
-            spp,
-            camera_table: isa_cmd::table(camera_table == "old"),
-            output,
-        }),
+        Cmd::Run { program, mode, sets, size, frames, seconds, painter, spp, camera_table, output, compat, switches } => {
+            run_cmd::run(run_cmd::RunArgs {
+                program,
+                mode: if mode == "raster" { lucent_engine::Mode::Raster } else { lucent_engine::Mode::Raytrace },
+                sets: sets.map(|s| if s == "triangles" { lucent_engine::SetKind::Triangles } else { lucent_engine::SetKind::Shapes }),
+                size,
+                frames,
+                seconds,
+                painter,
+                spp,
+                camera_table: isa_cmd::table(camera_table == "old"),
+                output,
+                board: compat.map(|_| switches),
+            })
+        }
         Cmd::Disasm { file, camera_table, triangles } => isa_cmd::disasm(&file, isa_cmd::table(camera_table == "old"), triangles),
         Cmd::Bench(BenchCmd::Rend3r { frames, size }) => rend3r_bench::run(frames, size),
         Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar, dump_ids }) => bench::rays(
@@ -227,4 +238,10 @@ fn run() -> Result<()> {
             },
         ),
     }
+}
+
+fn parse_u16(s: &str) -> Result<u16, String> {
+    lucent_isa::number::parse_uint(&s.to_lowercase())
+        .and_then(|v| u16::try_from(v).ok())
+        .ok_or_else(|| format!("'{s}' is not a 16-bit unsigned number (e.g. 0x001f)"))
 }

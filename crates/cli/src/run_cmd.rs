@@ -17,6 +17,8 @@ pub struct RunArgs {
     pub spp: u32,
     pub camera_table: CameraTable,
     pub output: PathBuf,
+    /// Model the board (`--compat board`), with this switch setting as background.
+    pub board: Option<u16>,
 }
 
 /// Words of a program, and whether its source used `tr` (triangles) rather than `sp`.
@@ -40,6 +42,9 @@ pub fn load_program(path: &Path, camera_table: CameraTable) -> Result<(Vec<u32>,
 pub fn run(a: RunArgs) -> Result<()> {
     let (words, from_source) = load_program(&a.program, a.camera_table)?;
     let sets = a.sets.or(from_source).unwrap_or(if a.mode == Mode::Raster { SetKind::Triangles } else { SetKind::Shapes });
+    if let Some(switches) = a.board {
+        return run_board(&a, &words, switches);
+    }
     let mut p = Processor::new(words, a.camera_table).map_err(|e| anyhow::anyhow!("{}: {e}", a.program.display()))?;
     std::fs::create_dir_all(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
     let fs = FrameSettings { width: a.size.0, height: a.size.1, mode: a.mode, sets, painter: a.painter, spp: a.spp };
@@ -78,6 +83,40 @@ pub fn run(a: RunArgs) -> Result<()> {
     }
     if p.ignored > 0 {
         println!("note: {} words were not instructions and were ignored", p.ignored);
+    }
+    Ok(())
+}
+
+fn run_board(a: &RunArgs, words: &[u32], switches: u16) -> Result<()> {
+    use lucent_engine::board::{Board, Build};
+    let build = if a.mode == Mode::Raster { Build::Raster } else { Build::Raytracing };
+    if words.len() > build.rom_words() {
+        println!(
+            "note: the board's program memory holds {} words; words {}.. of {} are dropped and the PC wraps",
+            build.rom_words(),
+            build.rom_words(),
+            words.len()
+        );
+    }
+    let mut b = Board::new(words, build, switches).map_err(|e| anyhow::anyhow!("{}: {e}", a.program.display()))?;
+    std::fs::create_dir_all(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
+    let start = Instant::now();
+    let mut frame = 0u64;
+    loop {
+        if frame >= a.frames || a.seconds.is_some_and(|s| start.elapsed().as_secs_f64() >= s) {
+            println!("stopped after {frame} frames (limit reached)");
+            break;
+        }
+        if b.processor.run_to_frame(50_000_000) != Step::Frame {
+            println!("program halted after {frame} frames ({} words executed)", b.processor.executed);
+            break;
+        }
+        frame += 1;
+        let t = Instant::now();
+        let film = b.frame();
+        let out = a.output.join(format!("frame-{frame:04}.png"));
+        film.save(&out)?;
+        println!("frame {frame} (board model): {:.1} ms -> {}", t.elapsed().as_secs_f64() * 1e3, out.display());
     }
     Ok(())
 }

@@ -7,6 +7,7 @@
 //! is silent.
 #![warn(missing_docs)]
 
+pub mod board;
 pub mod frame;
 mod processor;
 pub mod raster;

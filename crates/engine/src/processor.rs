@@ -102,20 +102,36 @@ pub struct Processor {
     pub executed: u64,
     /// Words that are no instruction (ignored, as the board does).
     pub ignored: u64,
+    /// Board mode: (shape/triangle records, lights) capacities; the PC wraps and `nr` keeps
+    /// the scene.
+    board: Option<(usize, usize)>,
 }
 
 impl Processor {
     /// A processor for `words`; an SE word with no SD word at the end is an error.
     pub fn new(words: Vec<u32>, camera_table: CameraTable) -> Result<Self, DecodeError> {
         decode_lenient(&words)?;
-        Ok(Self { words, pc: 0, state: DeviceState::new(camera_table), executed: 0, ignored: 0 })
+        Ok(Self { words, pc: 0, state: DeviceState::new(camera_table), executed: 0, ignored: 0, board: None })
+    }
+
+    /// A processor with the board's behaviour: `words` is the whole ROM (the PC wraps
+    /// around it, an SE in the last word takes word 0 as its SD), `nr` leaves the scene,
+    /// and record indices wrap modulo the given capacities.
+    pub fn new_board(words: Vec<u32>, camera_table: CameraTable, sets: usize, lights: usize) -> Result<Self, DecodeError> {
+        Ok(Self { words, pc: 0, state: DeviceState::new(camera_table), executed: 0, ignored: 0, board: Some((sets.max(1), lights.max(1))) })
     }
 
     /// Runs one instruction.
     pub fn step(&mut self) -> Step {
+        let len = self.words.len();
+        if self.board.is_some() && len > 0 {
+            self.pc %= len;
+        }
         let Some(&w) = self.words.get(self.pc) else { return Step::Halt };
-        // Validated in `new`: an SE word always has its SD word.
-        let (instr, n) = match lucent_isa::decode_one(&self.words, self.pc) {
+        // Validated in `new`: an SE word always has its SD word (on the board, the SD of an
+        // SE in the last ROM word is word 0).
+        let pair = [w, self.words.get(self.pc + 1).copied().unwrap_or(self.words[0])];
+        let (instr, n) = match lucent_isa::decode_one(&pair, 0) {
             Ok(x) => x,
             Err(_) => (Instr::Raw(w), 1),
         };
@@ -125,20 +141,26 @@ impl Processor {
         match instr {
             Instr::Flow(Flow::End) => {
                 // Halt only on two zero words in a row (SPEC §4.2); beyond the end reads zero.
-                if self.words.get(at + 1).is_none_or(|&next| next == 0) {
+                let next = if self.board.is_some() { self.words.get((at + 1) % len) } else { self.words.get(at + 1) };
+                if next.is_none_or(|&next| next == 0) {
                     return Step::Halt;
                 }
             }
             Instr::Flow(Flow::NewRender) => {
-                // lucent: `nr` clears the scene and the frame.
-                self.state = DeviceState::new(self.state.camera_table);
+                // lucent: `nr` clears the scene and the frame; the board changes nothing.
+                if self.board.is_none() {
+                    self.state = DeviceState::new(self.state.camera_table);
+                }
             }
             Instr::Flow(Flow::NewFrame) => return Step::Frame,
             Instr::Flow(Flow::Loop) => self.pc = 1,
             Instr::Camera { prop, data } => self.state.camera.set(prop, data),
-            Instr::Light { index, prop, data } => self.state.lights[index as usize % LIGHTS].set(prop, data),
+            Instr::Light { index, prop, data } => {
+                let cap = self.board.map_or(LIGHTS, |b| b.1.min(LIGHTS));
+                self.state.lights[index as usize % cap].set(prop, data);
+            }
             Instr::Set { index, p1, p2, d1, d2 } => {
-                let i = index as usize % MAX_SETS;
+                let i = index as usize % self.board.map_or(MAX_SETS, |b| b.0);
                 if self.state.sets.len() <= i {
                     self.state.sets.resize(i + 1, Record::default());
                 }
