@@ -174,6 +174,49 @@ impl TwoLevel {
         Ok(())
     }
 
+    /// False only when no instance can meet any ray of the frustum (a conservative test:
+    /// a box is dropped only when it lies entirely outside one plane). Each plane is
+    /// `(n, d)` with the inside where `n·p + d ≥ 0`. Instances with infinite bounds make
+    /// the answer true.
+    #[must_use]
+    pub fn frustum_may_hit(&self, planes: &[(glam::Vec3, f32)]) -> bool {
+        if !self.unbounded.is_empty() {
+            return true;
+        }
+        let Some(_) = self.nodes.first() else { return false };
+        let outside = |b: &Aabb| {
+            planes.iter().any(|&(n, d)| {
+                // The box corner farthest along n; if even it is outside, the box is.
+                let p = glam::Vec3::new(
+                    if n.x >= 0.0 { b.max.x } else { b.min.x },
+                    if n.y >= 0.0 { b.max.y } else { b.min.y },
+                    if n.z >= 0.0 { b.max.z } else { b.min.z },
+                );
+                let margin = 1e-5 * (p.abs().max_element() * n.abs().max_element() + d.abs());
+                n.dot(p) + d < -margin
+            })
+        };
+        let mut stack = vec![0u32];
+        while let Some(i) = stack.pop() {
+            let node = &self.nodes[i as usize];
+            for k in 0..8 {
+                let c = node.child[k];
+                if c == crate::wide::EMPTY {
+                    continue;
+                }
+                let b = node.child_bounds(k);
+                if b.is_empty() || outside(&b) {
+                    continue;
+                }
+                if c & crate::wide::LEAF != 0 {
+                    return true;
+                }
+                stack.push(c);
+            }
+        }
+        false
+    }
+
     /// Closest hit over all instances.
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {

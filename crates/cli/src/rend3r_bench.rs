@@ -7,7 +7,8 @@ use lucent_isa::{assemble_words, AsmOptions, CameraTable};
 use std::fmt::Write as _;
 use std::time::Instant;
 
-/// A program with `n` spheres in a grid filling the view, and `lights` lights.
+/// A program with `n` spheres of radius min(1.5, 0.4 × grid step) on a grid over the view
+/// at depth 20–22, and `lights` lights (a directional light toward (1, −1, −1)).
 #[must_use]
 pub fn spheres_program(n: usize, lights: usize) -> String {
     let mut s = String::from("nr\n");
@@ -24,7 +25,7 @@ pub fn spheres_program(n: usize, lights: usize) -> String {
         let x = -90.0 + step * (gx as f64 + 0.5);
         let y = -67.5 + step * 0.75 * (gy as f64 + 0.5);
         let z = -20.0 - (i % 3) as f64;
-        let r = step * 0.4;
+        let r = (step * 0.4).min(1.5);
         let col = (i * 2654435761) as u16 | 0x0841;
         let _ = writeln!(s, "sp {i}, xloc, yloc, {x:.3}, {y:.3}");
         let _ = writeln!(s, "sp {i}, zloc, type, {z:.3}, 1");

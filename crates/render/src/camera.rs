@@ -124,6 +124,32 @@ impl Camera {
         Some((px, py, z))
     }
 
+    /// The four planes bounding every ray through the image rectangle `[x0, x1] × [y0, y1]`
+    /// (pixels), for [`lucent_accel::TwoLevel::frustum_may_hit`]; `None` for orthographic
+    /// cameras.
+    #[must_use]
+    pub fn tile_frustum(&self, x0: f32, y0: f32, x1: f32, y1: f32) -> Option<[(Vec3, f32); 4]> {
+        if self.ortho {
+            return None;
+        }
+        let dir = |x: f32, y: f32| {
+            let sx = (2.0 * x / self.width as f32 - 1.0) * self.half_w;
+            let sy = (1.0 - 2.0 * y / self.height as f32) * self.half_h;
+            self.forward + self.right * sx + self.up * sy
+        };
+        let (a, b, c, d) = (dir(x0, y0), dir(x1, y0), dir(x1, y1), dir(x0, y1));
+        let centre = dir((x0 + x1) * 0.5, (y0 + y1) * 0.5);
+        let mut planes = [(Vec3::ZERO, 0.0f32); 4];
+        for (i, (p, q)) in [(a, b), (b, c), (c, d), (d, a)].into_iter().enumerate() {
+            let mut n = p.cross(q);
+            if n.dot(centre) < 0.0 {
+                n = -n;
+            }
+            planes[i] = (n, -n.dot(self.eye));
+        }
+        Some(planes)
+    }
+
     /// Near and far clip.
     #[must_use]
     pub fn clip(&self) -> (f32, f32) {

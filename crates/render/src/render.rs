@@ -63,12 +63,21 @@ pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u6
             let (x0, y0) = (tx * TILE, ty * TILE);
             let (x1, y1) = ((x0 + TILE).min(s.width), (y0 + TILE).min(s.height));
             let before = crate::world::rays_traced_here();
-            let mut px = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    px.push(render_pixel(w, cam, s, x, y));
+            let n = ((x1 - x0) * (y1 - y0)) as usize;
+            // Frustum culling: a tile whose frustum meets no instance shows the background
+            // (exactly what its primary rays would return), so nothing is traced.
+            let empty = cam.tile_frustum(x0 as f32, y0 as f32, x1 as f32, y1 as f32).is_some_and(|f| !w.accel.frustum_may_hit(&f));
+            let px = if empty {
+                vec![w.scene.background; n]
+            } else {
+                let mut px = Vec::with_capacity(n);
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        px.push(render_pixel(w, cam, s, x, y));
+                    }
                 }
-            }
+                px
+            };
             progress(1);
             (tx, ty, px, crate::world::rays_traced_here() - before)
         })

@@ -177,3 +177,31 @@ fn png_and_exr_round_trip() {
     assert_eq!(e.get_pixel(2, 1).0, [2.5, 0.0, 0.25]);
     assert!(f.save(&dir.path().join("a.bmp2")).is_err());
 }
+
+#[test]
+fn frustum_culling_never_changes_the_picture() {
+    // render() skips tiles whose frustum meets nothing; every pixel must equal the pixel
+    // traced on its own (no culling). The demo's sky tiles are culled.
+    let s = demo_scene();
+    let desc = s.camera.expect("camera");
+    let world = World::new(s, MeshOptions::default()).expect("world");
+    let (w, h) = (160, 120);
+    let cam = Camera::new(&desc, w, h);
+    let st = settings(w, h);
+    let (film, _) = render(&world, &cam, &st, &|_| {});
+    let mut culled = 0;
+    for y in 0..h {
+        for x in 0..w {
+            assert_eq!(film.get(x, y), lucent_render::render_pixel(&world, &cam, &st, x, y), "pixel {x},{y}");
+        }
+    }
+    for ty in 0..h.div_ceil(lucent_render::TILE) {
+        for tx in 0..w.div_ceil(lucent_render::TILE) {
+            let f = cam
+                .tile_frustum((tx * 16) as f32, (ty * 16) as f32, ((tx + 1) * 16).min(w) as f32, ((ty + 1) * 16).min(h) as f32)
+                .expect("perspective");
+            culled += (!world.accel.frustum_may_hit(&f)) as u32;
+        }
+    }
+    assert!(culled > 0, "some sky tiles are culled");
+}
