@@ -116,7 +116,6 @@ impl MeshBvh {
         let verts = |t: &[u32; 3]| [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
         // One indexed parallel pass (an unindexed `filter` would collect by concatenating
         // chunks), then a sequential `retain` of the triangles that can be hit.
-        let t0 = std::time::Instant::now();
         let (units, mut prims): (Vec<Option<[f32; 12]>>, Vec<PrimRef>) = indices
             .par_iter()
             .enumerate()
@@ -127,9 +126,7 @@ impl MeshBvh {
             .unzip();
         prims.retain(|p| units[p.id() as usize].is_some());
         let cfg = BuildConfig { max_leaf: 8, leaf_block: if opts.test == TriangleTest::UnitTriangle { 4 } else { 1 }, cost_traverse: 1.0 };
-        let t1 = t0.elapsed();
         let bin = build_binary(prims, &cfg);
-        let t2 = t0.elapsed();
         let sah = bin.sah_cost(&cfg);
         let bounds = bin.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds);
         // Exact sizes up front: the leaf arrays never regrow.
@@ -170,7 +167,6 @@ impl MeshBvh {
             Width::W4 => Nodes::W4(collapse::<4, _>(&bin, &mut make_leaf)?),
             Width::W8 => Nodes::W8(collapse::<8, _>(&bin, &mut make_leaf)?),
         };
-        eprintln!("prep {:?} binary {:?} collapse {:?}", t1, t2 - t1, t0.elapsed() - t2);
         let (n_nodes, node_bytes) = match &nodes {
             Nodes::W4(n) => (n.len(), std::mem::size_of_val(n.as_slice())),
             Nodes::W8(n) => (n.len(), std::mem::size_of_val(n.as_slice())),
