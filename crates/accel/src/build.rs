@@ -13,7 +13,7 @@ use glam::{Vec3, Vec4};
 /// Number of bins per axis.
 pub const BINS: usize = 32;
 /// Subtrees with more primitives than this are built as separate rayon tasks.
-pub const PARALLEL_MIN: usize = 4096;
+pub const PARALLEL_MIN: usize = 1024;
 /// Nodes with more primitives than this are binned in parallel.
 const PARALLEL_BIN_MIN: usize = 1 << 14;
 /// Beyond this depth the builder splits at the object median, which bounds the depth
