@@ -25,7 +25,10 @@ pub struct ScreenTri {
 /// dropped, as the prototype does).
 #[must_use]
 pub fn project(state: &DeviceState, cam: &Camera) -> Vec<ScreenTri> {
-    let ls = lights(state);
+    project_lit(state, cam, &lights(state))
+}
+
+fn project_lit(state: &DeviceState, cam: &Camera, ls: &[lucent_scene::Light]) -> Vec<ScreenTri> {
     let (near, _) = cam.clip();
     let mut out = Vec::new();
     for r in state.sets.iter().filter(|r| r.used()) {
@@ -47,7 +50,7 @@ pub fn project(state: &DeviceState, cam: &Camera) -> Vec<ScreenTri> {
         }
         let albedo = if r.has(11) { rgb565(r.u(11)) } else { Vec3::ONE };
         let mut light = Vec3::splat(0.05);
-        for l in &ls {
+        for l in ls {
             let dir = match l.kind {
                 LightKind::Directional { direction } => -direction,
                 LightKind::Point { position } | LightKind::Spot { position, .. } => (position - centroid).normalize_or_zero(),
@@ -63,7 +66,8 @@ pub fn project(state: &DeviceState, cam: &Camera) -> Vec<ScreenTri> {
 #[must_use]
 pub fn rasterize(state: &DeviceState, cam: &Camera, fs: &FrameSettings) -> (Film, FrameInfo) {
     let (w, h) = (fs.width as usize, fs.height as usize);
-    let mut tris = project(state, cam);
+    let ls = lights(state);
+    let mut tris = project_lit(state, cam, &ls);
     if fs.painter {
         tris.sort_by(|a, b| b.dist.total_cmp(&a.dist));
     }
@@ -106,5 +110,5 @@ pub fn rasterize(state: &DeviceState, cam: &Camera, fs: &FrameSettings) -> (Film
             }
         }
     }
-    (film, FrameInfo { shapes: tris.len(), lights: lights(state).len(), skipped: 0, rays: 0 })
+    (film, FrameInfo { shapes: tris.len(), lights: ls.len(), skipped: 0, rays: 0 })
 }

@@ -106,9 +106,10 @@ impl World {
             info.push(InstInfo { geom: i.geom, normal_to_world: normal_matrix(&i.world_from_object) });
         }
         let accel = TwoLevel::new(geoms, insts).map_err(WorldError::Top)?;
-        let scale = scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
+        let bounds = scene.bounds();
+        let scale = bounds.map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
         let mut w = Self { scene, accel, info, lights: Vec::new(), scale };
-        w.lights = if w.scene.lights.is_empty() { w.emitter_lights() } else { w.scene.lights.clone() };
+        w.lights = if w.scene.lights.is_empty() { w.emitter_lights(bounds) } else { w.scene.lights.clone() };
         Ok(w)
     }
 
@@ -140,7 +141,7 @@ impl World {
     #[must_use]
     pub fn surface(&self, r: &Ray, h: &Hit) -> Surface {
         let inst = &self.info[h.inst as usize];
-        let world_from_object = &self.accel.instances()[h.inst as usize].world_from_object;
+        let object_from_world = &self.accel.instances()[h.inst as usize].object_from_world;
         let p = r.at(h.t);
         match inst.geom {
             Geom::Mesh(m) => {
@@ -170,7 +171,7 @@ impl World {
                 Surface { p, ng, ns, uv, material: mesh.material.get(tri).copied().unwrap_or(0) }
             }
             Geom::Shape { kind, material } => {
-                let p_obj = world_from_object.inverse().transform_point3(p);
+                let p_obj = object_from_world.transform_point3(p);
                 let n_obj = shape_of(kind).normal_local(p_obj, h.prim);
                 let ng: Vec3 = (inst.normal_to_world * glam::Vec3A::from(n_obj)).normalize_or_zero().into();
                 let (u, v) = shape_of(kind).uv_local(p_obj, h.prim);
@@ -181,7 +182,7 @@ impl World {
 
     /// Point lights at the emitting surfaces (one per emissive material and instance), for
     /// scenes such as the Cornell box that light themselves by geometry.
-    fn emitter_lights(&self) -> Vec<Light> {
+    fn emitter_lights(&self, bounds: Option<(Vec3, Vec3)>) -> Vec<Light> {
         let mut out = Vec::new();
         for inst in &self.scene.instances {
             let Geom::Mesh(m) = inst.geom else { continue };
@@ -210,7 +211,7 @@ impl World {
                 let em = self.scene.materials[mat as usize].emission;
                 // Just off the emitter, on the side it faces (the side the camera sees for a ceiling light).
                 let mut nn = n.normalize_or_zero();
-                if let Some((lo, hi)) = self.scene.bounds() {
+                if let Some((lo, hi)) = bounds {
                     if nn.dot((lo + hi) * 0.5 - pc / area) < 0.0 {
                         nn = -nn;
                     }
