@@ -32,6 +32,8 @@ pub struct AsmOptions {
 /// Assembles REND3R source text into instructions.
 pub fn assemble(src: &str, opts: AsmOptions) -> Result<Vec<Instr>, AsmError> {
     let mut out = Vec::new();
+    // Where the last instruction started (for the end-of-program check below).
+    let mut last_at = (0, 0);
     for (ln, raw) in src.lines().enumerate() {
         let line = ln + 1;
         let lead = raw.len() - raw.trim_start().len();
@@ -100,6 +102,21 @@ pub fn assemble(src: &str, opts: AsmOptions) -> Result<Vec<Instr>, AsmError> {
             _ => return Err(err(lead + 1, format!("unknown mnemonic '{mn}' (expected er, nr, nf, lr, cam, lt, sp or tr)"))),
         };
         out.push(instr);
+        last_at = (line, lead + 1);
+    }
+    // A `.word` with opcode 101 takes the next word as its data word; as the last word of a
+    // program it would have none, and no decoder could read the result. (A raw data word
+    // after a raw SE word is fine whatever its bits: ask the decoder, not the opcode.)
+    if let (Some(Instr::Raw(w)), Err(crate::instr::DecodeError::MissingData { .. })) =
+        (out.last(), crate::instr::decode_lenient(&encode(&out)))
+    {
+        return Err(AsmError {
+            line: last_at.0,
+            column: last_at.1,
+            msg: format!(
+                ".word {w:#010x} has opcode 101 (shape/triangle set), which needs a data word after it, but the program ends here"
+            ),
+        });
     }
     Ok(out)
 }

@@ -103,6 +103,14 @@ fn errors_say_where_and_what() {
     // Accepted: comments, case, spaces around commas, a01 is not a1.
     assert_eq!(assemble_words("// c\nNR\nCAM XLOC , 1\ncam a1, 1", AsmOptions::default()).expect("ok"), [0x200, 0x3C00_0801, 0x3C00_0801]);
     assert!(e("cam a01, 1").contains("not a camera property"));
+    // Found by the fuzzer: a raw shape-set word at the end has no data word.
+    assert_eq!(
+        e("nr\n.word 5"),
+        "2:1: .word 0x00000005 has opcode 101 (shape/triangle set), which needs a data word after it, but the program ends here"
+    );
+    assert_eq!(assemble_words(".word 5\n.word 0x3c000000", AsmOptions::default()).expect("SE then its SD"), [5, 0x3C00_0000]);
+    // The data word may itself look like a shape set.
+    assert_eq!(assemble_words(".word 5\n.word 5", AsmOptions::default()).expect("SE then its SD"), [5, 5]);
 }
 
 #[test]
