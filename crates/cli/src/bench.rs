@@ -170,12 +170,11 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
         let shadow = kind == "shadow";
         for &threads in &o.threads {
             let p = pool(threads)?;
-            let mut out = vec![-1i32; batch.blocks.len() * 8];
             // Like the Embree harness: every worker pulls chunks of 32 blocks (4 tiles, 256
             // rays) from an atomic counter, so both tracers pay the same scheduling cost.
             let out_cells: Vec<std::sync::atomic::AtomicI32> =
                 (0..batch.blocks.len() * 8).map(|_| std::sync::atomic::AtomicI32::new(-1)).collect();
-            let pass = |_: &mut [i32]| {
+            let pass = || {
                 let next = std::sync::atomic::AtomicUsize::new(0);
                 let nchunks = batch.blocks.len().div_ceil(CHUNK_BLOCKS);
                 rayon::broadcast(|_| loop {
@@ -200,20 +199,18 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
             };
             let times: Vec<f64> = p.install(|| {
                 for _ in 0..o.warmup {
-                    pass(&mut out);
+                    pass();
                 }
                 (0..o.frames.max(1))
                     .map(|_| {
                         let t0 = Instant::now();
-                        pass(&mut out);
+                        pass();
                         t0.elapsed().as_secs_f64()
                     })
                     .collect()
             });
             let med = median(times);
-            for (o, c) in out.iter_mut().zip(&out_cells) {
-                *o = c.load(std::sync::atomic::Ordering::Relaxed);
-            }
+            let out: Vec<i32> = out_cells.iter().map(|c| c.load(std::sync::atomic::Ordering::Relaxed)).collect();
             let npix = (batch.width * batch.height) as usize;
             let mut px = vec![-1i32; npix];
             for (bi, b) in batch.blocks.iter().enumerate() {

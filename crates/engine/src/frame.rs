@@ -236,9 +236,6 @@ pub fn scene(state: &DeviceState, sets: SetKind) -> (Scene, usize) {
                         continue;
                     }
                 };
-                if !r.has(13) {
-                    continue;
-                }
                 let t = v3(r, 1);
                 let q = quat(r, 4);
                 let inv = |p: u8| {
