@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 mod bench;
 mod isa_cmd;
+mod net_cmd;
 mod rend3r_bench;
 mod render_cmd;
 mod run_cmd;
@@ -125,6 +126,43 @@ enum Cmd {
         #[arg(long, default_value = "0", value_parser = parse_u16)]
         switches: u16,
     },
+    /// Serve REND3R as a networked device: clients stream programs over TCP (or UDP, or the
+    /// page's WebSocket) and get one frame back per `nf`; a page at --http shows them live.
+    ///
+    /// Protocol: docs/protocol.md. Try it: `lucent serve`, then in another terminal
+    /// `lucent send ../shared/rend3r/programs/raytracing/sw/rt_spheres.rdr -o frames`, or open
+    /// http://127.0.0.1:8080/ in a browser.
+    Serve(ServeArgs),
+    /// Send a REND3R program (.rdr assembly, .mem words or raw .bin) to `lucent serve` and
+    /// save the frames it sends back (frame-0001.png, ...).
+    Send {
+        /// The program.
+        program: PathBuf,
+        /// Server address.
+        #[arg(long, default_value = "127.0.0.1:7878")]
+        to: String,
+        /// Pixel format to ask for: png, rgb8 (saved as PNG) or rgb565 (saved raw, big-endian).
+        #[arg(long, default_value = "png", value_parser = ["png", "rgb8", "rgb565"])]
+        format: String,
+        /// Stop after this many frames (a looping program renders until then).
+        #[arg(long, default_value_t = 100)]
+        frames: u64,
+        /// Frame size to ask for (default: the server's).
+        #[arg(long, value_parser = render_cmd::parse_size)]
+        size: Option<(u32, u32)>,
+        /// Mode to ask for (default: the server's).
+        #[arg(long, value_parser = ["raytrace", "raster"])]
+        mode: Option<String>,
+        /// Use UDP: whole-word datagrams, PNG frames back in chunks (see docs/protocol.md).
+        #[arg(long)]
+        udp: bool,
+        /// Camera property table of the assembly (final or old).
+        #[arg(long, default_value = "final", value_parser = ["final", "old"])]
+        camera_table: String,
+        /// Output folder.
+        #[arg(short, long, default_value = "frames")]
+        output: PathBuf,
+    },
     /// Print a scene's counts, bounds, camera and acceleration-structure size.
     Info {
         /// Scene file. Without it: the built-in demo scene.
@@ -135,8 +173,83 @@ enum Cmd {
     Bench(BenchCmd),
 }
 
+#[derive(clap::Args)]
+struct ServeArgs {
+    /// TCP address of the device protocol (loopback by default; 0.0.0.0:7878 to serve the network).
+    #[arg(long, default_value = "127.0.0.1:7878")]
+    listen: std::net::SocketAddr,
+    /// UDP address for fire-and-forget batches.
+    #[arg(long, default_value = "127.0.0.1:7878")]
+    udp: std::net::SocketAddr,
+    /// Do not listen on UDP.
+    #[arg(long)]
+    no_udp: bool,
+    /// HTTP address of the live page and its WebSocket.
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    http: std::net::SocketAddr,
+    /// Do not serve the page.
+    #[arg(long)]
+    no_http: bool,
+    /// Default frame size (a client may ask for another, up to --max-frame).
+    #[arg(long, default_value = "512x384", value_parser = render_cmd::parse_size)]
+    size: (u32, u32),
+    /// Default mode.
+    #[arg(long, default_value = "raytrace", value_parser = ["raytrace", "raster"])]
+    mode: String,
+    /// One device for all clients: everyone drives the same scene and receives all its frames.
+    #[arg(long)]
+    shared: bool,
+    /// Largest message (bytes of words or assembly in one DATA message or datagram).
+    #[arg(long, default_value_t = 1 << 20)]
+    max_message: u32,
+    /// Most shape/triangle records per session (indices 0..N).
+    #[arg(long, default_value_t = 65_536)]
+    max_shapes: u32,
+    /// Most lights per session (at most 64).
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u16).range(1..=64))]
+    max_lights: u16,
+    /// Most words a program may hold (words since its last `er`).
+    #[arg(long, default_value_t = 1 << 20)]
+    max_program_words: usize,
+    /// Largest frame a client may ask for, WIDTHxHEIGHT (as a pixel count).
+    #[arg(long, default_value = "4096x4096", value_parser = render_cmd::parse_size)]
+    max_frame: (u32, u32),
+    /// Most open connections (TCP + HTTP) and UDP sessions.
+    #[arg(long, default_value_t = 256)]
+    max_connections: usize,
+    /// Close a connection with no traffic either way for this many seconds.
+    #[arg(long, default_value_t = 300)]
+    idle_timeout: u64,
+    /// Close a connection that does not take a frame within this many seconds.
+    #[arg(long, default_value_t = 10)]
+    write_timeout: u64,
+    /// Payload bytes per UDP frame datagram (1024..65000).
+    #[arg(long, default_value_t = 1200)]
+    udp_chunk: usize,
+    /// Folder of .rdr programs listed on the page (default: ../shared/rend3r/programs when present).
+    #[arg(long)]
+    examples: Option<PathBuf>,
+}
+
 #[derive(Subcommand)]
 enum BenchCmd {
+    /// The network device: frames per second and latency (batch sent -> frame received) for
+    /// 1 and 64 clients streaming moving-sphere programs, server memory, and words per
+    /// second accepted. Runs its own server on loopback.
+    Net {
+        /// Comma-separated client counts.
+        #[arg(long, default_value = "1,64", value_delimiter = ',')]
+        clients: Vec<usize>,
+        /// Seconds per client count.
+        #[arg(long, default_value_t = 5.0)]
+        seconds: f64,
+        /// Frame size.
+        #[arg(long, default_value = "512x384", value_parser = render_cmd::parse_size)]
+        size: (u32, u32),
+        /// Pixel format of the frames.
+        #[arg(long, default_value = "png", value_parser = ["png", "rgb8", "rgb565"])]
+        format: String,
+    },
     /// REND3R's Table IV scenes (1..4096 spheres, 0/1 lights): frame times, and words per
     /// second through the assembler and the processor.
     Rend3r {
@@ -223,6 +336,44 @@ fn run() -> Result<()> {
         }
         Cmd::Disasm { file, camera_table, triangles } => isa_cmd::disasm(&file, isa_cmd::table(camera_table == "old"), triangles),
         Cmd::Bench(BenchCmd::Rend3r { frames, size }) => rend3r_bench::run(frames, size),
+        Cmd::Bench(BenchCmd::Net { clients, seconds, size, format }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),
+        Cmd::Serve(a) => net_cmd::serve(lucent_net::ServerConfig {
+            listen: a.listen,
+            udp: (!a.no_udp).then_some(a.udp),
+            http: (!a.no_http).then_some(a.http),
+            width: a.size.0,
+            height: a.size.1,
+            mode: if a.mode == "raster" { lucent_engine::Mode::Raster } else { lucent_engine::Mode::Raytrace },
+            shared: a.shared,
+            max_message: a.max_message,
+            max_frame_pixels: u64::from(a.max_frame.0) * u64::from(a.max_frame.1),
+            max_connections: a.max_connections.max(1),
+            idle_timeout: std::time::Duration::from_secs(a.idle_timeout.max(1)),
+            write_timeout: std::time::Duration::from_secs(a.write_timeout.max(1)),
+            udp_chunk: a.udp_chunk,
+            device: lucent_net::DeviceLimits {
+                max_shapes: a.max_shapes,
+                max_lights: a.max_lights,
+                max_program_words: a.max_program_words,
+                ..lucent_net::DeviceLimits::default()
+            },
+            examples: a.examples.or_else(net_cmd::default_examples),
+        }),
+        Cmd::Send { program, to, format, frames, size, mode, udp, camera_table, output } => net_cmd::send(&net_cmd::SendArgs {
+            program,
+            to,
+            format: pixel_format(&format),
+            frames,
+            size,
+            mode: match mode.as_deref() {
+                Some("raster") => lucent_net::WireMode::Raster,
+                Some(_) => lucent_net::WireMode::Raytrace,
+                None => lucent_net::WireMode::Default,
+            },
+            udp,
+            camera_table_old: camera_table == "old",
+            output,
+        }),
         Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar, dump_ids }) => bench::rays(
             &dir,
             &bench::RaysOptions {
@@ -237,6 +388,14 @@ fn run() -> Result<()> {
                 dump_ids,
             },
         ),
+    }
+}
+
+fn pixel_format(s: &str) -> lucent_net::PixelFormat {
+    match s {
+        "rgb8" => lucent_net::PixelFormat::Rgb8,
+        "rgb565" => lucent_net::PixelFormat::Rgb565,
+        _ => lucent_net::PixelFormat::Png,
     }
 }
 

@@ -27,13 +27,7 @@ pub fn load_program(path: &Path, camera_table: CameraTable) -> Result<(Vec<u32>,
     if ext == "rdr" {
         let src = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
         let words = assemble_words(&src, AsmOptions { camera_table }).map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))?;
-        let first = |m: &str| src.lines().any(|l| l.trim().to_lowercase().split(' ').next() == Some(m));
-        let sets = match (first("sp"), first("tr")) {
-            (false, true) => Some(SetKind::Triangles),
-            (true, false) => Some(SetKind::Shapes),
-            _ => None,
-        };
-        Ok((words, sets))
+        Ok((words, lucent_engine::set_kind_of_source(&src)))
     } else {
         Ok((crate::isa_cmd::read_words(path)?, None))
     }
@@ -58,6 +52,13 @@ pub fn run(a: RunArgs) -> Result<()> {
         }
         match p.run_to_frame(50_000_000) {
             Step::Frame => {}
+            Step::Busy => {
+                anyhow::bail!(
+                    "{}: the program executed {} words without reaching nf or er (a loop with no nf?)",
+                    a.program.display(),
+                    p.executed
+                )
+            }
             _ => {
                 println!("program halted after {frame} frames ({} words executed)", p.executed);
                 break;

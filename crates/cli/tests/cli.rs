@@ -186,3 +186,51 @@ fn asm_and_disasm_commands() {
     let o = lucent().arg("disasm").arg(&cut).output().expect("run");
     assert!(String::from_utf8_lossy(&o.stderr).contains("word 0: shape/triangle set"), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// Kills the server when the test ends, whatever happens.
+struct Child(std::process::Child);
+impl Drop for Child {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn serve_and_send_give_the_frames_of_run() {
+    use std::io::BufRead;
+    let d = tempfile::tempdir().expect("tmp");
+    let mut child = lucent()
+        .args(["serve", "--listen", "127.0.0.1:0", "--udp", "127.0.0.1:0", "--no-http"])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("serve");
+    let out = child.stdout.take().expect("stdout");
+    let _guard = Child(child);
+    let mut lines = std::io::BufReader::new(out).lines();
+    let mut addr = |scheme: &str| -> String {
+        let l = lines.next().expect("a line").expect("utf-8");
+        let at = l.find(scheme).unwrap_or_else(|| panic!("{scheme} in {l}"));
+        l[at + scheme.len()..].split_whitespace().next().expect("address").to_string()
+    };
+    let tcp = addr("tcp://");
+    let udp = addr("udp://");
+    let prog = rend3r("raytracing/sw/rt_spheres.rdr");
+    let run = d.path().join("run");
+    assert!(lucent().arg("run").arg(&prog).arg("-o").arg(&run).status().expect("run").success());
+    let want = image::open(run.join("frame-0001.png")).expect("run png").to_rgb8();
+    for (name, extra) in [("tcp", vec!["--to", tcp.as_str()]), ("udp", vec!["--udp", "--to", udp.as_str()])] {
+        let dir = d.path().join(name);
+        let o = lucent().arg("send").arg(&prog).args(&extra).arg("-o").arg(&dir).output().expect("send");
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        let got = image::open(dir.join("frame-0001.png")).expect("sent png").to_rgb8();
+        assert!(got == want, "{name}: the served frame differs from lucent run's");
+    }
+    // A program with an error: the server's message with line:column, and a failure exit.
+    let bad = d.path().join("bad.rdr");
+    std::fs::write(&bad, "nr\ncam xloc, 0\nsp 0, xloc, yloc, 1\n").expect("write");
+    let o = lucent().arg("send").arg(&bad).args(["--to", tcp.as_str()]).arg("-o").arg(d.path().join("bad")).output().expect("send");
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("bad.rdr: 3:") && e.contains("server reported 1 error"), "{e}");
+}

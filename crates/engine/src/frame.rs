@@ -35,6 +35,18 @@ pub enum SetKind {
     Triangles,
 }
 
+/// How a program's assembly source reads its SE/SD records: `tr` lines mean triangles,
+/// `sp` lines shapes; `None` when it uses neither or both.
+#[must_use]
+pub fn set_kind_of_source(src: &str) -> Option<SetKind> {
+    let uses = |m: &str| src.lines().any(|l| l.trim().to_lowercase().split(' ').next() == Some(m));
+    match (uses("sp"), uses("tr")) {
+        (false, true) => Some(SetKind::Triangles),
+        (true, false) => Some(SetKind::Shapes),
+        _ => None,
+    }
+}
+
 /// Which renderer draws a frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {

@@ -12,5 +12,5 @@ pub mod frame;
 mod processor;
 pub mod raster;
 
-pub use frame::{camera, render_frame, rgb565, scene, FrameInfo, FrameSettings, Mode, SetKind};
+pub use frame::{camera, render_frame, rgb565, scene, set_kind_of_source, FrameInfo, FrameSettings, Mode, SetKind};
 pub use processor::{DeviceState, Processor, Record, Step, LIGHTS, MAX_SETS};

@@ -89,6 +89,9 @@ pub enum Step {
     Frame,
     /// The program halted (two zero words, or the end of the words).
     Halt,
+    /// `run_to_frame` used up its word budget without reaching `nf` or a halt (a loop
+    /// with no `nf`); calling it again continues.
+    Busy,
 }
 
 /// Executes a word stream.
@@ -105,20 +108,67 @@ pub struct Processor {
     /// Board mode: (shape/triangle records, lights) capacities; the PC wraps and `nr` keeps
     /// the scene.
     board: Option<(usize, usize)>,
+    /// True once `er` halted the program (not merely the end of the words).
+    halted: bool,
+    /// `lr` instructions executed so far.
+    pub loops: u64,
 }
 
 impl Processor {
     /// A processor for `words`; an SE word with no SD word at the end is an error.
     pub fn new(words: Vec<u32>, camera_table: CameraTable) -> Result<Self, DecodeError> {
         decode_lenient(&words)?;
-        Ok(Self { words, pc: 0, state: DeviceState::new(camera_table), executed: 0, ignored: 0, board: None })
+        Ok(Self { words, pc: 0, state: DeviceState::new(camera_table), executed: 0, ignored: 0, board: None, halted: false, loops: 0 })
     }
 
     /// A processor with the board's behaviour: `words` is the whole ROM (the PC wraps
     /// around it, an SE in the last word takes word 0 as its SD), `nr` leaves the scene,
     /// and record indices wrap modulo the given capacities.
     pub fn new_board(words: Vec<u32>, camera_table: CameraTable, sets: usize, lights: usize) -> Result<Self, DecodeError> {
-        Ok(Self { words, pc: 0, state: DeviceState::new(camera_table), executed: 0, ignored: 0, board: Some((sets.max(1), lights.max(1))) })
+        Ok(Self {
+            words,
+            pc: 0,
+            state: DeviceState::new(camera_table),
+            executed: 0,
+            ignored: 0,
+            board: Some((sets.max(1), lights.max(1))),
+            halted: false,
+            loops: 0,
+        })
+    }
+
+    /// Appends words to a streamed program (the network device). The words must be whole
+    /// instructions (an SE word needs its SD word in the same batch). After `er` halted the
+    /// program, the batch starts a new program (the device state is kept); otherwise it
+    /// continues the current one, so `lr` jumps back to word 1 of the program.
+    pub fn push(&mut self, words: &[u32]) -> Result<(), DecodeError> {
+        decode_lenient(words)?;
+        if self.halted {
+            self.words.clear();
+            self.pc = 0;
+            self.halted = false;
+        }
+        self.words.extend_from_slice(words);
+        Ok(())
+    }
+
+    /// True once `er` (two zero words, or one zero word as the last word) halted the
+    /// program; false when execution merely reached the end of the words so far.
+    #[must_use]
+    pub fn halted(&self) -> bool {
+        self.halted
+    }
+
+    /// Stops the current program as if it had halted (the network device interrupts a
+    /// looping program when new words arrive); the device state is kept.
+    pub fn stop(&mut self) {
+        self.halted = true;
+    }
+
+    /// Words of the current program.
+    #[must_use]
+    pub fn program_len(&self) -> usize {
+        self.words.len()
     }
 
     /// Runs one instruction.
@@ -143,6 +193,7 @@ impl Processor {
                 // Halt only on two zero words in a row (SPEC §4.2); beyond the end reads zero.
                 let next = if self.board.is_some() { self.words.get((at + 1) % len) } else { self.words.get(at + 1) };
                 if next.is_none_or(|&next| next == 0) {
+                    self.halted = true;
                     return Step::Halt;
                 }
             }
@@ -153,7 +204,10 @@ impl Processor {
                 }
             }
             Instr::Flow(Flow::NewFrame) => return Step::Frame,
-            Instr::Flow(Flow::Loop) => self.pc = 1,
+            Instr::Flow(Flow::Loop) => {
+                self.pc = 1;
+                self.loops += 1;
+            }
             Instr::Camera { prop, data } => self.state.camera.set(prop, data),
             Instr::Light { index, prop, data } => {
                 let cap = self.board.map_or(LIGHTS, |b| b.1.min(LIGHTS));
@@ -172,8 +226,8 @@ impl Processor {
         Step::Continue
     }
 
-    /// Runs until the next frame or halt (at most `max_words` words, so a program that
-    /// loops without `nf` cannot hang the caller).
+    /// Runs until the next frame or halt, or until `max_words` words ran ([`Step::Busy`]),
+    /// so a program that loops without `nf` cannot hang the caller.
     pub fn run_to_frame(&mut self, max_words: u64) -> Step {
         let stop = self.executed + max_words;
         while self.executed < stop {
@@ -182,6 +236,6 @@ impl Processor {
                 s => return s,
             }
         }
-        Step::Halt
+        Step::Busy
     }
 }

@@ -195,7 +195,7 @@ fn processor_semantics() {
     assert!(!p.state.camera.used(), "nr cleared the camera");
     // A looping program without nf is bounded by the word budget.
     let mut p = program("nr\nlr");
-    assert_eq!(p.run_to_frame(10_000), Step::Halt);
+    assert_eq!(p.run_to_frame(10_000), Step::Busy);
     assert!(p.executed >= 10_000);
     // The SD word is data even when it looks like `er` or `lr`.
     // SE: shape 0, p1 = zero, p2 = type; SD = 0x00000600 (p2 := 0x0600).
