@@ -9,6 +9,7 @@ mod net_cmd;
 mod rend3r_bench;
 mod render_cmd;
 mod run_cmd;
+mod view_cmd;
 
 #[derive(Parser)]
 #[command(
@@ -125,6 +126,47 @@ enum Cmd {
         /// With --compat board: the 16 board switches, shown as background (RGB565 bits).
         #[arg(long, default_value = "0", value_parser = parse_u16)]
         switches: u16,
+    },
+    /// Open a window and fly through a scene (or watch a REND3R program), Pixel-Planes style:
+    /// reduced resolution while moving, full resolution refined sample by sample when still.
+    ///
+    /// Keys: W/A/S/D/Q/E move (forward/left/back/right/down/up); hold a mouse button and drag
+    /// to look (fly) or to orbit (orbit mode); Tab: fly/orbit; scroll: speed; Home: back to
+    /// the scene's camera; 1: shadows on/off; 2: reflection depth (0,1,2,4,6,10); 3:
+    /// orthographic/perspective; 4: integrator (whitted, eye light, normals); P or F12:
+    /// screenshot PNG; Space: pause a REND3R program; Esc: quit. Needs an X11 display
+    /// (DISPLAY); without one it says so and exits.
+    View {
+        /// Scene (.obj, .obj.gz, .ply, .gltf, .glb) or REND3R program (.rdr, .mem, .bin).
+        /// Without it: the built-in demo scene.
+        input: Option<PathBuf>,
+        /// Start camera as EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV (default: the scene's).
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true, num_args = 1)]
+        camera: Option<Vec<f32>>,
+        /// Window size.
+        #[arg(long, default_value = "1024x768", value_parser = render_cmd::parse_size)]
+        size: (u32, u32),
+        /// Frame rate to hold while moving (the moving resolution adapts to it).
+        #[arg(long, default_value_t = 30.0)]
+        target_fps: f64,
+        /// Samples per pixel of a converged still image.
+        #[arg(long, default_value_t = 64)]
+        samples: u32,
+        /// Linear resolution scale when movement starts (0.5 = a quarter of the pixels).
+        #[arg(long, default_value_t = 0.5)]
+        moving_scale: f64,
+        /// REND3R programs: raytrace or raster.
+        #[arg(long, default_value = "raytrace", value_parser = ["raytrace", "raster"])]
+        mode: String,
+        /// Folder for screenshots (lucent-view-0001.png, ...).
+        #[arg(long, default_value = ".")]
+        screenshots: PathBuf,
+        /// Print frame rates once a second, and the time to converge when still.
+        #[arg(long)]
+        report: bool,
+        /// Close after this many seconds.
+        #[arg(long)]
+        quit_after: Option<f64>,
     },
     /// Serve REND3R as a networked device: clients stream programs over TCP (or UDP, or the
     /// page's WebSocket) and get one frame back per `nf`; a page at --http shows them live.
@@ -308,7 +350,8 @@ fn main() -> std::process::ExitCode {
 fn run() -> Result<()> {
     tracing_subscriber::fmt()
         .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,winit=error,calloop=error")),
         )
         .with_writer(std::io::stderr)
         .init();
@@ -318,6 +361,20 @@ fn run() -> Result<()> {
             render_cmd::run(render_cmd::RenderArgs { scene, camera, ortho, size, spp, threads, output, max_depth, no_shadows, watertight })
         }
         Cmd::Info { scene } => render_cmd::info(scene.as_deref()),
+        Cmd::View { input, camera, size, target_fps, samples, moving_scale, mode, screenshots, report, quit_after } => {
+            view_cmd::run(view_cmd::ViewArgs {
+                input,
+                camera,
+                size,
+                target_fps,
+                samples,
+                moving_scale,
+                mode: if mode == "raster" { lucent_engine::Mode::Raster } else { lucent_engine::Mode::Raytrace },
+                screenshots,
+                report,
+                quit_after,
+            })
+        }
         Cmd::Asm { program, output, format, camera_table } => isa_cmd::asm(&program, output, format, isa_cmd::table(camera_table == "old")),
         Cmd::Run { program, mode, sets, size, frames, seconds, painter, spp, camera_table, output, compat, switches } => {
             run_cmd::run(run_cmd::RunArgs {

@@ -55,6 +55,66 @@ fn reflect(d: Vec3, n: Vec3) -> Vec3 {
     d - n * (2.0 * d.dot(n))
 }
 
+/// What a pixel shows: the viewer cycles through these.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Integrator {
+    /// Whitted ray tracing: lights, shadows, reflection, refraction ([`li`]).
+    #[default]
+    Whitted,
+    /// A light at the eye, no shadows, no secondary rays: the fastest preview.
+    EyeLight,
+    /// Shading normals as colours (0.5 + 0.5 n), for inspecting geometry.
+    Normals,
+}
+
+impl Integrator {
+    /// The next one in the cycle.
+    #[must_use]
+    pub fn next(self) -> Self {
+        match self {
+            Self::Whitted => Self::EyeLight,
+            Self::EyeLight => Self::Normals,
+            Self::Normals => Self::Whitted,
+        }
+    }
+    /// Name for the heads-up line.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Whitted => "whitted",
+            Self::EyeLight => "eye light",
+            Self::Normals => "normals",
+        }
+    }
+}
+
+/// Radiance along `ray` with the chosen integrator.
+#[must_use]
+pub fn radiance(w: &World, ray: &Ray, s: &WhittedSettings, integrator: Integrator) -> Vec3 {
+    match integrator {
+        Integrator::Whitted => li(w, ray, s, 0),
+        Integrator::EyeLight | Integrator::Normals => {
+            let Some(hit) = w.intersect(ray) else {
+                return w.scene.background;
+            };
+            let surf = w.surface(ray, &hit);
+            let d = ray.dir.normalize();
+            let ns = if d.dot(surf.ng) < 0.0 { surf.ns } else { -surf.ns };
+            if integrator == Integrator::Normals {
+                return ns * 0.5 + Vec3::splat(0.5);
+            }
+            static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
+            let mat = w.scene.materials.get(surf.material as usize).unwrap_or_else(|| DEFAULT.get_or_init(Material::default));
+            let mut kd = mat.diffuse;
+            if let Some(t) = mat.diffuse_tex.and_then(|t| w.scene.textures.get(t as usize)) {
+                kd *= sample(t, surf.uv).truncate();
+            }
+            let base = if kd.max_element() > 0.0 { kd } else { mat.specular.max(mat.reflect).max(mat.transmit) };
+            base * (0.15 + 0.85 * (-d).dot(ns).max(0.0)) + mat.emission.min(Vec3::ONE)
+        }
+    }
+}
+
 /// Radiance along `ray`.
 #[must_use]
 pub fn li(w: &World, ray: &Ray, s: &WhittedSettings, depth: u32) -> Vec3 {

@@ -14,6 +14,6 @@ mod world;
 
 pub use camera::{framing_camera, Camera};
 pub use film::{Film, OutputError};
-pub use integrator::WhittedSettings;
-pub use render::{jitter, pcg_hash, render, render_pixel, RenderSettings, TILE};
+pub use integrator::{Integrator, WhittedSettings};
+pub use render::{jitter, pcg_hash, render, render_pass, render_pixel, RenderSettings, TILE};
 pub use world::{shape_of, Surface, World, WorldError};

@@ -2,7 +2,7 @@
 
 use crate::camera::Camera;
 use crate::film::Film;
-use crate::integrator::{li, WhittedSettings};
+use crate::integrator::{li, radiance, Integrator, WhittedSettings};
 use crate::world::World;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -55,13 +55,37 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
 /// Renders a frame; `progress(tiles_done)` is called after each tile. Returns the film and
 /// the number of rays traced.
 pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u64) + Sync)) -> (Film, u64) {
-    let (tw, th) = (s.width.div_ceil(TILE), s.height.div_ceil(TILE));
+    render_tiles(w, cam, s.width, s.height, progress, &|x, y| render_pixel(w, cam, s, x, y))
+}
+
+/// One sample per pixel: sample `index` of every pixel (0 = the pixel centre, then the
+/// jittered samples of [`jitter`]), with the chosen integrator. Averaging passes 0..n gives
+/// an n-sample image that does not depend on how the passes were split (the viewer
+/// accumulates these while the camera stands still).
+pub fn render_pass(w: &World, cam: &Camera, s: &RenderSettings, integrator: Integrator, index: u32) -> (Film, u64) {
+    render_tiles(w, cam, s.width, s.height, &|_| {}, &|x, y| {
+        let (jx, jy) = if index == 0 { (0.5, 0.5) } else { jitter(x, y, index) };
+        radiance(w, &cam.ray(x as f32 + jx, y as f32 + jy), &s.whitted, integrator)
+    })
+}
+
+/// The tile loop shared by every renderer: tiles on rayon, empty tiles culled by their
+/// frustum, `pixel(x, y)` for the rest.
+fn render_tiles(
+    w: &World,
+    cam: &Camera,
+    width: u32,
+    height: u32,
+    progress: &(dyn Fn(u64) + Sync),
+    pixel: &(dyn Fn(u32, u32) -> Vec3 + Sync),
+) -> (Film, u64) {
+    let (tw, th) = (width.div_ceil(TILE), height.div_ceil(TILE));
     let tiles: Vec<(u32, u32)> = (0..th).flat_map(|ty| (0..tw).map(move |tx| (tx, ty))).collect();
     let done: Vec<(u32, u32, Vec<Vec3>, u64)> = tiles
         .par_iter()
         .map(|&(tx, ty)| {
             let (x0, y0) = (tx * TILE, ty * TILE);
-            let (x1, y1) = ((x0 + TILE).min(s.width), (y0 + TILE).min(s.height));
+            let (x1, y1) = ((x0 + TILE).min(width), (y0 + TILE).min(height));
             let before = crate::world::rays_traced_here();
             let n = ((x1 - x0) * (y1 - y0)) as usize;
             // Frustum culling: a tile whose frustum meets no instance shows the background
@@ -73,7 +97,7 @@ pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u6
                 let mut px = Vec::with_capacity(n);
                 for y in y0..y1 {
                     for x in x0..x1 {
-                        px.push(render_pixel(w, cam, s, x, y));
+                        px.push(pixel(x, y));
                     }
                 }
                 px
@@ -82,16 +106,16 @@ pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u6
             (tx, ty, px, crate::world::rays_traced_here() - before)
         })
         .collect();
-    let mut film = Film::new(s.width, s.height);
+    let mut film = Film::new(width, height);
     let mut rays = 0;
     for (tx, ty, px, r) in done {
         rays += r;
         let (x0, y0) = (tx * TILE, ty * TILE);
-        let x1 = (x0 + TILE).min(s.width);
+        let x1 = (x0 + TILE).min(width);
         let wdt = (x1 - x0) as usize;
         for (i, c) in px.into_iter().enumerate() {
             let (x, y) = (x0 + (i % wdt) as u32, y0 + (i / wdt) as u32);
-            film.pixels[(y * s.width + x) as usize] = c;
+            film.pixels[(y * width + x) as usize] = c;
         }
     }
     (film, rays)

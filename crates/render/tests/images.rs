@@ -205,3 +205,33 @@ fn frustum_culling_never_changes_the_picture() {
     }
     assert!(culled > 0, "some sky tiles are culled");
 }
+
+#[test]
+fn sample_passes_match_the_renderer_and_the_integrators_differ() {
+    use lucent_render::{render_pass, Integrator};
+    let s = demo_scene();
+    let cam = s.camera.expect("demo camera");
+    let mut world = World::new(s, MeshOptions::default()).expect("world");
+    world.ensure_light(cam.eye);
+    let st = settings(96, 64);
+    let c = Camera::new(&cam, 96, 64);
+    // Pass 0 of the Whitted integrator is exactly the 1-sample image.
+    let whole = render(&world, &c, &st, &|_| {}).0;
+    let (pass, rays) = render_pass(&world, &c, &st, Integrator::Whitted, 0);
+    assert_eq!(pass.pixels, whole.pixels);
+    assert!(rays > 96 * 64 / 2);
+    // Later passes are jittered: different, but close on average.
+    let p1 = render_pass(&world, &c, &st, Integrator::Whitted, 1).0;
+    assert_ne!(p1.pixels, whole.pixels);
+    let mean = |f: &Film| f.pixels.iter().copied().sum::<Vec3>() / f.pixels.len() as f32;
+    assert!((mean(&p1) - mean(&whole)).length() < 0.02);
+    // Normals: unit-length directions mapped to colours; the sky keeps the background.
+    let n = render_pass(&world, &c, &st, Integrator::Normals, 0).0;
+    let floor = n.get(48, 60);
+    assert!(floor.y > 0.9, "the floor faces up: {floor}");
+    assert_eq!(n.get(48, 0), whole.get(48, 0), "background");
+    // Eye light: no shadows, so never darker than ambient-only shading on lit geometry.
+    let e = render_pass(&world, &c, &st, Integrator::EyeLight, 0).0;
+    assert_ne!(e.pixels, whole.pixels);
+    assert!(e.pixels.iter().all(|p| p.is_finite()));
+}

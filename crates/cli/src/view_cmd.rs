@@ -1,0 +1,59 @@
+//! `lucent view`.
+
+use anyhow::{Context, Result};
+use lucent_accel::MeshOptions;
+use lucent_engine::{FrameSettings, Mode, Processor, SetKind};
+use lucent_render::World;
+use lucent_viewer::{Content, ViewOptions};
+use std::path::{Path, PathBuf};
+
+pub struct ViewArgs {
+    pub input: Option<PathBuf>,
+    pub camera: Option<Vec<f32>>,
+    pub size: (u32, u32),
+    pub target_fps: f64,
+    pub samples: u32,
+    pub moving_scale: f64,
+    pub mode: Mode,
+    pub screenshots: PathBuf,
+    pub report: bool,
+    pub quit_after: Option<f64>,
+}
+
+fn is_program(p: &Path) -> bool {
+    let ext = p.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
+    matches!(ext.as_str(), "rdr" | "mem" | "bin" | "hex")
+}
+
+pub fn run(a: ViewArgs) -> Result<()> {
+    let opts = ViewOptions {
+        size: a.size,
+        target_fps: a.target_fps,
+        max_samples: a.samples.max(1),
+        moving_scale: a.moving_scale,
+        screenshot_dir: a.screenshots.clone(),
+        report: a.report,
+        quit_after: a.quit_after,
+    };
+    let content = match a.input.as_deref() {
+        Some(p) if is_program(p) => {
+            let (words, sets) = crate::run_cmd::load_program(p, lucent_isa::CameraTable::Final)?;
+            let processor = Processor::new(words, lucent_isa::CameraTable::Final).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
+            let sets = sets.unwrap_or(if a.mode == Mode::Raster { SetKind::Triangles } else { SetKind::Shapes });
+            let settings = FrameSettings { width: a.size.0, height: a.size.1, mode: a.mode, sets, painter: false, spp: 1 };
+            Content::Program { processor: Box::new(processor), settings, name: p.display().to_string() }
+        }
+        input => {
+            let scene = crate::render_cmd::load_scene(input)?;
+            let home = crate::render_cmd::choose_camera(&scene, a.camera.as_deref(), false)?;
+            let st = scene.stats();
+            let stats = format!("{} tris, {} instances, {} lights", st.triangles, st.instances, scene.lights.len());
+            let mut world = World::new(scene, MeshOptions::default()).context("cannot build the scene")?;
+            world.ensure_light(home.eye);
+            let name = input.map_or_else(|| "built-in demo".to_string(), |p| p.display().to_string());
+            Content::Scene { world: Box::new(world), home, stats, name }
+        }
+    };
+    lucent_viewer::run(content, opts)?;
+    Ok(())
+}
