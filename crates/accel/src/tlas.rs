@@ -95,6 +95,15 @@ impl TwoLevel {
         &self.instances
     }
 
+    /// Replaces geometry `i` (a deformed mesh rebuilt or refitted). The top level is not
+    /// rebuilt: call [`TwoLevel::rebuild`] or [`TwoLevel::set_instances`] after.
+    pub fn set_geometry(&mut self, i: usize, g: Geometry) -> Result<(), BuildError> {
+        let count = self.geometries.len();
+        let slot = self.geometries.get_mut(i).ok_or(BuildError::NoSuchGeometry { inst: 0, geom: i as u32, count })?;
+        *slot = g;
+        Ok(())
+    }
+
     /// Replaces the instance list (e.g. new transforms for a frame) and rebuilds the top level.
     pub fn set_instances(&mut self, instances: Vec<Instance>) -> Result<(), BuildError> {
         self.instances = instances;

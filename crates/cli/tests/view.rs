@@ -2,7 +2,7 @@
 //! Needs Xvfb, xdotool and xwd (Debian: xvfb, xdotool, x11-apps); `scripts/test` installs
 //! them and runs these with `--ignored`.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -15,26 +15,21 @@ impl Drop for Kill {
 }
 
 fn xvfb() -> (Kill, String) {
-    for n in 0..50 {
-        let num = 140 + (std::process::id() as usize + n) % 300;
-        if Path::new(&format!("/tmp/.X11-unix/X{num}")).exists() {
-            continue;
-        }
-        let child = Command::new("Xvfb")
-            .args([format!(":{num}").as_str(), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"])
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("Xvfb (Debian package xvfb) must be installed");
-        let k = Kill(child);
-        let t = Instant::now();
-        while t.elapsed() < Duration::from_secs(10) {
-            if Path::new(&format!("/tmp/.X11-unix/X{num}")).exists() {
-                return (k, format!(":{num}"));
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
-    panic!("no X display could be started");
+    use std::io::BufRead;
+    // Xvfb picks a free display itself and writes its number to stdout when ready
+    // (-displayfd), so parallel test runs never share or steal a display.
+    let (reader, writer) = std::io::pipe().expect("pipe");
+    let child = Command::new("Xvfb")
+        .args(["-displayfd", "1", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"])
+        .stdout(writer)
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("Xvfb (Debian package xvfb) must be installed");
+    let k = Kill(child);
+    let mut line = String::new();
+    std::io::BufReader::new(reader).read_line(&mut line).expect("Xvfb reports its display");
+    let num: u32 = line.trim().parse().unwrap_or_else(|_| panic!("Xvfb said {line:?}"));
+    (k, format!(":{num}"))
 }
 
 fn xdo(display: &str, args: &[&str]) -> String {
@@ -89,6 +84,20 @@ fn xwd(display: &str, wid: &str) -> Shot {
     Shot { w, h, rgb }
 }
 
+/// Gives the window the keyboard focus and waits until it has it (no window manager runs
+/// under Xvfb, so focus is set directly).
+fn focus(display: &str, wid: &str) {
+    let t = Instant::now();
+    while t.elapsed() < Duration::from_secs(5) {
+        xdo(display, &["windowfocus", "--sync", wid]);
+        if xdo(display, &["getwindowfocus"]) == wid {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    panic!("the viewer window never got the keyboard focus");
+}
+
 fn wait_title(display: &str, wid: &str, want: &str, secs: u64) -> String {
     let t = Instant::now();
     loop {
@@ -139,18 +148,8 @@ fn viewer_shows_the_demo_and_answers_keys_and_mouse() {
     let distinct = lum.iter().collect::<std::collections::HashSet<_>>().len();
     assert!(distinct > 200, "a real picture: {distinct} distinct brightness values");
 
-    // Hold W: the camera flies forward, at reduced resolution while moving.
-    xdo(&display, &["windowfocus", "--sync", &wid]);
-    xdo(&display, &["keydown", "w"]);
-    let moving = wait_title(&display, &wid, "[moving]", 5);
-    std::thread::sleep(Duration::from_millis(1500));
-    xdo(&display, &["keyup", "w"]);
-    assert!(moving.contains("[moving]"), "{moving}");
-    wait_title(&display, &wid, "[converged]", 60);
-    let forward = xwd(&display, &wid);
-    assert!(forward.diff(&first) > 8.0, "the view changed after W: {}", forward.diff(&first));
-
     // Drag with the mouse: the view turns.
+    focus(&display, &wid);
     xdo(&display, &["mousemove", "--window", &wid, "320", "240"]);
     xdo(&display, &["mousedown", "1"]);
     for k in 1..=10 {
@@ -161,7 +160,7 @@ fn viewer_shows_the_demo_and_answers_keys_and_mouse() {
     std::thread::sleep(Duration::from_millis(300));
     wait_title(&display, &wid, "[converged]", 60);
     let turned = xwd(&display, &wid);
-    assert!(turned.diff(&forward) > 8.0, "the view changed after a drag: {}", turned.diff(&forward));
+    assert!(turned.diff(&first) > 8.0, "the view changed after a drag: {}", turned.diff(&first));
 
     // Home: back to the scene's camera, the same picture as at the start.
     xdo(&display, &["key", "Home"]);
@@ -169,6 +168,19 @@ fn viewer_shows_the_demo_and_answers_keys_and_mouse() {
     wait_title(&display, &wid, "[converged]", 60);
     let home = xwd(&display, &wid);
     assert!(home.diff(&first) < 1.0, "Home restores the view: {}", home.diff(&first));
+
+    // Hold W: the camera flies forward, at reduced resolution while moving.
+    xdo(&display, &["keydown", "w"]);
+    let moving = wait_title(&display, &wid, "[moving]", 5);
+    std::thread::sleep(Duration::from_millis(1000));
+    xdo(&display, &["keyup", "w"]);
+    assert!(moving.contains("[moving]"), "{moving}");
+    wait_title(&display, &wid, "[converged]", 60);
+    let forward = xwd(&display, &wid);
+    assert!(forward.diff(&first) > 8.0, "the view changed after W: {}", forward.diff(&first));
+    xdo(&display, &["key", "Home"]);
+    std::thread::sleep(Duration::from_millis(300));
+    wait_title(&display, &wid, "[converged]", 60);
 
     // P: a screenshot PNG of the picture (without the heads-up line).
     xdo(&display, &["key", "p"]);
@@ -250,11 +262,54 @@ fn viewer_plays_a_rend3r_program_and_space_pauses_it() {
     let c = s.at(256, 192);
     assert!(c[1] > 150 && c[0] < 80 && c[2] < 80, "green centre: {c:?}");
     // Space pauses.
-    xdo(&display, &["windowfocus", "--sync", &wid]);
+    focus(&display, &wid);
     xdo(&display, &["key", "space"]);
     let p = wait_title(&display, &wid, "paused", 5);
     assert!(p.contains("paused"), "{p}");
     let n = frame_number(&p);
     std::thread::sleep(Duration::from_millis(500));
     assert_eq!(frame_number(&xdo(&display, &["getwindowname", &wid])), n, "no frames while paused");
+}
+
+#[test]
+#[ignore = "needs Xvfb, xdotool and xwd: run by scripts/test"]
+fn viewer_plays_a_gltf_animation_and_space_pauses_it() {
+    let (_x, display) = xvfb();
+    let gltf = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes/gltf_animated/BoxAnimated.glb");
+    let viewer = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(["view", "--size", "320x240", "--samples", "4", "--camera", "2,1.5,2.5,0,0.3,0,0,1,0,40"])
+        .arg(&gltf)
+        .env("DISPLAY", &display)
+        .stdout(Stdio::null())
+        .spawn()
+        .expect("lucent view");
+    let _viewer = Kill(viewer);
+    let t = Instant::now();
+    let wid = loop {
+        let id = xdo(&display, &["search", "--name", "lucent view"]);
+        if let Some(id) = id.lines().next().filter(|l| !l.is_empty()) {
+            break id.to_string();
+        }
+        assert!(t.elapsed() < Duration::from_secs(30), "no viewer window");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    // Playing: the scene moves (the title says so, and the picture changes).
+    let title = wait_title(&display, &wid, "[moving]", 10);
+    assert!(title.contains("[moving]"), "{title}");
+    let mut shots = vec![xwd(&display, &wid)];
+    for _ in 0..12 {
+        std::thread::sleep(Duration::from_millis(250));
+        shots.push(xwd(&display, &wid));
+    }
+    let most = shots.windows(2).map(|w| w[1].diff(&w[0])).fold(0.0, f64::max);
+    assert!(most > 0.5, "the animation plays: largest change between shots {most}");
+    // Space pauses: the picture converges and stays.
+    focus(&display, &wid);
+    xdo(&display, &["key", "space"]);
+    let title = wait_title(&display, &wid, "[paused, converged]", 20);
+    assert!(title.contains("[paused, converged]"), "{title}");
+    let c = xwd(&display, &wid);
+    std::thread::sleep(Duration::from_millis(500));
+    let d = xwd(&display, &wid);
+    assert!(d.diff(&c) < 0.01, "paused: {}", d.diff(&c));
 }

@@ -54,6 +54,7 @@ pub struct World {
     pub lights: Vec<Light>,
     /// Diagonal of the world bounds (for ray offsets).
     pub scale: f32,
+    opts: MeshOptions,
 }
 
 /// A surface point rebuilt from a hit.
@@ -108,9 +109,53 @@ impl World {
         let accel = TwoLevel::new(geoms, insts).map_err(WorldError::Top)?;
         let bounds = scene.bounds();
         let scale = bounds.map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
-        let mut w = Self { scene, accel, info, lights: Vec::new(), scale };
+        let mut w = Self { scene, accel, info, lights: Vec::new(), scale, opts };
         w.lights = if w.scene.lights.is_empty() { w.emitter_lights(bounds) } else { w.scene.lights.clone() };
         Ok(w)
+    }
+
+    /// Poses an animated scene at time `t` (glTF seconds): instance transforms from the
+    /// node hierarchy (the top level is rebuilt), morphing meshes (their bottom level is
+    /// rebuilt; shading falls back to face normals on them), and lights on animated
+    /// nodes. Returns the scene's camera at `t`. A static scene is left as it is.
+    pub fn set_time(&mut self, t: f32) -> Result<Option<lucent_scene::CameraDesc>, WorldError> {
+        let Some(anim) = self.scene.animation.clone() else { return Ok(self.scene.camera) };
+        let pose = anim.pose(t);
+        for (m, positions) in pose.meshes {
+            let Some(mesh) = self.scene.meshes.get_mut(m as usize) else { continue };
+            mesh.positions = positions;
+            mesh.normals = lucent_scene::Attr::default();
+            let bvh = MeshBvh::build(&mesh.positions, &mesh.indices, self.opts)
+                .map_err(|source| WorldError::Build { mesh: mesh.name.clone(), source })?;
+            self.accel.set_geometry(m as usize, Geometry::Mesh(bvh)).map_err(WorldError::Top)?;
+        }
+        let mut insts = self.accel.instances().to_vec();
+        for (i, m) in pose.instances.iter().enumerate().take(insts.len()) {
+            insts[i] = Instance::new(insts[i].geometry, *m);
+            self.info[i].normal_to_world = normal_matrix(m);
+            if let Some(si) = self.scene.instances.get_mut(i) {
+                si.world_from_object = *m;
+            }
+        }
+        self.accel.set_instances(insts).map_err(WorldError::Top)?;
+        if self.lights.len() == self.scene.lights.len() {
+            for (li, m) in pose.lights {
+                let Some(l) = self.lights.get_mut(li) else { continue };
+                l.kind = match l.kind {
+                    LightKind::Point { .. } => LightKind::Point { position: m.transform_point3(Vec3::ZERO) },
+                    LightKind::Directional { .. } => {
+                        LightKind::Directional { direction: m.transform_vector3(-Vec3::Z).normalize_or(-Vec3::Z) }
+                    }
+                    LightKind::Spot { inner, outer, .. } => LightKind::Spot {
+                        position: m.transform_point3(Vec3::ZERO),
+                        direction: m.transform_vector3(-Vec3::Z).normalize_or(-Vec3::Z),
+                        inner,
+                        outer,
+                    },
+                };
+            }
+        }
+        Ok(pose.camera.or(self.scene.camera))
     }
 
     /// Gives a scene with no lights and no emitters a headlight at the camera, so it is

@@ -2,11 +2,12 @@
 //! nodes becomes one mesh, instanced), PBR materials mapped to Phong/Whitted terms,
 //! textures, cameras and `KHR_lights_punctual`.
 
+use crate::anim::{Channel, Interp, Morph, Node, SceneAnimation, Target};
 use crate::error::ImportError;
 use crate::model::{Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene, Wrap};
 use crate::texture::texture_from_image;
 use base64::Engine as _;
-use glam::{Affine3A, Mat4, Vec2, Vec3};
+use glam::{Affine3A, Mat4, Quat, Vec2, Vec3};
 use std::path::Path;
 
 /// Loads a glTF or GLB file.
@@ -120,8 +121,12 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
     }
     // Meshes: all primitives of a glTF mesh become one mesh with per-triangle materials.
     let mut mesh_map: Vec<Option<u32>> = Vec::new();
+    // Morph-target position displacements per glTF mesh (concatenated over primitives).
+    let mut morph_targets: Vec<Vec<Vec<Vec3>>> = Vec::new();
     for m in doc.meshes() {
         let mut mesh = Mesh { name: m.name().unwrap_or("mesh").to_string(), ..Mesh::default() };
+        let n_targets = m.primitives().map(|p| p.morph_targets().len()).max().unwrap_or(0);
+        let mut targets: Vec<Vec<Vec3>> = vec![Vec::new(); n_targets];
         let (mut normals, mut uvs) = (Vec::new(), Vec::new());
         let (mut all_n, mut all_uv) = (true, true);
         for (pi, p) in m.primitives().enumerate() {
@@ -166,10 +171,20 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
                     uvs.extend(std::iter::repeat_n(Vec2::ZERO, n));
                 }
             }
+            let mut read_targets = reader.read_morph_targets();
+            for tgt in &mut targets {
+                let d: Vec<Vec3> = read_targets.next().and_then(|(p, _, _)| p).map(|p| p.map(Vec3::from).collect()).unwrap_or_default();
+                if d.len() == n {
+                    tgt.extend(d);
+                } else {
+                    tgt.extend(std::iter::repeat_n(Vec3::ZERO, n));
+                }
+            }
             mesh.positions.extend(pos);
             mesh.indices.extend(tris.iter().map(|t| t.map(|i| i + base)));
             mesh.material.extend(std::iter::repeat_n(mat, tris.len()));
         }
+        morph_targets.push(targets);
         if mesh.indices.is_empty() {
             mesh_map.push(None);
             continue;
@@ -188,6 +203,22 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
         Some(s) => s.nodes().collect(),
         None => doc.nodes().collect(),
     };
+    let mut anim = SceneAnimation::default();
+    let mut parents: Vec<Option<u32>> = vec![None; doc.nodes().len()];
+    for n in doc.nodes() {
+        for c in n.children() {
+            if let Some(p) = parents.get_mut(c.index()) {
+                *p = Some(n.index() as u32);
+            }
+        }
+    }
+    anim.nodes = doc
+        .nodes()
+        .map(|n| {
+            let (t, r, s) = n.transform().decomposed();
+            Node { parent: parents[n.index()], t: Vec3::from(t), r: Quat::from_array(r), s: Vec3::from(s) }
+        })
+        .collect();
     let mut stack: Vec<(gltf::Node<'_>, Mat4, usize)> = root_nodes.into_iter().map(|n| (n, Mat4::IDENTITY, 0)).collect();
     while let Some((node, parent, depth)) = stack.pop() {
         if depth > 256 {
@@ -198,10 +229,26 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
         if let Some(m) = node.mesh() {
             if let Some(Some(id)) = mesh_map.get(m.index()) {
                 scene.instances.push(Instance { geom: Geom::Mesh(*id), world_from_object: affine });
+                anim.instance_nodes.push(node.index() as u32);
+                let targets = morph_targets.get(m.index()).filter(|t| !t.is_empty());
+                if let Some(targets) = targets.filter(|_| !anim.morphs.iter().any(|x| x.mesh == *id)) {
+                    let weights = node.weights().or_else(|| m.weights()).map(<[f32]>::to_vec).unwrap_or_else(|| vec![0.0; targets.len()]);
+                    anim.morphs.push(Morph {
+                        mesh: *id,
+                        node: node.index() as u32,
+                        base: scene.meshes[*id as usize].positions.clone(),
+                        targets: targets.clone(),
+                        default_weights: weights,
+                    });
+                }
             }
         }
         if let Some(cam) = node.camera() {
             if scene.camera.is_none() {
+                anim.camera = Some(match cam.projection() {
+                    gltf::camera::Projection::Perspective(p) => (node.index() as u32, p.yfov().to_degrees(), None),
+                    gltf::camera::Projection::Orthographic(o) => (node.index() as u32, 45.0, Some(2.0 * o.ymag())),
+                });
                 let eye = affine.transform_point3(Vec3::ZERO);
                 let fwd = affine.transform_vector3(-Vec3::Z);
                 let up = affine.transform_vector3(Vec3::Y);
@@ -226,11 +273,49 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
                     LightKind::Spot { position, direction, inner: inner_cone_angle, outer: outer_cone_angle }
                 }
             };
+            anim.light_nodes.push((scene.lights.len(), node.index() as u32));
             scene.lights.push(Light { kind, color, inverse_square: !bart && !matches!(kind, LightKind::Directional { .. }) });
         }
         for c in node.children() {
             stack.push((c, world, depth + 1));
         }
+    }
+    // Animations: every channel of every animation plays on one clock.
+    for a in doc.animations() {
+        for (ci, c) in a.channels().enumerate() {
+            let at = format!("animations[{}].channels[{ci}]", a.index());
+            let reader = c.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+            let times: Vec<f32> = reader.read_inputs().ok_or_else(|| invalid(&at, "sampler input not readable".into()))?.collect();
+            if times.iter().any(|t| !t.is_finite()) || times.windows(2).any(|w| w[1] < w[0]) {
+                return Err(invalid(&at, "key times must be finite and ascending".into()));
+            }
+            use gltf::animation::util::ReadOutputs;
+            let (target, values, width): (Target, Vec<f32>, usize) =
+                match reader.read_outputs().ok_or_else(|| invalid(&at, "sampler output not readable".into()))? {
+                    ReadOutputs::Translations(v) => (Target::Translation, v.flatten().collect(), 3),
+                    ReadOutputs::Rotations(v) => (Target::Rotation, v.into_f32().flatten().collect(), 4),
+                    ReadOutputs::Scales(v) => (Target::Scale, v.flatten().collect(), 3),
+                    ReadOutputs::MorphTargetWeights(v) => {
+                        let v: Vec<f32> = v.into_f32().collect();
+                        let per_key = if times.is_empty() { 0 } else { v.len() / times.len() };
+                        let cubic = c.sampler().interpolation() == gltf::animation::Interpolation::CubicSpline;
+                        (Target::Weights, v, if cubic { per_key / 3 } else { per_key })
+                    }
+                };
+            let interp = match c.sampler().interpolation() {
+                gltf::animation::Interpolation::Step => Interp::Step,
+                gltf::animation::Interpolation::Linear => Interp::Linear,
+                gltf::animation::Interpolation::CubicSpline => Interp::CubicSpline,
+            };
+            let stride = if interp == Interp::CubicSpline { 3 * width } else { width };
+            if width == 0 || values.len() != times.len() * stride {
+                return Err(invalid(&at, format!("{} output values for {} keys", values.len(), times.len())));
+            }
+            anim.channels.push(Channel { node: c.target().node().index() as u32, target, interp, times, values, width });
+        }
+    }
+    if anim.is_animated() {
+        scene.animation = Some(std::sync::Arc::new(anim));
     }
     if let Some(e) = &asset_extras {
         let v3 = |k: &str| e.get(k).and_then(|v| serde_json::from_value::<[f32; 3]>(v.clone()).ok()).map(Vec3::from);

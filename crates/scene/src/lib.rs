@@ -6,6 +6,7 @@
 //! Missing textures give a warning and the plain colour.
 #![warn(missing_docs)]
 
+pub mod anim;
 mod demo;
 mod error;
 mod gltf;

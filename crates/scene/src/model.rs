@@ -231,6 +231,8 @@ pub struct Scene {
     pub ambient: Vec3,
     /// Background colour of rays that escape.
     pub background: Vec3,
+    /// Animation (glTF): what moves, and the nodes instances, camera and lights hang from.
+    pub animation: Option<std::sync::Arc<crate::anim::SceneAnimation>>,
 }
 
 /// Ambient light for formats that do not say (OBJ, PLY, plain glTF): a modest fill so

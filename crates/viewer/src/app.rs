@@ -117,6 +117,12 @@ struct App {
     dirty: bool,
     last_plan: Option<Plan>,
     pending: Option<(Plan, bool, Instant)>,
+    /// Animated scene: (first, last key time).
+    anim_range: Option<(f32, f32)>,
+    anim_time: f32,
+    anim_playing: bool,
+    /// The camera follows the scene's animated camera until the user moves.
+    follow: bool,
 }
 
 const DEPTHS: [u32; 6] = [0, 1, 2, 4, 6, 10];
@@ -124,7 +130,40 @@ const DEPTHS: [u32; 6] = [0, 1, 2, 4, 6, 10];
 impl App {
     fn moving(&self) -> bool {
         const MOVE: [KeyCode; 6] = [KeyCode::KeyW, KeyCode::KeyA, KeyCode::KeyS, KeyCode::KeyD, KeyCode::KeyQ, KeyCode::KeyE];
+        MOVE.iter().any(|k| self.keys.contains(k)) || self.mouse_delta != (0.0, 0.0) || (self.anim_playing && self.program.is_none())
+    }
+
+    /// True while the user steers the camera.
+    fn steering(&self) -> bool {
+        const MOVE: [KeyCode; 6] = [KeyCode::KeyW, KeyCode::KeyA, KeyCode::KeyS, KeyCode::KeyD, KeyCode::KeyQ, KeyCode::KeyE];
         MOVE.iter().any(|k| self.keys.contains(k)) || self.mouse_delta != (0.0, 0.0)
+    }
+
+    /// Advances an animated scene by `dt` seconds (looping) and poses the world.
+    fn animate(&mut self, dt: f32) {
+        let Some((lo, hi)) = self.anim_range else { return };
+        if self.steering() {
+            self.follow = false;
+        }
+        if self.anim_playing {
+            self.anim_time += dt.min(0.25);
+            if self.anim_time > hi {
+                self.anim_time = lo + (self.anim_time - hi) % (hi - lo).max(1e-3);
+            }
+        }
+        let Some(world) = self.world.as_mut() else { return };
+        match world.set_time(self.anim_time) {
+            Ok(Some(cam)) if self.follow => {
+                if let Some(c) = self.cam.as_mut() {
+                    c.follow(cam);
+                }
+            }
+            Ok(_) => {}
+            Err(e) => {
+                tracing::error!("the animation cannot be posed at {:.3} s: {e}", self.anim_time);
+                self.anim_playing = false;
+            }
+        }
     }
 
     fn size(&self) -> (u32, u32) {
@@ -155,6 +194,8 @@ impl App {
                 if let Some(c) = self.cam.as_mut() {
                     c.reset();
                 }
+                // Back to the scene's (animated) camera.
+                self.follow = self.world.as_ref().and_then(|w| w.scene.animation.as_ref()).is_some_and(|a| a.camera.is_some());
             }
             KeyCode::Tab => {
                 if let Some(c) = self.cam.as_mut() {
@@ -175,6 +216,9 @@ impl App {
             KeyCode::Space => {
                 if let Some(p) = self.program.as_mut() {
                     p.paused = !p.paused;
+                }
+                if self.anim_range.is_some() {
+                    self.anim_playing = !self.anim_playing;
                 }
             }
             KeyCode::F12 | KeyCode::KeyP => {
@@ -220,6 +264,9 @@ impl App {
         let dt = now.duration_since(self.last_tick).as_secs_f32();
         self.last_tick = now;
         let moving = self.moving();
+        if self.anim_playing || self.dirty {
+            self.animate(dt);
+        }
         self.navigate(dt);
         self.mouse_delta = (0.0, 0.0);
         if moving {
@@ -348,8 +395,12 @@ impl App {
             .cam
             .as_ref()
             .map_or(("", ""), |c| (if c.mode == NavMode::Fly { "fly" } else { "orbit" }, if c.ortho { "ortho" } else { "persp" }));
+        let anim = match self.anim_range {
+            Some(_) => format!(" | t {:.2} s {}", self.anim_time, if self.anim_playing { "playing" } else { "paused" }),
+            None => String::new(),
+        };
         format!(
-            "{:.1} fps | {:.1} Mrays/s | {res} | {}/{} spp | {} | shadows {} | depth {} | {proj} | {mode} | {}",
+            "{:.1} fps | {:.1} Mrays/s | {res} | {}/{} spp | {} | shadows {} | depth {} | {proj} | {mode} | {}{anim}",
             self.fps,
             self.mrays,
             self.adaptive.samples(),
@@ -373,6 +424,8 @@ impl App {
             self.name,
             if self.program.is_some() {
                 state.as_str()
+            } else if self.anim_range.is_some() && !self.anim_playing && self.adaptive.converged() {
+                "paused, converged"
             } else if self.adaptive.converged() {
                 "converged"
             } else if self.moving() {
@@ -575,9 +628,20 @@ pub fn run(content: Content, opts: ViewOptions) -> Result<(), ViewerError> {
         dirty: true,
         last_plan: None,
         pending: None,
+        anim_range: None,
+        anim_time: 0.0,
+        anim_playing: false,
+        follow: false,
     };
     match content {
         Content::Scene { world, home, stats, name } => {
+            if let Some(a) = world.scene.animation.as_ref().filter(|a| a.is_animated()) {
+                let r = a.time_range();
+                app.anim_range = Some(r);
+                app.anim_time = r.0;
+                app.anim_playing = true;
+                app.follow = a.camera.is_some();
+            }
             app.cam = Some(CameraController::new(home, world.scale));
             app.world = Some(world);
             app.stats = stats;

@@ -77,6 +77,17 @@ impl CameraController {
         self.ortho = h.ortho_height.is_some();
     }
 
+    /// Takes `desc` as the new home camera and moves there (following a scene's animated
+    /// camera); speed and navigation mode stay.
+    pub fn follow(&mut self, desc: CameraDesc) {
+        let (speed, mode, ortho) = (self.speed, self.mode, self.ortho);
+        self.home = CameraDesc { ortho_height: None, ..desc };
+        self.reset();
+        self.speed = speed;
+        self.mode = mode;
+        self.ortho = ortho;
+    }
+
     /// Unit view direction.
     #[must_use]
     pub fn forward(&self) -> Vec3 {

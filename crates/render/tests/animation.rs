@@ -1,0 +1,147 @@
+//! Animated scenes: sampling against the glTF's own keyframes, instances that move, morph
+//! targets, and frames that do not depend on the thread count.
+
+mod common;
+use common::scene;
+use glam::{Affine3A, Quat, Vec3};
+use lucent_accel::{MeshOptions, Ray};
+use lucent_render::{render, Camera, RenderSettings, WhittedSettings, World};
+use lucent_scene::anim::{sample, Channel, Interp, Node, SceneAnimation, Target};
+use lucent_scene::{load, CameraDesc, Geom, Instance, Material, Scene, ShapeKind};
+use std::sync::Arc;
+
+#[test]
+fn every_key_of_every_channel_is_hit_exactly() {
+    for rel in ["bart/kitchen/kitchen.gltf", "bart/museum/museum5.gltf", "gltf_animated/BoxAnimated.glb", "gltf_animated/CesiumMan.glb"] {
+        let s = load(&scene(rel)).expect("load");
+        let anim = s.animation.as_ref().unwrap_or_else(|| panic!("{rel} is animated"));
+        assert!(!anim.channels.is_empty());
+        let mut keys = 0;
+        for c in &anim.channels {
+            let stride = if c.interp == Interp::CubicSpline { 3 * c.width } else { c.width };
+            let off = if c.interp == Interp::CubicSpline { c.width } else { 0 };
+            for (k, &t) in c.times.iter().enumerate() {
+                let want = &c.values[k * stride + off..k * stride + off + c.width];
+                let got = sample(c, t).expect("a value");
+                if c.target == Target::Rotation {
+                    // Slerp at s = 0 returns the key up to rounding and sign.
+                    let (a, b) = (Quat::from_slice(want), Quat::from_slice(&got));
+                    assert!(a.dot(b).abs() > 1.0 - 1e-6, "{rel}: rotation key {k} at {t}");
+                } else {
+                    assert_eq!(got, want, "{rel}: node {} {:?} key {k} at t = {t}", c.node, c.target);
+                }
+                keys += 1;
+            }
+        }
+        assert!(keys > 0);
+    }
+}
+
+#[test]
+fn an_animated_node_sits_at_its_key() {
+    // BoxAnimated: node 2 ("inner box") has translation keys; at a key time its
+    // instance's origin is its parent's transform applied to the key translation.
+    let s = load(&scene("gltf_animated/BoxAnimated.glb")).expect("load");
+    let anim = s.animation.clone().expect("animated");
+    let tr = anim.channels.iter().find(|c| c.target == Target::Translation).expect("a translation channel");
+    let node = tr.node as usize;
+    let k = tr.times.len() / 2;
+    let t = tr.times[k];
+    let key = Vec3::from_slice(&tr.values[3 * k..3 * k + 3]);
+    let world = anim.world_matrices(t);
+    let parent = anim.nodes[node].parent.map_or(glam::Mat4::IDENTITY, |p| world[p as usize]);
+    let expect = parent.transform_point3(key);
+    assert!((world[node].transform_point3(Vec3::ZERO) - expect).length() < 1e-5);
+    let pose = anim.pose(t);
+    if let Some(i) = anim.instance_nodes.iter().position(|&n| n as usize == node) {
+        assert!((pose.instances[i].transform_point3(Vec3::ZERO) - expect).length() < 1e-5);
+    }
+}
+
+/// A unit sphere that slides from x = 0 to x = 5 over one second.
+fn sliding_sphere() -> Scene {
+    let mut s = Scene { materials: vec![Material::default()], ..Scene::default() };
+    s.instances.push(Instance { geom: Geom::Shape { kind: ShapeKind::Sphere, material: 0 }, world_from_object: Affine3A::IDENTITY });
+    s.animation = Some(Arc::new(SceneAnimation {
+        nodes: vec![Node { parent: None, t: Vec3::ZERO, r: Quat::IDENTITY, s: Vec3::ONE }],
+        channels: vec![Channel {
+            node: 0,
+            target: Target::Translation,
+            interp: Interp::Linear,
+            times: vec![0.0, 1.0],
+            values: vec![0., 0., 0., 5., 0., 0.],
+            width: 3,
+        }],
+        instance_nodes: vec![0],
+        ..SceneAnimation::default()
+    }));
+    s
+}
+
+#[test]
+fn a_moved_instance_is_hit_where_it_is_now() {
+    let mut w = World::new(sliding_sphere(), MeshOptions::default()).expect("world");
+    let down = |x: f32| Ray::new(Vec3::new(x, 10.0, 0.0), -Vec3::Y);
+    w.set_time(0.0).expect("pose");
+    assert!(w.intersect(&down(0.0)).is_some());
+    assert!(w.intersect(&down(5.0)).is_none());
+    w.set_time(1.0).expect("pose");
+    assert!(w.intersect(&down(0.0)).is_none(), "not where it was");
+    let h = w.intersect(&down(5.0)).expect("where it is now");
+    assert!((h.t - 9.0).abs() < 1e-4, "top of the sphere at y = 1: t = {}", h.t);
+    w.set_time(0.5).expect("pose");
+    assert!(w.intersect(&down(2.5)).is_some() && !w.occluded(&Ray::new(Vec3::new(5.0, 10.0, 0.0), -Vec3::Y)));
+}
+
+#[test]
+fn museum_morph_targets_move_the_animated_triangles() {
+    let s = load(&scene("bart/museum/museum5.gltf")).expect("load");
+    let anim = s.animation.clone().expect("animated");
+    assert_eq!(anim.morphs.len(), 1);
+    let m = &anim.morphs[0];
+    assert_eq!(s.meshes[m.mesh as usize].indices.len(), 1024, "BART's 1,024 animated triangles");
+    let mut w = World::new(s, MeshOptions::default()).expect("world");
+    let (t0, t1) = anim.time_range();
+    w.set_time(t0).expect("pose");
+    let a = w.scene.meshes[m.mesh as usize].positions.clone();
+    w.set_time(0.5 * (t0 + t1)).expect("pose");
+    let b = w.scene.meshes[m.mesh as usize].positions.clone();
+    let moved = a.iter().zip(&b).filter(|(p, q)| (**p - **q).length() > 1e-4).count();
+    assert!(moved > a.len() / 2, "{moved} of {} vertices moved", a.len());
+    // The rebuilt bottom level finds the triangles where they now are: a ray at a moved
+    // triangle's new centroid, along its normal, hits it.
+    let geom = m.mesh;
+    let inst = w.scene.instances.iter().position(|i| i.geom == Geom::Mesh(geom)).expect("instanced");
+    let xf = w.scene.instances[inst].world_from_object;
+    let mesh = &w.scene.meshes[m.mesh as usize];
+    let mut hits = 0;
+    for (ti, tri) in mesh.indices.iter().enumerate().step_by(37) {
+        let [p, q, r] = tri.map(|i| xf.transform_point3(mesh.positions[i as usize]));
+        let n = (q - p).cross(r - p);
+        if n.length() < 1e-8 {
+            continue;
+        }
+        let c = (p + q + r) / 3.0;
+        let n = n.normalize();
+        let ray = Ray::new(c + n * 0.01, -n).with_range(0.0, 0.02);
+        if let Some(h) = w.intersect(&ray) {
+            hits += usize::from(h.inst as usize == inst && h.prim as usize == ti);
+        }
+    }
+    assert!(hits > 10, "{hits} triangles found at their new places");
+}
+
+#[test]
+fn animation_frames_do_not_depend_on_thread_count() {
+    let s = load(&scene("bart/kitchen/kitchen.gltf")).expect("load");
+    let mut w = World::new(s, MeshOptions::default()).expect("world");
+    let cam: CameraDesc = w.set_time(7.5).expect("pose").expect("animated camera");
+    let st = RenderSettings { width: 64, height: 48, spp: 1, whitted: WhittedSettings::default() };
+    let c = Camera::new(&cam, 64, 48);
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool").install(|| render(&w, &c, &st, &|_| {}).0);
+    let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("pool").install(|| render(&w, &c, &st, &|_| {}).0);
+    assert_eq!(one.pixels, two.pixels);
+    // And the camera moves: another time, another view.
+    let cam2 = w.set_time(12.0).expect("pose").expect("camera");
+    assert!((cam2.eye - cam.eye).length() > 0.1);
+}
