@@ -7,7 +7,7 @@ use crate::traverse::{self, Counters, Leaves, RayPre, TraversalStats};
 use crate::triangle::{
     tri4_intersect, tri4_intersect_scalar, tri4_occluded, tri4_occluded_scalar, Tri4, UnitTriangle, WatertightRay, NEVER_HIT,
 };
-use crate::wide::{collapse, leaf_code, WideNode};
+use crate::wide::{collapse, leaf_code, leaf_range, WideNode, EMPTY, LEAF};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -66,6 +66,9 @@ pub struct MeshOptions {
     pub width: Width,
     /// Triangle test.
     pub test: TriangleTest,
+    /// Keep zero-area triangles (with finite vertices) in the tree, as lanes that never hit,
+    /// so that [`MeshBvh::refit`] can give them back their area when the mesh deforms.
+    pub refittable: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -100,6 +103,8 @@ pub struct MeshBvh {
     bounds: Aabb,
     kernel: Kernel,
     stats: BvhStats,
+    /// `tree_cost()` right after the build (the reference for refits).
+    built_cost: f32,
 }
 
 impl MeshBvh {
@@ -124,7 +129,11 @@ impl MeshBvh {
                 (UnitTriangle::new(v[0], v[1], v[2]).map(|u| u.m), PrimRef::new(Aabb::from_points(&v), i as u32))
             })
             .unzip();
-        prims.retain(|p| units[p.id() as usize].is_some());
+        if opts.refittable {
+            prims.retain(|p| p.min().is_finite() && p.max().is_finite());
+        } else {
+            prims.retain(|p| units[p.id() as usize].is_some());
+        }
         let cfg = BuildConfig { max_leaf: 8, leaf_block: if opts.test == TriangleTest::UnitTriangle { 4 } else { 1 }, cost_traverse: 1.0 };
         let bin = build_binary(prims, &cfg);
         let sah = bin.sah_cost(&cfg);
@@ -195,7 +204,118 @@ impl MeshBvh {
         };
         let bytes = node_bytes + std::mem::size_of_val(tris.as_slice()) + std::mem::size_of_val(wt_verts.as_slice()) + 4 * wt_ids.len();
         let stats = BvhStats { nodes: n_nodes, leaves, prims: bin.prims.len(), sah, bytes };
-        Ok(Self { nodes, tris, wt_verts, wt_ids, test: opts.test, bounds, kernel: Kernel::detect(), stats })
+        let mut me = Self { nodes, tris, wt_verts, wt_ids, test: opts.test, bounds, kernel: Kernel::detect(), stats, built_cost: 0.0 };
+        me.built_cost = me.tree_cost();
+        Ok(me)
+    }
+
+    /// Moves the triangles to new vertex `positions` (same triangles, same order as at the
+    /// build) and refits every box bottom-up, keeping the tree. Returns the tree's SAH cost
+    /// relative to its cost when it was built: a deformation that scatters neighbours
+    /// makes boxes overlap and the ratio grow, and the caller rebuilds when it is too large.
+    /// Triangles left out of the build (non-finite, or zero-area without
+    /// `MeshOptions::refittable`) stay out.
+    pub fn refit(&mut self, positions: &[Vec3], indices: &[[u32; 3]]) -> Result<f32, BuildError> {
+        let nv = positions.len();
+        if let Some((tri, index)) = indices.iter().enumerate().find_map(|(t, i)| i.iter().find(|&&v| v as usize >= nv).map(|&v| (t, v))) {
+            return Err(BuildError::IndexOutOfRange { tri, index, vertices: nv });
+        }
+        let verts = |id: u32| indices.get(id as usize).map(|t| t.map(|i| positions[i as usize]));
+        // Triangle data: new unit-triangle maps (or vertices), in place.
+        let remap = |t4: &mut Tri4| {
+            for lane in 0..4 {
+                let id = t4.prim[lane];
+                if id == u32::MAX {
+                    continue;
+                }
+                let m = verts(id).and_then(|v| UnitTriangle::new(v[0], v[1], v[2])).map_or(NEVER_HIT, |u| u.m);
+                t4.set(lane, &m, id);
+            }
+        };
+        // Small meshes: one thread (waking the pool costs more than the work).
+        if self.tris.len() > 2048 {
+            self.tris.par_iter_mut().for_each(remap);
+        } else {
+            self.tris.iter_mut().for_each(remap);
+        }
+        for (slot, &id) in self.wt_verts.iter_mut().zip(&self.wt_ids) {
+            if let Some(v) = verts(id) {
+                *slot = v;
+            }
+        }
+        // Boxes, bottom-up from the root.
+        let leaf_box = |code: u32, tris: &[Tri4], wt_ids: &[u32]| -> Aabb {
+            let (first, count) = leaf_range(code);
+            let mut b = Aabb::EMPTY;
+            let ids: Vec<u32> = if tris.is_empty() {
+                wt_ids[first as usize..(first + count) as usize].to_vec()
+            } else {
+                tris[first as usize..(first + count) as usize].iter().flat_map(|t| t.prim).filter(|&p| p != u32::MAX).collect()
+            };
+            for id in ids {
+                if let Some(v) = verts(id) {
+                    b = b.union(Aabb::from_points(&v));
+                }
+            }
+            b
+        };
+        fn refit_node<const W: usize>(nodes: &mut [WideNode<W>], i: usize, leaf: &dyn Fn(u32) -> Aabb) -> Aabb {
+            let mut total = Aabb::EMPTY;
+            for k in 0..W {
+                let code = nodes[i].child[k];
+                if code == EMPTY {
+                    continue;
+                }
+                let b = if code & LEAF != 0 { leaf(code) } else { refit_node(nodes, code as usize, leaf) };
+                nodes[i].set(k, &b, code);
+                total = total.union(b);
+            }
+            total
+        }
+        let (tris, wt_ids) = (&self.tris, &self.wt_ids);
+        let leaf = |code: u32| leaf_box(code, tris, wt_ids);
+        self.bounds = match &mut self.nodes {
+            Nodes::W4(n) if !n.is_empty() => refit_node(n, 0, &leaf),
+            Nodes::W8(n) if !n.is_empty() => refit_node(n, 0, &leaf),
+            _ => Aabb::EMPTY,
+        };
+        let cost = self.tree_cost();
+        Ok(if self.built_cost > 0.0 { cost / self.built_cost } else { 1.0 })
+    }
+
+    /// SAH cost of the wide tree as it is (node boxes and leaf sizes; traversal step 1,
+    /// triangle test 1), relative to the root box.
+    fn tree_cost(&self) -> f32 {
+        fn area(b: &Aabb) -> f32 {
+            let d = (b.max - b.min).max(Vec3::ZERO);
+            if d.is_finite() {
+                2.0 * (d.x * d.y + d.y * d.z + d.z * d.x)
+            } else {
+                0.0
+            }
+        }
+        fn walk<const W: usize>(nodes: &[WideNode<W>], tri_groups: bool) -> f32 {
+            let mut c = 0.0;
+            for n in nodes {
+                for k in 0..W {
+                    let code = n.child[k];
+                    if code == EMPTY {
+                        continue;
+                    }
+                    let a = area(&n.child_bounds(k));
+                    let items = if code & LEAF != 0 { leaf_range(code).1 as f32 * if tri_groups { 4.0 } else { 1.0 } } else { 1.0 };
+                    c += a * items;
+                }
+            }
+            c
+        }
+        let root = area(&self.bounds).max(1e-30);
+        let groups = !self.tris.is_empty();
+        let c = match &self.nodes {
+            Nodes::W4(n) => walk(n, groups),
+            Nodes::W8(n) => walk(n, groups),
+        };
+        c / root
     }
 
     /// Bounds of the indexed triangles.

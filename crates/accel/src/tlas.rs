@@ -95,6 +95,11 @@ impl TwoLevel {
         &self.instances
     }
 
+    /// Geometry `i`, to refit in place (then call [`TwoLevel::rebuild`]).
+    pub fn geometry_mut(&mut self, i: usize) -> Option<&mut Geometry> {
+        self.geometries.get_mut(i)
+    }
+
     /// Replaces geometry `i` (a deformed mesh rebuilt or refitted). The top level is not
     /// rebuilt: call [`TwoLevel::rebuild`] or [`TwoLevel::set_instances`] after.
     pub fn set_geometry(&mut self, i: usize, g: Geometry) -> Result<(), BuildError> {

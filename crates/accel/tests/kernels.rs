@@ -35,7 +35,8 @@ fn mesh_kernels_match_reference() {
         let mut rng = Pcg64::seed_from_u64(seed);
         let (p, idx) = soup(&mut rng, 3000, scale);
         for (width, kernel) in all_variants() {
-            let mut bvh = MeshBvh::build(&p, &idx, MeshOptions { width, test: TriangleTest::UnitTriangle }).expect("build");
+            let mut bvh =
+                MeshBvh::build(&p, &idx, MeshOptions { width, test: TriangleTest::UnitTriangle, ..MeshOptions::default() }).expect("build");
             bvh.validate().expect("well formed");
             bvh.set_kernel(kernel);
             let mut rng = Pcg64::seed_from_u64(seed + 100);
@@ -67,7 +68,8 @@ fn watertight_kernel_matches_reference() {
     let mut rng = Pcg64::seed_from_u64(7);
     let (p, idx) = soup(&mut rng, 2000, 10.0);
     for (width, kernel) in all_variants() {
-        let mut bvh = MeshBvh::build(&p, &idx, MeshOptions { width, test: TriangleTest::Watertight }).expect("build");
+        let mut bvh =
+            MeshBvh::build(&p, &idx, MeshOptions { width, test: TriangleTest::Watertight, ..MeshOptions::default() }).expect("build");
         bvh.set_kernel(kernel);
         for _ in 0..300 {
             let r = random_ray(&mut rng, 10.0);
@@ -225,5 +227,53 @@ fn axis_aligned_rays_are_cheap_and_correct() {
         }
         let total = bvh.stats().nodes as u64;
         assert!(st.nodes < 2000 * 3, "axis-aligned rays walk the tree: {} node visits for 2000 queries ({total} nodes)", st.nodes);
+    }
+}
+
+#[test]
+fn a_refit_bvh_gives_the_hits_of_a_fresh_build() {
+    let mut rng = Pcg64::seed_from_u64(21);
+    let (p, mut idx) = soup(&mut rng, 4000, 5.0);
+    // A few zero-area triangles that gain area when the mesh deforms.
+    for t in idx.iter_mut().take(50) {
+        t[2] = t[1];
+    }
+    let moved = |p: &[Vec3], k: f32| -> Vec<Vec3> {
+        p.iter().map(|v| *v + Vec3::new((v.y * 1.7 + k).sin(), 0.3 * (v.x * 2.3).cos() * k, 0.2 * k)).collect()
+    };
+    for test in [TriangleTest::UnitTriangle, TriangleTest::Watertight] {
+        for width in [Width::W4, Width::W8] {
+            let opts = MeshOptions { width, test, refittable: true };
+            let mut bvh = MeshBvh::build(&p, &idx, opts).expect("build");
+            let mut idx2 = idx.clone();
+            for (i, t) in idx2.iter_mut().take(50).enumerate() {
+                t[2] = 3 * i as u32 + 2;
+            }
+            for k in [0.5f32, 2.0] {
+                let q = moved(&p, k);
+                let ratio = bvh.refit(&q, &idx2).expect("refit");
+                assert!(ratio.is_finite() && ratio > 0.5, "cost ratio {ratio}");
+                bvh.validate().expect("valid after refit");
+                let fresh = MeshBvh::build(&q, &idx2, MeshOptions { width, test, refittable: false }).expect("fresh");
+                let mut rng = Pcg64::seed_from_u64(22);
+                let mut hits = 0;
+                for _ in 0..3000 {
+                    let r = random_ray(&mut rng, 5.0);
+                    let (a, b) = (bvh.intersect(&r), fresh.intersect(&r));
+                    assert_eq!(a.map(|h| (h.t, h.prim)), b.map(|h| (h.t, h.prim)), "{test:?} {width:?} k={k}");
+                    assert_eq!(bvh.occluded(&r), fresh.occluded(&r));
+                    hits += usize::from(a.is_some());
+                }
+                assert!(hits > 300, "{hits} hits");
+            }
+            // The once-degenerate triangles are found where they now are.
+            let q = moved(&p, 2.0);
+            bvh.refit(&q, &idx2).expect("refit");
+            let [a, b, c] = idx2[7].map(|i| q[i as usize]);
+            let n = (b - a).cross(c - a).normalize();
+            let centre = (a + b + c) / 3.0;
+            let h = bvh.intersect(&Ray::new(centre + n * 1e-3, -n).with_range(0.0, 2e-3)).expect("hit");
+            assert_eq!(h.prim, 7);
+        }
     }
 }

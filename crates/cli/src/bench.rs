@@ -128,7 +128,7 @@ fn pool(threads: usize) -> Result<rayon::ThreadPool> {
 pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
     let mesh = read_mesh(&dir.join("mesh.bin"))?;
     let tris = mesh.indices.len();
-    let opts = MeshOptions { width: o.width, test: o.test };
+    let opts = MeshOptions { width: o.width, test: o.test, ..MeshOptions::default() };
     let bvh_label = format!(
         "{}{}",
         if o.width == Width::W8 { "bvh8" } else { "bvh4" },

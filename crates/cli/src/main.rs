@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 mod animate_cmd;
 mod bench;
+mod dynamic_bench;
 mod isa_cmd;
 mod net_cmd;
 mod rend3r_bench;
@@ -307,6 +308,20 @@ struct ServeArgs {
 
 #[derive(Subcommand)]
 enum BenchCmd {
+    /// Dynamic scenes: TLAS rebuild for 1k/10k/100k instances, BLAS refit (100k-triangle
+    /// grid, the museum's animated mesh, and how its SAH cost decays), and whole animated
+    /// frames of the BART kitchen and museum. One JSON line per figure.
+    Dynamic {
+        /// The shared scenes folder (for the BART scenes).
+        #[arg(long, default_value = "../shared/scenes")]
+        scenes: PathBuf,
+        /// Animation frames timed per scene.
+        #[arg(long, default_value_t = 30)]
+        frames: usize,
+        /// Frame size.
+        #[arg(long, default_value = "512x384", value_parser = render_cmd::parse_size)]
+        size: (u32, u32),
+    },
     /// The network device: frames per second and latency (batch sent -> frame received) for
     /// 1 and 64 clients streaming moving-sphere programs, server memory, and words per
     /// second accepted. Runs its own server on loopback.
@@ -428,6 +443,7 @@ fn run() -> Result<()> {
         }
         Cmd::Disasm { file, camera_table, triangles } => isa_cmd::disasm(&file, isa_cmd::table(camera_table == "old"), triangles),
         Cmd::Bench(BenchCmd::Rend3r { frames, size }) => rend3r_bench::run(frames, size),
+        Cmd::Bench(BenchCmd::Dynamic { scenes, frames, size }) => dynamic_bench::run(&scenes, frames, size),
         Cmd::Bench(BenchCmd::Net { clients, seconds, size, format }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),
         Cmd::Serve(a) => net_cmd::serve(lucent_net::ServerConfig {
             listen: a.listen,

@@ -43,6 +43,10 @@ struct InstInfo {
     normal_to_world: Mat3A,
 }
 
+/// A deforming mesh's BVH is refitted each frame and rebuilt when its SAH cost reaches
+/// this multiple of its cost when built (see `lucent bench dynamic` for the data).
+pub const REBUILD_RATIO: f32 = 1.5;
+
 /// A scene with its acceleration structure.
 pub struct World {
     /// The scene.
@@ -75,10 +79,14 @@ pub struct Surface {
 impl World {
     /// Builds BLASes (in parallel) and the TLAS.
     pub fn new(scene: Scene, opts: MeshOptions) -> Result<Self, WorldError> {
+        // Meshes that deform (morph targets) keep zero-area triangles so refits stay exact.
+        let deforming: Vec<u32> = scene.animation.as_ref().map(|a| a.morphs.iter().map(|m| m.mesh).collect()).unwrap_or_default();
         let meshes: Result<Vec<Geometry>, WorldError> = scene
             .meshes
             .par_iter()
-            .map(|m| {
+            .enumerate()
+            .map(|(i, m)| {
+                let opts = MeshOptions { refittable: deforming.contains(&(i as u32)), ..opts };
                 MeshBvh::build(&m.positions, &m.indices, opts)
                     .map(Geometry::Mesh)
                     .map_err(|source| WorldError::Build { mesh: m.name.clone(), source })
@@ -125,9 +133,18 @@ impl World {
             let Some(mesh) = self.scene.meshes.get_mut(m as usize) else { continue };
             mesh.positions = positions;
             mesh.normals = lucent_scene::Attr::default();
-            let bvh = MeshBvh::build(&mesh.positions, &mesh.indices, self.opts)
-                .map_err(|source| WorldError::Build { mesh: mesh.name.clone(), source })?;
-            self.accel.set_geometry(m as usize, Geometry::Mesh(bvh)).map_err(WorldError::Top)?;
+            let name = mesh.name.clone();
+            let err = |source| WorldError::Build { mesh: name.clone(), source };
+            // Refit; rebuild once the refitted tree costs REBUILD_RATIO times a fresh one.
+            let ratio = match self.accel.geometry_mut(m as usize) {
+                Some(Geometry::Mesh(bvh)) => bvh.refit(&mesh.positions, &mesh.indices).map_err(err)?,
+                _ => f32::INFINITY,
+            };
+            if ratio > REBUILD_RATIO {
+                let opts = MeshOptions { refittable: true, ..self.opts };
+                let bvh = MeshBvh::build(&mesh.positions, &mesh.indices, opts).map_err(err)?;
+                self.accel.set_geometry(m as usize, Geometry::Mesh(bvh)).map_err(WorldError::Top)?;
+            }
         }
         let mut insts = self.accel.instances().to_vec();
         for (i, m) in pose.instances.iter().enumerate().take(insts.len()) {

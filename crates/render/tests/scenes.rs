@@ -96,7 +96,7 @@ fn kernels_match_reference_on_shared_scenes() {
         let want_unit: Vec<_> = rays.iter().map(|r| intersect_triangles(&m.positions, &m.indices, r)).collect();
         let want_wt: Vec<_> = rays.iter().map(|r| intersect_triangles_watertight(&m.positions, &m.indices, r)).collect();
         for &(width, kernel, test) in &variants {
-            let mut bvh = MeshBvh::build(&m.positions, &m.indices, MeshOptions { width, test }).expect("build");
+            let mut bvh = MeshBvh::build(&m.positions, &m.indices, MeshOptions { width, test, ..MeshOptions::default() }).expect("build");
             bvh.validate().expect("well formed");
             bvh.set_kernel(kernel);
             let want = if test == TriangleTest::Watertight { &want_wt } else { &want_unit };
