@@ -136,11 +136,12 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
         ));
     }
     // 3. Whole animated frames (update + render, shadows on).
-    for (name, path) in [("kitchen", &kitchen), ("museum", &museum)] {
-        if !path.exists() {
-            continue;
-        }
-        let scene = lucent_scene::load(path)?;
+    for (name, path) in [("kitchen", Some(&kitchen)), ("museum", Some(&museum)), ("sunflowers", None)] {
+        let scene = match path {
+            Some(p) if !p.exists() => continue,
+            Some(p) => lucent_scene::load(p)?,
+            None => lucent_scene::sunflower_scene(),
+        };
         let (t0, t1) = scene.animation.as_ref().map_or((0.0, 0.0), |a| a.time_range());
         let fallback = crate::render_cmd::choose_camera(&scene, None, false)?;
         let mut world = World::new(scene, MeshOptions::default())?;
@@ -164,6 +165,13 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
             serde_json::json!({"scene": name, "width": size.0, "height": size.1, "frames": frames, "update_median_ms": u, "render_median_ms": r, "frame_median_ms": t, "fps": 1e3 / t}),
         );
         rows.push(format!("{name} animation at {}x{}: update {u:.2} ms + render {r:.1} ms = {:.1} fps", size.0, size.1, 1e3 / t));
+    }
+    let rss = std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok()));
+    if let Some(kib) = rss {
+        line("peak_memory", serde_json::json!({"mb": kib as f64 / 1024.0, "note": "whole process, all scenes above"}));
+        rows.push(format!("peak resident memory of the whole run: {:.0} MB", kib as f64 / 1024.0));
     }
     if table {
         eprintln!();

@@ -13,6 +13,7 @@ use std::time::Instant;
 /// Options of `lucent render`.
 pub struct RenderArgs {
     pub scene: Option<PathBuf>,
+    pub demo: Option<String>,
     pub camera: Option<Vec<f32>>,
     pub ortho: bool,
     pub size: (u32, u32),
@@ -35,11 +36,14 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((w, h))
 }
 
-/// Loads a scene file, or the built-in demo when `path` is `None`.
-pub fn load_scene(path: Option<&Path>) -> Result<Scene> {
-    match path {
-        None => Ok(lucent_scene::demo_scene()),
-        Some(p) => lucent_scene::load(p).map_err(anyhow::Error::from),
+/// Loads a scene file, or a built-in scene: `demo` (`default` or `sunflowers`), else the
+/// default demo when there is no file.
+pub fn load_scene(path: Option<&Path>, demo: Option<&str>) -> Result<Scene> {
+    match (path, demo) {
+        (Some(_), Some(_)) => bail!("give a scene file or --demo, not both"),
+        (None, Some("sunflowers")) => Ok(lucent_scene::sunflower_scene()),
+        (None, _) => Ok(lucent_scene::demo_scene()),
+        (Some(p), None) => lucent_scene::load(p).map_err(anyhow::Error::from),
     }
 }
 
@@ -76,7 +80,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot set the thread count")?;
     }
     let t0 = Instant::now();
-    let scene = load_scene(a.scene.as_deref())?;
+    let scene = load_scene(a.scene.as_deref(), a.demo.as_deref())?;
     let load_s = t0.elapsed().as_secs_f64();
     let desc = choose_camera(&scene, a.camera.as_deref(), a.ortho)?;
     let st = scene.stats();
@@ -123,10 +127,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-pub fn info(path: Option<&Path>) -> Result<()> {
-    let scene = load_scene(path)?;
+pub fn info(path: Option<&Path>, demo: Option<&str>) -> Result<()> {
+    let scene = load_scene(path, demo)?;
     let st = scene.stats();
-    println!("scene:      {}", path.map_or("(built-in demo)".to_string(), |p| p.display().to_string()));
+    println!("scene:      {}", path.map_or_else(|| format!("(built-in {} demo)", demo.unwrap_or("default")), |p| p.display().to_string()));
     println!("triangles:  {} ({} instanced)", st.triangles, st.instanced_triangles);
     println!("vertices:   {}", st.vertices);
     println!("meshes:     {}", st.meshes);

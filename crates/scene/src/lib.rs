@@ -13,6 +13,7 @@ mod gltf;
 mod model;
 mod obj;
 mod ply;
+mod sunflowers;
 mod texture;
 
 pub use demo::{demo_scene, torus};
@@ -21,6 +22,7 @@ pub use gltf::load_gltf;
 pub use model::*;
 pub use obj::{load_obj, parse_obj};
 pub use ply::load_ply;
+pub use sunflowers::{sunflower_mesh, sunflower_scene, FLOWERS};
 pub use texture::{srgb_to_linear, texture_from_image};
 
 use std::path::Path;

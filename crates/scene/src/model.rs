@@ -285,8 +285,42 @@ impl Scene {
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let mut lo = Vec3::INFINITY;
         let mut hi = Vec3::NEG_INFINITY;
+        // Exact (every vertex transformed) unless instancing multiplies the work: then each
+        // instance contributes its mesh's box, transformed (a conservative bound).
+        let work: usize = self
+            .instances
+            .iter()
+            .map(|i| if let Geom::Mesh(m) = i.geom { self.meshes.get(m as usize).map_or(0, |x| x.positions.len()) } else { 8 })
+            .sum();
+        let boxes: Vec<Option<(Vec3, Vec3)>> = if work > 4_000_000 {
+            self.meshes
+                .iter()
+                .map(|m| {
+                    let f = m.positions.iter().filter(|p| p.is_finite());
+                    let (a, b) = f.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+                    (a.cmple(b).all()).then_some((a, b))
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         for inst in &self.instances {
             match inst.geom {
+                Geom::Mesh(m) if !boxes.is_empty() => {
+                    let Some(Some((a, b))) = boxes.get(m as usize) else { continue };
+                    for c in 0..8 {
+                        let p = Vec3::new(
+                            if c & 1 == 0 { a.x } else { b.x },
+                            if c & 2 == 0 { a.y } else { b.y },
+                            if c & 4 == 0 { a.z } else { b.z },
+                        );
+                        let w = inst.world_from_object.transform_point3(p);
+                        if w.is_finite() {
+                            lo = lo.min(w);
+                            hi = hi.max(w);
+                        }
+                    }
+                }
                 Geom::Mesh(m) => {
                     let Some(mesh) = self.meshes.get(m as usize) else {
                         continue;
