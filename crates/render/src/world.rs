@@ -79,8 +79,12 @@ pub struct Surface {
 impl World {
     /// Builds BLASes (in parallel) and the TLAS.
     pub fn new(scene: Scene, opts: MeshOptions) -> Result<Self, WorldError> {
-        // Meshes that deform (morph targets) keep zero-area triangles so refits stay exact.
-        let deforming: Vec<u32> = scene.animation.as_ref().map(|a| a.morphs.iter().map(|m| m.mesh).collect()).unwrap_or_default();
+        // Meshes that deform (morph targets, skins) keep zero-area triangles so refits stay exact.
+        let deforming: Vec<u32> = scene
+            .animation
+            .as_ref()
+            .map(|a| a.morphs.iter().map(|m| m.mesh).chain(a.skins.iter().map(|s| s.mesh)).collect())
+            .unwrap_or_default();
         let meshes: Result<Vec<Geometry>, WorldError> = scene
             .meshes
             .par_iter()

@@ -145,3 +145,33 @@ fn animation_frames_do_not_depend_on_thread_count() {
     let cam2 = w.set_time(12.0).expect("pose").expect("camera");
     assert!((cam2.eye - cam.eye).length() > 0.1);
 }
+
+#[test]
+fn cesium_man_is_skinned_and_walks() {
+    let s = load(&scene("gltf_animated/CesiumMan.glb")).expect("load");
+    let anim = s.animation.clone().expect("animated");
+    assert_eq!(anim.skins.len(), 1);
+    let sk = &anim.skins[0];
+    assert!(sk.joints.len() > 10 && sk.vertex_weights.len() == sk.base.len());
+    let mut w = World::new(s, MeshOptions::default()).expect("world");
+    let (t0, t1) = anim.time_range();
+    let shape = |w: &World| -> (Vec<Vec3>, Vec3, Vec3) {
+        let p = w.scene.meshes[sk.mesh as usize].positions.clone();
+        let lo = p.iter().fold(Vec3::INFINITY, |a, b| a.min(*b));
+        let hi = p.iter().fold(Vec3::NEG_INFINITY, |a, b| a.max(*b));
+        (p, lo, hi)
+    };
+    w.set_time(t0).expect("pose");
+    let (a, lo, hi) = shape(&w);
+    // Upright and man-sized in world space (its instance transform is now the identity).
+    assert!((hi.y - lo.y) > 1.0 && (hi.y - lo.y) < 2.5, "height {}", hi.y - lo.y);
+    assert_eq!(w.scene.instances[sk.instance as usize].world_from_object, Affine3A::IDENTITY);
+    w.set_time(0.5 * (t0 + t1)).expect("pose");
+    let (b, _, _) = shape(&w);
+    let moved = a.iter().zip(&b).filter(|(p, q)| (**p - **q).length() > 1e-3).count();
+    assert!(moved > a.len() / 4, "{moved} of {} vertices moved as he walks", a.len());
+    // The refitted or rebuilt bottom level follows: a ray down onto the head finds him.
+    let top = b.iter().copied().fold(Vec3::NEG_INFINITY, |m, p| if p.y > m.y { p } else { m });
+    let h = w.intersect(&Ray::new(top + Vec3::Y, -Vec3::Y)).expect("the head");
+    assert!((h.t - 1.0).abs() < 0.05, "t = {}", h.t);
+}

@@ -77,6 +77,26 @@ pub struct Morph {
     pub default_weights: Vec<f32>,
 }
 
+/// A skinned mesh (glTF skins): vertices follow joint nodes (linear blend skinning).
+#[derive(Clone, Debug)]
+pub struct Skin {
+    /// Mesh index in `Scene::meshes`.
+    pub mesh: u32,
+    /// Instance that draws it (its transform becomes the identity: skinned vertices are
+    /// in world space, as glTF specifies).
+    pub instance: u32,
+    /// Joint nodes.
+    pub joints: Vec<u32>,
+    /// Inverse bind matrix per joint.
+    pub inverse_bind: Vec<Mat4>,
+    /// Bind-pose positions.
+    pub base: Vec<Vec3>,
+    /// Four joint indices (into `joints`) per vertex.
+    pub vertex_joints: Vec<[u16; 4]>,
+    /// Four weights per vertex.
+    pub vertex_weights: Vec<[f32; 4]>,
+}
+
 /// Translation, rotation, scale.
 type Trs = (Vec3, Quat, Vec3);
 
@@ -95,6 +115,8 @@ pub struct SceneAnimation {
     pub light_nodes: Vec<(usize, u32)>,
     /// Morphing meshes.
     pub morphs: Vec<Morph>,
+    /// Skinned meshes.
+    pub skins: Vec<Skin>,
 }
 
 /// The scene at one time.
@@ -196,7 +218,7 @@ impl SceneAnimation {
             let fwd = m.transform_vector3(-Vec3::Z);
             CameraDesc { eye, look_at: eye + fwd, up: m.transform_vector3(Vec3::Y), vfov_deg: vfov, ortho_height: ortho }
         });
-        let meshes = self
+        let mut meshes: Vec<(u32, Vec<Vec3>)> = self
             .morphs
             .iter()
             .map(|m| {
@@ -212,12 +234,38 @@ impl SceneAnimation {
                 (m.mesh, p)
             })
             .collect();
-        Pose {
-            instances: self.instance_nodes.iter().map(|&n| at(n)).collect(),
-            camera,
-            lights: self.light_nodes.iter().map(|&(l, n)| (l, at(n))).collect(),
-            meshes,
+        let mut instances: Vec<Affine3A> = self.instance_nodes.iter().map(|&n| at(n)).collect();
+        for sk in &self.skins {
+            let joint: Vec<Mat4> = sk
+                .joints
+                .iter()
+                .zip(&sk.inverse_bind)
+                .map(|(&j, ibm)| world.get(j as usize).copied().unwrap_or(Mat4::IDENTITY) * *ibm)
+                .collect();
+            let p = sk
+                .base
+                .iter()
+                .zip(sk.vertex_joints.iter().zip(&sk.vertex_weights))
+                .map(|(v, (js, ws))| {
+                    let mut m = Mat4::ZERO;
+                    for k in 0..4 {
+                        if ws[k] != 0.0 {
+                            m += joint.get(usize::from(js[k])).copied().unwrap_or(Mat4::IDENTITY) * ws[k];
+                        }
+                    }
+                    if m == Mat4::ZERO {
+                        *v
+                    } else {
+                        m.transform_point3(*v)
+                    }
+                })
+                .collect();
+            meshes.push((sk.mesh, p));
+            if let Some(slot) = instances.get_mut(sk.instance as usize) {
+                *slot = Affine3A::IDENTITY;
+            }
         }
+        Pose { instances, camera, lights: self.light_nodes.iter().map(|&(l, n)| (l, at(n))).collect(), meshes }
     }
 }
 

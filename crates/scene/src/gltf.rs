@@ -2,7 +2,7 @@
 //! nodes becomes one mesh, instanced), PBR materials mapped to Phong/Whitted terms,
 //! textures, cameras and `KHR_lights_punctual`.
 
-use crate::anim::{Channel, Interp, Morph, Node, SceneAnimation, Target};
+use crate::anim::{Channel, Interp, Morph, Node, SceneAnimation, Skin, Target};
 use crate::error::ImportError;
 use crate::model::{Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene, Wrap};
 use crate::texture::texture_from_image;
@@ -123,10 +123,14 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
     let mut mesh_map: Vec<Option<u32>> = Vec::new();
     // Morph-target position displacements per glTF mesh (concatenated over primitives).
     let mut morph_targets: Vec<Vec<Vec<Vec3>>> = Vec::new();
+    // Per glTF mesh: joints and weights of every vertex, when every primitive has them.
+    type SkinData = Option<(Vec<[u16; 4]>, Vec<[f32; 4]>)>;
+    let mut skin_data: Vec<SkinData> = Vec::new();
     for m in doc.meshes() {
         let mut mesh = Mesh { name: m.name().unwrap_or("mesh").to_string(), ..Mesh::default() };
         let n_targets = m.primitives().map(|p| p.morph_targets().len()).max().unwrap_or(0);
         let mut targets: Vec<Vec<Vec3>> = vec![Vec::new(); n_targets];
+        let (mut vjoints, mut vweights, mut skinned) = (Vec::new(), Vec::new(), true);
         let (mut normals, mut uvs) = (Vec::new(), Vec::new());
         let (mut all_n, mut all_uv) = (true, true);
         for (pi, p) in m.primitives().enumerate() {
@@ -171,6 +175,19 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
                     uvs.extend(std::iter::repeat_n(Vec2::ZERO, n));
                 }
             }
+            match (reader.read_joints(0), reader.read_weights(0)) {
+                (Some(j), Some(w)) => {
+                    let j: Vec<[u16; 4]> = j.into_u16().collect();
+                    let w: Vec<[f32; 4]> = w.into_f32().collect();
+                    if j.len() == n && w.len() == n {
+                        vjoints.extend(j);
+                        vweights.extend(w);
+                    } else {
+                        skinned = false;
+                    }
+                }
+                _ => skinned = false,
+            }
             let mut read_targets = reader.read_morph_targets();
             for tgt in &mut targets {
                 let d: Vec<Vec3> = read_targets.next().and_then(|(p, _, _)| p).map(|p| p.map(Vec3::from).collect()).unwrap_or_default();
@@ -185,6 +202,7 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
             mesh.material.extend(std::iter::repeat_n(mat, tris.len()));
         }
         morph_targets.push(targets);
+        skin_data.push(skinned.then_some((vjoints, vweights)));
         if mesh.indices.is_empty() {
             mesh_map.push(None);
             continue;
@@ -230,6 +248,26 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
             if let Some(Some(id)) = mesh_map.get(m.index()) {
                 scene.instances.push(Instance { geom: Geom::Mesh(*id), world_from_object: affine });
                 anim.instance_nodes.push(node.index() as u32);
+                if let (Some(skin), Some(Some((vj, vw)))) = (node.skin(), skin_data.get(m.index())) {
+                    if !anim.skins.iter().any(|s| s.mesh == *id) {
+                        let joints: Vec<u32> = skin.joints().map(|j| j.index() as u32).collect();
+                        let reader = skin.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+                        let mut inverse_bind: Vec<Mat4> = reader
+                            .read_inverse_bind_matrices()
+                            .map(|it| it.map(|m| Mat4::from_cols_array_2d(&m)).collect())
+                            .unwrap_or_default();
+                        inverse_bind.resize(joints.len(), Mat4::IDENTITY);
+                        anim.skins.push(Skin {
+                            mesh: *id,
+                            instance: (scene.instances.len() - 1) as u32,
+                            joints,
+                            inverse_bind,
+                            base: scene.meshes[*id as usize].positions.clone(),
+                            vertex_joints: vj.clone(),
+                            vertex_weights: vw.clone(),
+                        });
+                    }
+                }
                 let targets = morph_targets.get(m.index()).filter(|t| !t.is_empty());
                 if let Some(targets) = targets.filter(|_| !anim.morphs.iter().any(|x| x.mesh == *id)) {
                     let weights = node.weights().or_else(|| m.weights()).map(<[f32]>::to_vec).unwrap_or_else(|| vec![0.0; targets.len()]);
