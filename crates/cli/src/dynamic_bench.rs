@@ -126,6 +126,35 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
         let mut fresh = MeshBvh::build(&mesh.positions, &mesh.indices, opts)?;
         let ratios: Vec<f32> = poses.iter().map(|p| fresh.refit(p, &mesh.indices).unwrap_or(f32::NAN)).collect();
         let worst = ratios.iter().copied().fold(0.0f32, f32::max);
+        // The data behind the rebuild threshold: how much slower rays get through a
+        // refitted tree than through a fresh one, against the SAH cost ratio.
+        let (lo, hi) = poses.iter().flatten().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+        let rays: Vec<lucent_accel::Ray> = (0..20_000u64)
+            .map(|i| {
+                let o = lo + (hi - lo) * Vec3::new(rand01(5 * i), rand01(5 * i + 1), rand01(5 * i + 2)) * 1.2 - (hi - lo) * 0.1;
+                let d = Vec3::new(rand01(5 * i + 3) - 0.5, rand01(5 * i + 4) - 0.5, rand01(7 * i + 11) - 0.5).normalize_or(Vec3::X);
+                lucent_accel::Ray::new(o, d)
+            })
+            .collect();
+        let trace = |b: &MeshBvh| {
+            time_ms(5, || {
+                let mut n = 0u32;
+                for r in &rays {
+                    n += u32::from(b.intersect(r).is_some());
+                }
+                std::hint::black_box(n);
+            })
+        };
+        let mut refitted = MeshBvh::build(&mesh.positions, &mesh.indices, opts)?;
+        let mut samples = Vec::new();
+        for (k, p) in poses.iter().enumerate().step_by(5) {
+            let ratio = refitted.refit(p, &mesh.indices)?;
+            let fresh = MeshBvh::build(p, &mesh.indices, opts)?;
+            let slow = trace(&refitted) / trace(&fresh).max(1e-9);
+            samples.push(serde_json::json!({"pose": k, "sah_ratio": ratio, "trace_time_ratio": slow}));
+            rows.push(format!("  museum pose {k:2}: refitted tree SAH ratio {ratio:6.2}, rays {slow:5.2}x the time of a fresh tree"));
+        }
+        line("refit_decay", serde_json::json!({"mesh": "museum animated", "samples": samples}));
         line(
             "blas_refit",
             serde_json::json!({"mesh": "museum animated", "triangles": mesh.indices.len(), "median_ms": refit, "sah_ratio_max": worst, "sah_ratio_end": ratios.last()}),
