@@ -135,7 +135,7 @@ fn viewer_shows_the_demo_and_answers_keys_and_mouse() {
         }
     };
     let title = wait_title(&display, &wid, "[converged]", 60);
-    assert!(title.contains("built-in demo") && title.contains("[converged]"), "{title}");
+    assert!(title.contains("built-in default demo") && title.contains("[converged]"), "{title}");
     let first = xwd(&display, &wid);
     assert_eq!((first.w, first.h), (640, 480));
     // The demo's content where expected: sky above, the red cylinder on the left, the

@@ -246,7 +246,9 @@ impl App {
             if path.exists() {
                 continue;
             }
-            match film.save(&path) {
+            // Written beside, then renamed: whoever watches the folder never sees half a file.
+            let part = self.opts.screenshot_dir.join(format!(".lucent-view-{:04}.part.png", self.shots));
+            match film.save(&part).map_err(|e| e.to_string()).and_then(|()| std::fs::rename(&part, &path).map_err(|e| e.to_string())) {
                 Ok(()) => println!("screenshot: {} ({}x{})", path.display(), film.width, film.height),
                 Err(e) => tracing::error!("screenshot failed: {e}"),
             }
@@ -504,10 +506,14 @@ impl ApplicationHandler for App {
                 self.dirty = true;
             }
             WindowEvent::KeyboardInput { event, .. } => {
+                tracing::debug!(key = ?event.physical_key, state = ?event.state, repeat = event.repeat, "key");
                 if let PhysicalKey::Code(code) = event.physical_key {
                     match event.state {
                         ElementState::Pressed => {
-                            if !event.repeat {
+                            // X11 (XInput2) sometimes reports one press twice, neither as a
+                            // repeat: a key already down is not pressed again, so toggles
+                            // such as Space do not flip back.
+                            if !event.repeat && !self.keys.contains(&code) {
                                 self.key(code, el);
                             }
                             self.keys.insert(code);
