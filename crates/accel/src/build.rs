@@ -476,3 +476,72 @@ fn append(nodes: &mut Vec<BinNode>, sub: Vec<BinNode>) -> u32 {
     }));
     base
 }
+
+/// Spreads the low 10 bits of `v` to every third bit (for 30-bit Morton codes).
+fn spread3(v: u32) -> u32 {
+    let mut x = v & 0x3ff;
+    x = (x | (x << 16)) & 0x0300_00ff;
+    x = (x | (x << 8)) & 0x0300_f00f;
+    x = (x | (x << 4)) & 0x030c_30c3;
+    (x | (x << 2)) & 0x0924_9249
+}
+
+/// A linear BVH (Lauterbach, Garland, Sengupta, Luebke, Manocha, "Fast BVH Construction
+/// on GPUs", Eurographics 2009): primitives sorted along a Morton curve of their
+/// centroids, split top-down at the highest differing code bit. Much faster to build than
+/// binned SAH and somewhat worse to trace: for top levels over many instances that are
+/// rebuilt every frame.
+#[must_use]
+pub fn build_lbvh(prims: Vec<PrimRef>, max_leaf: usize) -> BinaryBvh {
+    if prims.is_empty() {
+        return BinaryBvh::default();
+    }
+    let (_, cbounds) = bounds_of(&prims);
+    let lo = cbounds.lo;
+    let ext = (cbounds.hi - cbounds.lo).max(Vec4::splat(1e-30));
+    let mut keyed: Vec<u64> = prims
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let q = ((p.centroid2() - lo) / ext * 1023.0).clamp(Vec4::ZERO, Vec4::splat(1023.0));
+            let code = spread3(q.x as u32) << 2 | spread3(q.y as u32) << 1 | spread3(q.z as u32);
+            u64::from(code) << 32 | i as u64
+        })
+        .collect();
+    keyed.sort_unstable();
+    let sorted: Vec<PrimRef> = keyed.iter().map(|k| prims[(k & 0xffff_ffff) as usize]).collect();
+    let codes: Vec<u32> = keyed.iter().map(|k| (k >> 32) as u32).collect();
+    let mut nodes = Vec::with_capacity(2 * sorted.len() / max_leaf.max(1) + 1);
+    fn rec(codes: &[u32], prims: &[PrimRef], lo: usize, hi: usize, max_leaf: usize, nodes: &mut Vec<BinNode>) -> Aabb {
+        let me = nodes.len();
+        nodes.push(BinNode { bounds: Aabb::EMPTY, first: lo as u32, right: 0, count: (hi - lo) as u32 });
+        if hi - lo <= max_leaf {
+            let mut b = Box4::EMPTY;
+            for p in &prims[lo..hi] {
+                b.add(p);
+            }
+            nodes[me].bounds = b.aabb();
+            return nodes[me].bounds;
+        }
+        let (a, z) = (codes[lo], codes[hi - 1]);
+        let mid = if a == z {
+            (lo + hi) / 2
+        } else {
+            // First index whose code has the highest differing bit set.
+            let bit = 31 - (a ^ z).leading_zeros();
+            let mask = !((1u32 << bit) - 1) & !(1u32 << bit);
+            let prefix = a & mask;
+            lo + codes[lo..hi].partition_point(|&c| c & (mask | 1 << bit) == prefix)
+        };
+        let mid = mid.clamp(lo + 1, hi - 1);
+        let left = nodes.len() as u32;
+        let bl = rec(codes, prims, lo, mid, max_leaf, nodes);
+        let right = nodes.len() as u32;
+        let br = rec(codes, prims, mid, hi, max_leaf, nodes);
+        let b = bl.union(br);
+        nodes[me] = BinNode { bounds: b, first: left, right, count: 0 };
+        b
+    }
+    rec(&codes, &sorted, 0, sorted.len(), max_leaf.max(1), &mut nodes);
+    BinaryBvh { nodes, prims: sorted }
+}

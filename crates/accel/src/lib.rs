@@ -40,5 +40,5 @@ pub use glam;
 pub use kernel::Kernel;
 pub use mesh::{BuildError, BvhStats, MeshBvh, MeshOptions, TriangleTest, Width};
 pub use shape::{Shape, ShapeHit};
-pub use tlas::{Geometry, Instance, TwoLevel};
+pub use tlas::{Geometry, Instance, TopBuilder, TwoLevel};
 pub use traverse::TraversalStats;

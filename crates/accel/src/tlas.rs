@@ -53,6 +53,17 @@ impl Instance {
     }
 }
 
+/// How the top level is built.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TopBuilder {
+    /// Binned SAH (the default: the better tree).
+    #[default]
+    Sah,
+    /// Linear BVH in Morton order: about 4× faster to build, about 20% slower to trace
+    /// (`lucent bench dynamic` measures both on the sunflower field).
+    Linear,
+}
+
 /// Geometries, instances and the top-level BVH over them.
 #[derive(Clone, Debug)]
 pub struct TwoLevel {
@@ -65,6 +76,7 @@ pub struct TwoLevel {
     unbounded: Vec<u32>,
     bounds: Aabb,
     kernel: Kernel,
+    builder: TopBuilder,
 }
 
 impl TwoLevel {
@@ -78,6 +90,7 @@ impl TwoLevel {
             unbounded: Vec::new(),
             bounds: Aabb::EMPTY,
             kernel: Kernel::detect(),
+            builder: TopBuilder::Sah,
         };
         s.rebuild()?;
         Ok(s)
@@ -93,6 +106,11 @@ impl TwoLevel {
     #[must_use]
     pub fn instances(&self) -> &[Instance] {
         &self.instances
+    }
+
+    /// Chooses the top-level builder for the next rebuilds.
+    pub fn set_top_builder(&mut self, b: TopBuilder) {
+        self.builder = b;
     }
 
     /// Geometry `i`, to refit in place (then call [`TwoLevel::rebuild`]).
@@ -180,7 +198,10 @@ impl TwoLevel {
             }
         }
         let cfg = BuildConfig { max_leaf: 2, leaf_block: 1, cost_traverse: 1.0 };
-        let bin = build_binary(prims, &cfg);
+        let bin = match self.builder {
+            TopBuilder::Linear => crate::build::build_lbvh(prims, 2),
+            TopBuilder::Sah => build_binary(prims, &cfg),
+        };
         self.bounds = bin.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds);
         self.order = bin.prims.iter().map(|p| p.id()).collect();
         self.nodes =

@@ -155,7 +155,14 @@ fn two_level_matches_reference() {
     }
     let insts: Vec<Instance> = placed.iter().map(|&(g, m)| Instance::new(g, m)).collect();
     let mut tl = TwoLevel::new(geoms, insts).expect("tlas");
-    for kernel in Kernel::available() {
+    // Both top-level builders, every kernel.
+    let mut variants = Vec::new();
+    for builder in [lucent_accel::TopBuilder::Sah, lucent_accel::TopBuilder::Linear] {
+        tl.set_top_builder(builder);
+        tl.rebuild().expect("rebuild");
+        variants.extend(Kernel::available().into_iter().map(|k| (k, tl.clone())));
+    }
+    for (kernel, mut tl) in variants {
         tl.set_kernel(kernel);
         let mut rng = Pcg64::seed_from_u64(6);
         for _ in 0..500 {

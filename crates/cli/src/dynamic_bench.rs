@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use lucent_accel::glam::{Affine3A, Quat, Vec3};
-use lucent_accel::{Geometry, Instance, MeshBvh, MeshOptions, TwoLevel};
+use lucent_accel::{Geometry, Instance, MeshBvh, MeshOptions, TopBuilder, TwoLevel};
 use lucent_render::{render, Camera, RenderSettings, WhittedSettings, World};
 use std::path::Path;
 use std::time::Instant;
@@ -81,13 +81,16 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
                 Instance::new(0, Affine3A::from_scale_rotation_translation(Vec3::splat(0.5 + rand01(i + 9_000_000)), rot, pos))
             })
             .collect();
-        let mut tl = TwoLevel::new(vec![Geometry::Mesh(blas.clone())], insts.clone())?;
-        let ms = time_ms(15, || {
-            // What a frame of rigid motion costs: new transforms in, top level rebuilt.
-            let _ = tl.set_instances(insts.clone());
-        });
-        line("tlas_build", serde_json::json!({"instances": n, "median_ms": ms}));
-        rows.push(format!("TLAS rebuild, {n} instances: {ms:.3} ms"));
+        for (builder, name) in [(TopBuilder::Sah, "sah"), (TopBuilder::Linear, "linear")] {
+            let mut tl = TwoLevel::new(vec![Geometry::Mesh(blas.clone())], insts.clone())?;
+            tl.set_top_builder(builder);
+            let ms = time_ms(15, || {
+                // What a frame of rigid motion costs: new transforms in, top level rebuilt.
+                let _ = tl.set_instances(insts.clone());
+            });
+            line("tlas_build", serde_json::json!({"instances": n, "builder": name, "median_ms": ms}));
+            rows.push(format!("TLAS rebuild ({name}), {n} instances: {ms:.3} ms"));
+        }
     }
     // 2. Bottom-level refit: 100k-triangle wavy grid, and the museum's animated mesh.
     let (p, idx) = grid(100_000);
@@ -165,7 +168,12 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
         ));
     }
     // 3. Whole animated frames (update + render, shadows on).
-    for (name, path) in [("kitchen", Some(&kitchen)), ("museum", Some(&museum)), ("sunflowers", None)] {
+    for (name, path, builder) in [
+        ("kitchen", Some(&kitchen), TopBuilder::Sah),
+        ("museum", Some(&museum), TopBuilder::Sah),
+        ("sunflowers", None, TopBuilder::Sah),
+        ("sunflowers, linear TLAS", None, TopBuilder::Linear),
+    ] {
         let scene = match path {
             Some(p) if !p.exists() => continue,
             Some(p) => lucent_scene::load(p)?,
@@ -175,6 +183,7 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
         let fallback = crate::render_cmd::choose_camera(&scene, None, false)?;
         let mut world = World::new(scene, MeshOptions::default())?;
         world.ensure_light(fallback.eye);
+        world.accel.set_top_builder(builder);
         let rs = RenderSettings { width: size.0, height: size.1, spp: 1, whitted: WhittedSettings::default() };
         let (mut upd, mut ren, mut tot) = (Vec::new(), Vec::new(), Vec::new());
         for f in 0..frames.max(1) {
