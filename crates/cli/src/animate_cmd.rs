@@ -1,6 +1,7 @@
 //! `lucent animate`: renders a glTF animation to numbered PNGs with the scene's animated
 //! camera, and reports per-frame update and render times.
 
+use crate::stats::median;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_accel::MeshOptions;
@@ -20,11 +21,6 @@ pub struct AnimateArgs {
     pub spp: u32,
     pub no_shadows: bool,
     pub output: PathBuf,
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(0.0)
 }
 
 pub fn run(a: AnimateArgs) -> Result<()> {

@@ -115,11 +115,6 @@ pub struct RaysOptions {
 
 const CHUNK_BLOCKS: usize = 32;
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 fn pool(threads: usize) -> Result<rayon::ThreadPool> {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start the thread pool")
 }
@@ -148,7 +143,7 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
         println!(
             "{{\"kind\":\"build\",\"tracer\":\"lucent\",\"scene\":\"{}\",\"tris\":{tris},\"quality\":\"sah\",\"bvh\":\"{bvh_label}\",\"threads\":{threads},\"median_ms\":{:.2},\"nodes\":{},\"sah\":{:.2},\"bytes\":{},\"bytes_per_tri\":{:.1}}}",
             o.name,
-            1e3 * median(times),
+            1e3 * crate::stats::median(&mut times),
             st.nodes,
             st.sah,
             st.bytes,
@@ -197,7 +192,7 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
                     }
                 });
             };
-            let times: Vec<f64> = p.install(|| {
+            let mut times: Vec<f64> = p.install(|| {
                 for _ in 0..o.warmup {
                     pass();
                 }
@@ -209,7 +204,7 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
                     })
                     .collect()
             });
-            let med = median(times);
+            let med = crate::stats::median(&mut times);
             let out: Vec<i32> = out_cells.iter().map(|c| c.load(std::sync::atomic::Ordering::Relaxed)).collect();
             let npix = (batch.width * batch.height) as usize;
             let mut px = vec![-1i32; npix];

@@ -1,17 +1,13 @@
 //! `lucent bench dynamic`: the figures of dynamic scenes: top-level rebuilds for many
 //! instances, bottom-level refits of deforming meshes, and whole animated frames.
 
+use crate::stats::median;
 use anyhow::{Context, Result};
 use lucent_accel::glam::{Affine3A, Quat, Vec3};
 use lucent_accel::{Geometry, Instance, MeshBvh, MeshOptions, TopBuilder, TwoLevel};
 use lucent_render::{render, Camera, RenderSettings, WhittedSettings, World};
 use std::path::Path;
 use std::time::Instant;
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(0.0)
-}
 
 fn time_ms(reps: usize, mut f: impl FnMut()) -> f64 {
     f();
@@ -204,10 +200,7 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
         );
         rows.push(format!("{name} animation at {}x{}: update {u:.2} ms + render {r:.1} ms = {:.1} fps", size.0, size.1, 1e3 / t));
     }
-    let rss = std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok()));
-    if let Some(kib) = rss {
+    if let Some(kib) = crate::stats::proc_status_kib("VmHWM:") {
         line("peak_memory", serde_json::json!({"mb": kib as f64 / 1024.0, "note": "whole process, all scenes above"}));
         rows.push(format!("peak resident memory of the whole run: {:.0} MB", kib as f64 / 1024.0));
     }

@@ -11,6 +11,7 @@ mod net_cmd;
 mod rend3r_bench;
 mod render_cmd;
 mod run_cmd;
+mod stats;
 mod view_cmd;
 
 #[derive(Parser)]

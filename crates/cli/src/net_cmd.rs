@@ -1,5 +1,6 @@
 //! `lucent serve`, `lucent send` and `lucent bench net`.
 
+use crate::stats::median;
 use anyhow::{Context, Result};
 use lucent_net::client::{batches, save_frame, udp_exchange};
 use lucent_net::protocol::{Hello, Input, PixelFormat, WireMode};
@@ -177,21 +178,6 @@ fn bench_move(i: u64) -> Vec<u32> {
     lucent_isa::assemble_words(&src, lucent_isa::AsmOptions::default()).unwrap_or_default()
 }
 
-fn vm_kib(field: &str) -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with(field))?;
-    line.split_whitespace().nth(1)?.parse().ok()
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        0.0
-    } else {
-        v[v.len() / 2]
-    }
-}
-
 fn pct(v: &[f64], p: f64) -> f64 {
     if v.is_empty() {
         0.0
@@ -210,7 +196,7 @@ pub fn bench(clients: &[usize], seconds: f64, size: (u32, u32), format: PixelFor
     };
     let server = Server::start(cfg)?;
     let addr = server.tcp_addr;
-    let rss0 = vm_kib("VmRSS:").unwrap_or(0);
+    let rss0 = crate::stats::proc_status_kib("VmRSS:").unwrap_or(0);
     println!(
         "{:>8} {:>10} {:>12} {:>14} {:>14} {:>12}",
         "clients", "fps/client", "fps total", "latency p50 ms", "latency p95 ms", "server MB"
@@ -251,7 +237,7 @@ pub fn bench(clients: &[usize], seconds: f64, size: (u32, u32), format: PixelFor
         let peak = std::thread::spawn(move || {
             let mut peak = 0u64;
             while Instant::now() < deadline {
-                peak = peak.max(vm_kib("VmRSS:").unwrap_or(0));
+                peak = peak.max(crate::stats::proc_status_kib("VmRSS:").unwrap_or(0));
                 std::thread::sleep(Duration::from_millis(50));
             }
             peak

@@ -37,11 +37,6 @@ pub fn spheres_program(n: usize, lights: usize) -> String {
     s
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 pub fn run(frames: usize, size: (u32, u32)) -> Result<()> {
     println!("REND3R Table IV scenes at {}x{}, {} threads, median of {frames} frames", size.0, size.1, rayon::current_num_threads());
     println!("| spheres | lights | frame ms (process + render) | x faster than 0.405 s | x faster than 16.9 s |");
@@ -61,7 +56,7 @@ pub fn run(frames: usize, size: (u32, u32)) -> Result<()> {
                 let (_film, _) = render_frame(&p.state, &fs)?;
                 times.push(t.elapsed().as_secs_f64());
             }
-            let ms = median(times) * 1e3;
+            let ms = crate::stats::median(&mut times) * 1e3;
             println!("| {n} | {lights} | {ms:.2} | {:.0} | {:.0} |", 405.0 / ms, 16900.0 / ms);
             eprintln!(
                 "{{\"kind\":\"rend3r_frame\",\"spheres\":{n},\"lights\":{lights},\"width\":{},\"height\":{},\"median_ms\":{ms:.3}}}",
