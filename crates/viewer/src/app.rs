@@ -128,9 +128,9 @@ struct App {
 const DEPTHS: [u32; 6] = [0, 1, 2, 4, 6, 10];
 
 impl App {
+    /// True while the picture changes: the user steers or an animation plays.
     fn moving(&self) -> bool {
-        const MOVE: [KeyCode; 6] = [KeyCode::KeyW, KeyCode::KeyA, KeyCode::KeyS, KeyCode::KeyD, KeyCode::KeyQ, KeyCode::KeyE];
-        MOVE.iter().any(|k| self.keys.contains(k)) || self.mouse_delta != (0.0, 0.0) || (self.anim_playing && self.program.is_none())
+        self.steering() || (self.anim_playing && self.program.is_none())
     }
 
     /// True while the user steers the camera.
@@ -436,7 +436,6 @@ impl App {
                 "refining"
             }
         );
-        let prog_film = self.program.as_ref().and_then(|p| p.last.clone());
         let Some(g) = self.gfx.as_mut() else { return };
         if g.window.title() != title {
             g.window.set_title(&title);
@@ -456,12 +455,11 @@ impl App {
         if buf.len() != (full.0 * full.1) as usize {
             return;
         }
-        match prog_film {
-            Some(f) => {
-                let mut a = Accumulator::default();
-                a.add(&f, false);
-                a.blit(&mut buf, full.0, full.1);
-            }
+        match self.program.as_ref() {
+            Some(p) => match &p.last {
+                Some(f) => crate::control::blit(&f.pixels, f.width, f.height, 1.0, &mut buf, full.0, full.1),
+                None => buf.fill(0),
+            },
             None => self.acc.blit(&mut buf, full.0, full.1),
         }
         let scale = if full.0 >= 900 { 2 } else { 1 };

@@ -303,35 +303,39 @@ impl Accumulator {
     }
 
     /// Writes the average, scaled to `w`×`h` (nearest pixel), as 0RGB sRGB into `out`.
-    /// Pixels are converted once at the image's own resolution (through a table), then
-    /// copied, so a quarter-resolution frame costs a quarter of the conversions.
     pub fn blit(&self, out: &mut [u32], w: u32, h: u32) {
-        use rayon::prelude::*;
-        if self.n == 0 || self.width == 0 || self.height == 0 || out.len() < (w as usize) * (h as usize) {
-            out.fill(0);
-            return;
-        }
-        let k = 1.0 / self.n as f32;
-        let lut = srgb_lut();
-        let q = |c: f32| u32::from(lut[((if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 }) * LUT_MAX as f32 + 0.5) as usize]);
-        let src: Vec<u32> = self
-            .sum
-            .par_iter()
-            .map(|p| {
-                let p = *p * k;
-                q(p.x) << 16 | q(p.y) << 8 | q(p.z)
-            })
-            .collect();
-        let sw = self.width as usize;
-        let xs: Vec<usize> = (0..w).map(|x| ((u64::from(x) * u64::from(self.width)) / u64::from(w.max(1))) as usize).collect();
-        out[..(w as usize) * (h as usize)].par_chunks_mut(w as usize).enumerate().for_each(|(y, dst)| {
-            let sy = (y as u64 * u64::from(self.height) / u64::from(h.max(1))) as usize;
-            let row = &src[sy * sw..(sy + 1) * sw];
-            for (d, &sx) in dst.iter_mut().zip(&xs) {
-                *d = row[sx];
-            }
-        });
+        blit(&self.sum, self.width, self.height, 1.0 / self.n.max(1) as f32, out, w, h);
     }
+}
+
+/// Writes `pixels` (`width`×`height`, linear, times `scale`), scaled to `w`×`h` (nearest
+/// pixel), as 0RGB sRGB into `out`; black when there is nothing. Pixels are converted once
+/// at their own resolution (through a table), then copied, so a quarter-resolution frame
+/// costs a quarter of the conversions.
+pub fn blit(pixels: &[Vec3], width: u32, height: u32, scale: f32, out: &mut [u32], w: u32, h: u32) {
+    use rayon::prelude::*;
+    let sw = width as usize;
+    if pixels.is_empty() || pixels.len() < sw * height as usize || width == 0 || height == 0 || out.len() < (w as usize) * (h as usize) {
+        out.fill(0);
+        return;
+    }
+    let lut = srgb_lut();
+    let q = |c: f32| u32::from(lut[((if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 }) * LUT_MAX as f32 + 0.5) as usize]);
+    let src: Vec<u32> = pixels
+        .par_iter()
+        .map(|p| {
+            let p = *p * scale;
+            q(p.x) << 16 | q(p.y) << 8 | q(p.z)
+        })
+        .collect();
+    let xs: Vec<usize> = (0..w).map(|x| ((u64::from(x) * u64::from(width)) / u64::from(w.max(1))) as usize).collect();
+    out[..(w as usize) * (h as usize)].par_chunks_mut(w as usize).enumerate().for_each(|(y, dst)| {
+        let sy = (y as u64 * u64::from(height) / u64::from(h.max(1))) as usize;
+        let row = &src[sy * sw..(sy + 1) * sw];
+        for (d, &sx) in dst.iter_mut().zip(&xs) {
+            *d = row[sx];
+        }
+    });
 }
 
 const LUT_MAX: usize = 4095;
