@@ -84,6 +84,19 @@ fn xwd(display: &str, wid: &str) -> Shot {
     Shot { w, h, rgb }
 }
 
+/// The viewer's window id, once it exists (at most 30 s).
+fn viewer_window(display: &str) -> String {
+    let t = Instant::now();
+    loop {
+        let id = xdo(display, &["search", "--name", "lucent view"]);
+        if let Some(id) = id.lines().next().filter(|l| !l.is_empty()) {
+            return id.to_string();
+        }
+        assert!(t.elapsed() < Duration::from_secs(30), "no viewer window");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
 /// Gives the window the keyboard focus and waits until it has it (no window manager runs
 /// under Xvfb, so focus is set directly).
 fn focus(display: &str, wid: &str) {
@@ -123,17 +136,7 @@ fn viewer_shows_the_demo_and_answers_keys_and_mouse() {
         .spawn()
         .expect("lucent view");
     let mut viewer = Kill(viewer);
-    let wid = {
-        let t = Instant::now();
-        loop {
-            let id = xdo(&display, &["search", "--name", "lucent view"]);
-            if let Some(id) = id.lines().next().filter(|l| !l.is_empty()) {
-                break id.to_string();
-            }
-            assert!(t.elapsed() < Duration::from_secs(30), "no viewer window");
-            std::thread::sleep(Duration::from_millis(100));
-        }
-    };
+    let wid = viewer_window(&display);
     let title = wait_title(&display, &wid, "[converged]", 60);
     assert!(title.contains("built-in default demo") && title.contains("[converged]"), "{title}");
     let first = xwd(&display, &wid);
@@ -243,15 +246,7 @@ fn viewer_plays_a_rend3r_program_and_space_pauses_it() {
         .spawn()
         .expect("lucent view");
     let _viewer = Kill(viewer);
-    let t = Instant::now();
-    let wid = loop {
-        let id = xdo(&display, &["search", "--name", "lucent view"]);
-        if let Some(id) = id.lines().next().filter(|l| !l.is_empty()) {
-            break id.to_string();
-        }
-        assert!(t.elapsed() < Duration::from_secs(30), "no viewer window");
-        std::thread::sleep(Duration::from_millis(100));
-    };
+    let wid = viewer_window(&display);
     // sphere.rdr loops (`lr`): the frame count keeps rising.
     let a = frame_number(&wait_title(&display, &wid, "frame 3", 20));
     std::thread::sleep(Duration::from_millis(500));
@@ -284,15 +279,7 @@ fn viewer_plays_a_gltf_animation_and_space_pauses_it() {
         .spawn()
         .expect("lucent view");
     let _viewer = Kill(viewer);
-    let t = Instant::now();
-    let wid = loop {
-        let id = xdo(&display, &["search", "--name", "lucent view"]);
-        if let Some(id) = id.lines().next().filter(|l| !l.is_empty()) {
-            break id.to_string();
-        }
-        assert!(t.elapsed() < Duration::from_secs(30), "no viewer window");
-        std::thread::sleep(Duration::from_millis(100));
-    };
+    let wid = viewer_window(&display);
     // Playing: the scene moves (the title says so, and the picture changes).
     let title = wait_title(&display, &wid, "[moving]", 10);
     assert!(title.contains("[moving]"), "{title}");
