@@ -35,7 +35,7 @@ pub fn load_program(path: &Path, camera_table: CameraTable) -> Result<(Vec<u32>,
 
 pub fn run(a: RunArgs) -> Result<()> {
     let (words, from_source) = load_program(&a.program, a.camera_table)?;
-    let sets = a.sets.or(from_source).unwrap_or(if a.mode == Mode::Raster { SetKind::Triangles } else { SetKind::Shapes });
+    let sets = a.sets.or(from_source).unwrap_or(SetKind::for_mode(a.mode));
     if let Some(switches) = a.board {
         return run_board(&a, &words, switches);
     }

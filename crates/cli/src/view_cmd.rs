@@ -40,7 +40,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         Some(p) if is_program(p) => {
             let (words, sets) = crate::run_cmd::load_program(p, lucent_isa::CameraTable::Final)?;
             let processor = Processor::new(words, lucent_isa::CameraTable::Final).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
-            let sets = sets.unwrap_or(if a.mode == Mode::Raster { SetKind::Triangles } else { SetKind::Shapes });
+            let sets = sets.unwrap_or(SetKind::for_mode(a.mode));
             let settings = FrameSettings { width: a.size.0, height: a.size.1, mode: a.mode, sets, painter: false, spp: 1 };
             Content::Program { processor: Box::new(processor), settings, name: p.display().to_string() }
         }

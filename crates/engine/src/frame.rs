@@ -56,6 +56,19 @@ pub enum Mode {
     Raster,
 }
 
+impl SetKind {
+    /// How words with no source to tell read their records: shapes when ray tracing,
+    /// triangles when rasterizing.
+    #[must_use]
+    pub fn for_mode(mode: Mode) -> Self {
+        if mode == Mode::Raster {
+            Self::Triangles
+        } else {
+            Self::Shapes
+        }
+    }
+}
+
 /// Frame settings.
 #[derive(Clone, Copy, Debug)]
 pub struct FrameSettings {

@@ -122,8 +122,7 @@ impl Ctx {
         }
     }
     pub(crate) fn frame_settings(&self, width: u32, height: u32, mode: Mode) -> FrameSettings {
-        let sets = if mode == Mode::Raster { SetKind::Triangles } else { SetKind::Shapes };
-        FrameSettings { width, height, mode, sets, painter: false, spp: 1 }
+        frame_settings(width, height, mode)
     }
     /// Resolves a requested frame size and mode against the defaults and limits.
     pub(crate) fn resolve(&self, w: u16, h: u16, mode: WireMode) -> Result<(u32, u32, Mode), String> {
@@ -142,6 +141,12 @@ impl Ctx {
         };
         Ok((w, h, mode))
     }
+}
+
+/// Frame settings of a device: `lucent run`'s (words read as shapes when ray tracing, as
+/// triangles when rasterizing; one sample; z-buffer).
+fn frame_settings(width: u32, height: u32, mode: Mode) -> FrameSettings {
+    FrameSettings { width, height, mode, sets: SetKind::for_mode(mode), painter: false, spp: 1 }
 }
 
 /// Time of the last traffic on a connection, either way.
@@ -176,9 +181,7 @@ impl Server {
     /// Binds every endpoint and starts serving in background threads.
     pub fn start(cfg: ServerConfig) -> io::Result<Self> {
         let shared = if cfg.shared {
-            let sets = if cfg.mode == Mode::Raster { SetKind::Triangles } else { SetKind::Shapes };
-            let fs = FrameSettings { width: cfg.width, height: cfg.height, mode: cfg.mode, sets, painter: false, spp: 1 };
-            Some(device::spawn(fs, cfg.device, "device-shared".into())?)
+            Some(device::spawn(frame_settings(cfg.width, cfg.height, cfg.mode), cfg.device, "device-shared".into())?)
         } else {
             None
         };
