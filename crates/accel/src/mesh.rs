@@ -96,10 +96,10 @@ pub struct BvhStats {
 #[derive(Clone, Debug)]
 pub struct MeshBvh {
     pub(crate) nodes: Nodes,
-    tris: Vec<Tri4>,
+    pub(crate) tris: Vec<Tri4>,
     wt_verts: Vec<[Vec3; 3]>,
     wt_ids: Vec<u32>,
-    test: TriangleTest,
+    pub(crate) test: TriangleTest,
     bounds: Aabb,
     kernel: Kernel,
     stats: BvhStats,

@@ -69,13 +69,13 @@ pub enum TopBuilder {
 pub struct TwoLevel {
     geometries: Vec<Geometry>,
     instances: Vec<Instance>,
-    nodes: Vec<WideNode<8>>,
+    pub(crate) nodes: Vec<WideNode<8>>,
     /// Instance ids in leaf order.
-    order: Vec<u32>,
+    pub(crate) order: Vec<u32>,
     /// Instances with infinite bounds, tested outside the tree.
-    unbounded: Vec<u32>,
+    pub(crate) unbounded: Vec<u32>,
     bounds: Aabb,
-    kernel: Kernel,
+    pub(crate) kernel: Kernel,
     builder: TopBuilder,
 }
 
@@ -286,7 +286,7 @@ impl TwoLevel {
     }
 
     #[inline(always)]
-    fn intersect_k<K: KernelSet>(&self, pre: &RayPre, hit: &mut Hit) {
+    pub(crate) fn intersect_k<K: KernelSet>(&self, pre: &RayPre, hit: &mut Hit) {
         let leaves = InstLeaves::<K> { tl: self, k: std::marker::PhantomData };
         // SAFETY: the caller selected K for this CPU.
         unsafe { traverse::intersect::<8, K::B8, _, _>(&self.nodes, &leaves, pre, hit, &mut ()) };
@@ -296,7 +296,7 @@ impl TwoLevel {
     }
 
     #[inline(always)]
-    fn occluded_k<K: KernelSet>(&self, pre: &RayPre, tmax: f32) -> bool {
+    pub(crate) fn occluded_k<K: KernelSet>(&self, pre: &RayPre, tmax: f32) -> bool {
         let leaves = InstLeaves::<K> { tl: self, k: std::marker::PhantomData };
         // SAFETY: the caller selected K for this CPU.
         self.unbounded.iter().any(|&i| leaves.occludes(i, pre, tmax))
@@ -332,9 +332,9 @@ fn avx512_occluded(t: &TwoLevel, ray: &Ray) -> bool {
     t.occluded_k::<crate::kernel::SimdSet>(&RayPre::new(ray), ray.tmax)
 }
 
-struct InstLeaves<'a, K> {
-    tl: &'a TwoLevel,
-    k: std::marker::PhantomData<K>,
+pub(crate) struct InstLeaves<'a, K> {
+    pub(crate) tl: &'a TwoLevel,
+    pub(crate) k: std::marker::PhantomData<K>,
 }
 
 impl<K: KernelSet> InstLeaves<'_, K> {
@@ -345,7 +345,7 @@ impl<K: KernelSet> InstLeaves<'_, K> {
     }
 
     #[inline(always)]
-    fn hit_instance(&self, id: u32, pre: &RayPre, hit: &mut Hit) {
+    pub(crate) fn hit_instance(&self, id: u32, pre: &RayPre, hit: &mut Hit) {
         let inst = &self.tl.instances[id as usize];
         let lp = self.local(inst, pre);
         match &self.tl.geometries[inst.geometry as usize] {
@@ -363,7 +363,7 @@ impl<K: KernelSet> InstLeaves<'_, K> {
     }
 
     #[inline(always)]
-    fn occludes(&self, id: u32, pre: &RayPre, tmax: f32) -> bool {
+    pub(crate) fn occludes(&self, id: u32, pre: &RayPre, tmax: f32) -> bool {
         let inst = &self.tl.instances[id as usize];
         let lp = self.local(inst, pre);
         match &self.tl.geometries[inst.geometry as usize] {

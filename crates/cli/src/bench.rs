@@ -109,11 +109,41 @@ pub struct RaysOptions {
     pub width: Width,
     pub test: TriangleTest,
     pub kernel: Kernel,
+    /// Kernels to time, one JSON line each.
+    pub apis: Vec<Api>,
     /// Write the per-pixel primary hit ids here (i32 little-endian, like `embree_bench --dump-ids`).
     pub dump_ids: Option<std::path::PathBuf>,
 }
 
 const CHUNK_BLOCKS: usize = 32;
+
+/// How rays are handed to the kernels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Api {
+    /// One ray at a time.
+    Single,
+    /// 8-ray packets (one 4×2-pixel block).
+    Packet8,
+    /// 64-ray packets (one 8×8-pixel tile).
+    Packet64,
+}
+
+impl Api {
+    fn rays(self) -> usize {
+        match self {
+            Api::Single => 1,
+            Api::Packet8 => 8,
+            Api::Packet64 => 64,
+        }
+    }
+    fn name(self) -> &'static str {
+        match self {
+            Api::Single => "single",
+            Api::Packet8 => "packet8",
+            Api::Packet64 => "packet64",
+        }
+    }
+}
 
 fn pool(threads: usize) -> Result<rayon::ThreadPool> {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start the thread pool")
@@ -152,9 +182,9 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
     }
     let Some(mut bvh) = bvh else { bail!("no thread count given") };
     bvh.set_kernel(o.kernel);
-    let api = match bvh.kernel() {
-        Kernel::Scalar => "single-scalar".to_string(),
-        k => format!("single-{}", k.name()),
+    let kname = match bvh.kernel() {
+        Kernel::Scalar => "scalar",
+        k => k.name(),
     };
     let ref_ids = std::fs::read(dir.join("ref_ids.bin"))
         .ok()
@@ -163,6 +193,8 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
         let path = dir.join(format!("rays_{kind}.bin"));
         let batch = read_rays(&path)?;
         let shadow = kind == "shadow";
+        for (api, per) in o.apis.iter().map(|&a| (a, a.rays())) {
+        let api = format!("{}-{kname}", api.name());
         for &threads in &o.threads {
             let p = pool(threads)?;
             // Like the Embree harness: every worker pulls chunks of 32 blocks (4 tiles, 256
@@ -179,15 +211,41 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
                     }
                     let b0 = c * CHUNK_BLOCKS;
                     let b1 = (b0 + CHUNK_BLOCKS).min(batch.blocks.len());
-                    for bi in b0..b1 {
-                        let b = &batch.blocks[bi];
-                        for l in 0..8 {
-                            if b.valid[l] == 0 {
-                                continue;
+                    if per == 1 {
+                        for bi in b0..b1 {
+                            let b = &batch.blocks[bi];
+                            for l in 0..8 {
+                                if b.valid[l] == 0 {
+                                    continue;
+                                }
+                                let r = b.ray(l);
+                                let v = if shadow { bvh.occluded(&r) as i32 } else { bvh.intersect(&r).map_or(-1, |h| h.prim as i32) };
+                                out_cells[bi * 8 + l].store(v, std::sync::atomic::Ordering::Relaxed);
                             }
-                            let r = b.ray(l);
-                            let v = if shadow { bvh.occluded(&r) as i32 } else { bvh.intersect(&r).map_or(-1, |h| h.prim as i32) };
-                            out_cells[bi * 8 + l].store(v, std::sync::atomic::Ordering::Relaxed);
+                        }
+                        continue;
+                    }
+                    // Packets of `per` rays: consecutive blocks (a tile is 8 blocks), ray
+                    // i of the packet is lane i % 8 of its block i / 8; invalid lanes have
+                    // an empty range and are skipped by the kernel.
+                    let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); lucent_accel::MAX_PACKET];
+                    let mut hits = [None; lucent_accel::MAX_PACKET];
+                    let mut occ = [false; lucent_accel::MAX_PACKET];
+                    let bpp = per / 8;
+                    for pb in (b0..b1).step_by(bpp) {
+                        let pe = (pb + bpp).min(b1);
+                        let n = (pe - pb) * 8;
+                        for (k, r) in rays[..n].iter_mut().enumerate() {
+                            *r = batch.blocks[pb + k / 8].ray(k % 8);
+                        }
+                        if shadow {
+                            bvh.occluded_packet(&rays[..n], &mut occ[..n]);
+                        } else {
+                            bvh.intersect_packet(&rays[..n], &mut hits[..n]);
+                        }
+                        for k in 0..n {
+                            let v = if shadow { occ[k] as i32 } else { hits[k].map_or(-1, |h| h.prim as i32) };
+                            out_cells[pb * 8 + k].store(v, std::sync::atomic::Ordering::Relaxed);
                         }
                     }
                 });
@@ -240,6 +298,7 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
                 }
             }
             println!("{line}}}");
+        }
         }
     }
     Ok(())

@@ -397,6 +397,10 @@ enum BenchCmd {
         /// Write the primary hit id of every pixel to this file (i32 little-endian, -1 = miss).
         #[arg(long)]
         dump_ids: Option<PathBuf>,
+        /// Kernels to time: single rays, 8-ray packets (4×2-pixel blocks) and 64-ray
+        /// packets (8×8-pixel tiles). One JSON line each.
+        #[arg(long, value_delimiter = ',', default_value = "single,packet8,packet64")]
+        api: Vec<bench::Api>,
     },
 }
 
@@ -512,7 +516,7 @@ fn run() -> Result<()> {
             camera_table_old: camera_table == "old",
             output,
         }),
-        Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar, dump_ids }) => bench::rays(
+        Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar, dump_ids, api }) => bench::rays(
             &dir,
             &bench::RaysOptions {
                 name,
@@ -524,6 +528,7 @@ fn run() -> Result<()> {
                 test: if watertight { lucent_accel::TriangleTest::Watertight } else { lucent_accel::TriangleTest::UnitTriangle },
                 kernel: if scalar { lucent_accel::Kernel::Scalar } else { lucent_accel::Kernel::detect() },
                 dump_ids,
+                apis: api,
             },
         ),
     }

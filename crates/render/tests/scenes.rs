@@ -116,3 +116,109 @@ fn kernels_match_reference_on_shared_scenes() {
         }
     }
 }
+
+/// The primary rays of a `w`×`h` image in 8×8 tiles, each tile's 64 rays in a row (the order
+/// the renderer and the benchmark trace them in).
+fn tile_rays(cam: &Camera, w: u32, h: u32) -> Vec<Ray> {
+    let mut rays = Vec::new();
+    for ty in (0..h).step_by(8) {
+        for tx in (0..w).step_by(8) {
+            for y in ty..ty + 8 {
+                for x in tx..tx + 8 {
+                    rays.push(cam.ray(x as f32 + 0.5, y as f32 + 0.5));
+                }
+            }
+        }
+    }
+    rays
+}
+
+fn view_camera(c: &[f32; 10], w: u32, h: u32) -> Camera {
+    Camera::new(
+        &CameraDesc {
+            eye: Vec3::new(c[0], c[1], c[2]),
+            look_at: Vec3::new(c[3], c[4], c[5]),
+            up: Vec3::new(c[6], c[7], c[8]),
+            vfov_deg: c[9],
+            ortho_height: None,
+        },
+        w,
+        h,
+    )
+}
+
+/// Packets (8×8 primary tiles, their shadow rays toward a light, and incoherent random rays
+/// that fall back to single rays) give the single-ray kernels' answers, with every kernel, on
+/// one mesh and on a two-level index with moved and rotated copies.
+#[test]
+fn packet_kernels_match_single_rays_on_shared_scenes() {
+    use lucent_accel::{Geometry, Instance, TwoLevel};
+    for &(file, c) in VIEWS {
+        let s = load(&scene(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let m = &s.meshes[0];
+        let (lo, hi) = s.bounds().expect("bounds");
+        let cam = view_camera(&c, 96, 64);
+        let mut rays = tile_rays(&cam, 96, 64);
+        let mut rng = Pcg64::seed_from_u64(7);
+        for _ in 0..256 {
+            let a = lo + (hi - lo) * Vec3::new(rng.random(), rng.random(), rng.random());
+            let b = lo + (hi - lo) * Vec3::new(rng.random(), rng.random(), rng.random());
+            rays.push(Ray::new(a, (b - a).normalize_or(Vec3::Y)));
+        }
+        let light = lo + (hi - lo) * Vec3::new(0.5, 0.9, 0.45);
+        let mut bvh = MeshBvh::build(&m.positions, &m.indices, MeshOptions::default()).expect("build");
+        let size = (hi - lo).length();
+        let moved = glam::Affine3A::from_scale_rotation_translation(
+            Vec3::splat(0.7),
+            glam::Quat::from_rotation_y(0.6),
+            Vec3::new(size * 0.3, 0.0, size * 0.1),
+        );
+        let mut tl = TwoLevel::new(
+            vec![Geometry::Mesh(MeshBvh::build(&m.positions, &m.indices, MeshOptions::default()).expect("build"))],
+            vec![Instance::new(0, glam::Affine3A::IDENTITY), Instance::new(0, moved)],
+        )
+        .expect("two-level");
+        for kernel in Kernel::available() {
+            bvh.set_kernel(kernel);
+            tl.set_kernel(kernel);
+            let mut got = vec![None; rays.len()];
+            bvh.intersect_packet(&rays, &mut got);
+            let mut got_tl = vec![None; rays.len()];
+            tl.intersect_packet(&rays, &mut got_tl);
+            let mut shadow = Vec::new();
+            let mut ties = 0;
+            for (i, r) in rays.iter().enumerate() {
+                for (want, g, what) in [(bvh.intersect(r), got[i], "mesh"), (tl.intersect(r), got_tl[i], "two-level")] {
+                    match (want, g) {
+                        (None, None) => {}
+                        (Some(w), Some(g)) => {
+                            assert_eq!(w.t.to_bits(), g.t.to_bits(), "{file} {kernel:?} {what} ray {i}: t");
+                            if (w.prim, w.inst) != (g.prim, g.inst) {
+                                ties += 1; // two surfaces at exactly this distance
+                            } else {
+                                assert_eq!((w.u.to_bits(), w.v.to_bits()), (g.u.to_bits(), g.v.to_bits()), "{file} {kernel:?} {what} ray {i}: u, v");
+                            }
+                        }
+                        _ => panic!("{file} {kernel:?} {what} ray {i}: single {want:?}, packet {g:?}"),
+                    }
+                }
+                if let Some(h) = got[i] {
+                    let p = r.org + r.dir * h.t;
+                    let o = p + (light - p).normalize_or_zero() * size * 1e-5;
+                    shadow.push(Ray::new(o, (light - o).normalize_or(Vec3::Y)).with_range(0.0, (light - o).length()));
+                }
+            }
+            // Ties are real (the kitchen has coincident triangles): the distance is the same.
+            assert!(ties <= rays.len() / 100, "{file} {kernel:?}: {ties} ties");
+            let mut occ = vec![false; shadow.len()];
+            bvh.occluded_packet(&shadow, &mut occ);
+            let mut occ_tl = vec![false; shadow.len()];
+            tl.occluded_packet(&shadow, &mut occ_tl);
+            for (i, r) in shadow.iter().enumerate() {
+                assert_eq!(occ[i], bvh.occluded(r), "{file} {kernel:?} shadow ray {i}");
+                assert_eq!(occ_tl[i], tl.occluded(r), "{file} {kernel:?} two-level shadow ray {i}");
+            }
+            assert!(occ.iter().any(|&o| o) || file.contains("bunny"), "{file}: some shadow ray is blocked");
+        }
+    }
+}
