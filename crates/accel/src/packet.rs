@@ -229,8 +229,12 @@ pub(crate) struct PacketHits {
 /// Interval bounds of a set of rays (all with the same direction signs).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Interval {
+    /// Rows of the near and far planes for the rays' own (forward) box tests.
     near: [usize; 3],
     far: [usize; 3],
+    /// Rows of the near and far planes for the interval test.
+    inear: [usize; 3],
+    ifar: [usize; 3],
     olo: [f32; 3],
     ohi: [f32; 3],
     rlo: [f32; 3],
@@ -259,24 +263,19 @@ impl Packet {
         };
         for (i, r) in rays[..n].iter().enumerate() {
             let (g, l) = (i / LANES, i % LANES);
-            p.set(g, l, r.org, r.dir, r.tmin);
+            for k in 0..3 {
+                p.o[g][k].0[l] = r.org[k];
+                p.d[g][k].0[l] = r.dir[k];
+            }
+            p.tmin[g].0[l] = r.tmin;
             let ok = r.org.is_finite() && r.dir.is_finite() && r.dir != Vec3::ZERO && r.tmin < r.tmax && !r.tmin.is_nan();
             p.valid[g].0[l] = -(ok as i32);
             h.t[g].0[l] = if ok { r.tmax } else { f32::NEG_INFINITY };
         }
-        (p, h)
-    }
-
-    #[inline(always)]
-    fn set(&mut self, g: usize, l: usize, o: Vec3, d: Vec3, tmin: f32) {
-        let tiny = 1e-18f32;
-        for k in 0..3 {
-            self.o[g][k].0[l] = o[k];
-            self.d[g][k].0[l] = d[k];
-            let dd = if d[k].abs() < tiny { tiny.copysign(d[k]) } else { d[k] };
-            self.inv[g][k].0[l] = 1.0 / dd;
+        for g in 0..groups {
+            p.inv[g] = p.d[g].map(recip);
         }
-        self.tmin[g].0[l] = tmin;
+        (p, h)
     }
 
     /// The ray in lane `l` of group `g`, its range ending at `tmax`.
@@ -308,14 +307,7 @@ impl Packet {
                 p.o[g][r] = a.mul(ox).add(b.mul(oy)).add(cc.mul(oz)).add(F8::splat(tr[r]));
                 p.d[g][r] = a.mul(dx).add(b.mul(dy)).add(cc.mul(dz));
             }
-            for l in 0..LANES {
-                let dd = Vec3::new(p.d[g][0].0[l], p.d[g][1].0[l], p.d[g][2].0[l]);
-                let tiny = 1e-18f32;
-                for k in 0..3 {
-                    let x = if dd[k].abs() < tiny { tiny.copysign(dd[k]) } else { dd[k] };
-                    p.inv[g][k].0[l] = 1.0 / x;
-                }
-            }
+            p.inv[g] = p.d[g].map(recip);
         }
         p
     }
@@ -345,7 +337,7 @@ impl Packet {
             return None;
         }
         let lo = |v: F8| -(v.neg().hmax());
-        let mut iv = Interval { near: [0; 3], far: [0; 3], olo: [0.0; 3], ohi: [0.0; 3], rlo: [0.0; 3], rhi: [0.0; 3], tmin: lo(tmin) };
+        let mut iv = Interval { near: [0; 3], far: [0; 3], inear: [0; 3], ifar: [0; 3], olo: [0.0; 3], ohi: [0.0; 3], rlo: [0.0; 3], rhi: [0.0; 3], tmin: lo(tmin) };
         for k in 0..3 {
             iv.olo[k] = lo(olo[k]);
             iv.ohi[k] = ohi[k].hmax();
@@ -357,9 +349,69 @@ impl Packet {
             }
             iv.near[k] = k + 3 * neg as usize;
             iv.far[k] = k + 3 * (!neg) as usize;
+            iv.inear[k] = iv.near[k];
+            iv.ifar[k] = iv.far[k];
         }
         Some(iv)
     }
+}
+
+impl Packet {
+    /// Interval bounds for an any-hit query: those of the rays, or of the same segments
+    /// walked backwards from their far ends when those ends are closer together (shadow rays
+    /// of a tile start on many surfaces but all end at one light). Both bound every point of
+    /// every segment, so culling with either is conservative; the exact per-ray tests stay
+    /// on the forward rays.
+    #[inline(always)]
+    pub(crate) fn occlusion_interval(&self, active: &Masks, h: &PacketHits) -> Option<Interval> {
+        let fwd = self.interval(active)?;
+        if fwd.tmin < 0.0 {
+            return Some(fwd);
+        }
+        let inf = f32::INFINITY;
+        let mut elo = [F8::splat(inf); 3];
+        let mut ehi = [F8::splat(-inf); 3];
+        for g in 0..self.groups {
+            let m = active[g];
+            for k in 0..3 {
+                let e = self.o[g][k].add(self.d[g][k].mul(h.t[g]));
+                elo[k] = elo[k].min(F8::splat(inf).blend(m, e));
+                ehi[k] = ehi[k].max(F8::splat(-inf).blend(m, e));
+            }
+        }
+        let mut rev = fwd;
+        let (mut ext_f, mut ext_r) = (0.0f32, 0.0f32);
+        for k in 0..3 {
+            let (lo, hi) = (-(elo[k].neg().hmax()), ehi[k].hmax());
+            // Widened by a few ulps of the coordinates: the ends are rounded.
+            let pad = lo.abs().max(hi.abs()) * (1.0 / (1u32 << 20) as f32);
+            rev.olo[k] = lo - pad;
+            rev.ohi[k] = hi + pad;
+            // Reversed directions: 1/(−d) = −(1/d) exactly.
+            rev.rlo[k] = -fwd.rhi[k];
+            rev.rhi[k] = -fwd.rlo[k];
+            rev.inear[k] = fwd.far[k];
+            rev.ifar[k] = fwd.near[k];
+            ext_f += fwd.ohi[k] - fwd.olo[k];
+            ext_r += rev.ohi[k] - rev.olo[k];
+        }
+        // The walk back covers [0, tmax − tmin] ⊂ [0, tmax] (the ends are padded above).
+        rev.tmin = 0.0;
+        Some(if ext_r.is_finite() && ext_r < ext_f { rev } else { fwd })
+    }
+}
+
+/// Lane-wise `1/d`, with |d| clamped to ≥ 1e-18 as in the single-ray kernel.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)]
+fn recip(d: F8) -> F8 {
+    let tiny = 1e-18f32;
+    let mut r = [0f32; LANES];
+    for i in 0..LANES {
+        let x = d.0[i];
+        r[i] = 1.0 / if x.abs() < tiny { tiny.copysign(x) } else { x };
+    }
+    F8(r)
 }
 
 trait IntoArr3 {
@@ -407,8 +459,8 @@ fn interval_test(node: &WideNode<8>, iv: &Interval, tmax: f32, dist: &mut [f32; 
     let mut tn = F8::splat(iv.tmin);
     let mut tf = F8::splat(tmax);
     for k in 0..3 {
-        let bn = F8(node.bounds[iv.near[k]]);
-        let bf = F8(node.bounds[iv.far[k]]);
+        let bn = F8(node.bounds[iv.inear[k]]);
+        let bf = F8(node.bounds[iv.ifar[k]]);
         let (olo, ohi) = (F8::splat(iv.olo[k]), F8::splat(iv.ohi[k]));
         let (rlo, rhi) = (F8::splat(iv.rlo[k]), F8::splat(iv.rhi[k]));
         // (b − o)·r is bilinear in (o, r): its extremes over the box of (o, r) are at corners.
@@ -756,41 +808,77 @@ fn chunks(rays: &[Ray], mut body: impl FnMut(usize, &Packet, &mut PacketHits)) {
     }
 }
 
+/// Traces the lanes of `active` as one packet when `interval` bounds them; else each group
+/// of eight alone when its rays agree on direction signs (a tile that straddles the light or
+/// the view axis usually splits so), else ray by ray.
+#[inline(always)]
+fn coherent_parts(
+    p: &Packet,
+    active: &Masks,
+    h: &mut PacketHits,
+    interval: impl Fn(&Masks, &PacketHits) -> Option<Interval>,
+    mut packet: impl FnMut(&Interval, &Masks, &mut PacketHits),
+    mut single: impl FnMut(usize, usize, &mut PacketHits),
+) {
+    if let Some(iv) = interval(active, h) {
+        packet(&iv, active, h);
+        return;
+    }
+    for g in 0..p.groups {
+        if active[g].bits() == 0 {
+            continue;
+        }
+        let mut one = [M8::NONE; GROUPS];
+        one[g] = active[g];
+        match interval(&one, h) {
+            Some(iv) => packet(&iv, &one, h),
+            None => {
+                let mut b = active[g].bits();
+                while b != 0 {
+                    let l = b.trailing_zeros() as usize;
+                    b &= b - 1;
+                    single(g, l, h);
+                }
+            }
+        }
+    }
+}
+
 impl MeshBvh {
     /// Closest hits of the lanes of `active` (packet traversal when the mesh has 8-wide
     /// unit-triangle nodes and the rays agree on direction signs; else ray by ray).
     #[inline(always)]
     pub(crate) fn packet_intersect_k<K: KernelSet>(&self, p: &Packet, active: &Masks, h: &mut PacketHits, inst: u32) {
-        if let (TriangleTest::UnitTriangle, Nodes::W8(n)) = (self.test, &self.nodes) {
-            if let Some(iv) = p.interval(active) {
-                intersect::<K, _, _>(n, &UnitPacketLeaves::<K> { tris: &self.tris, inst, k: std::marker::PhantomData }, p, &iv, active, h, &mut ());
-                return;
-            }
-        }
-        for_lanes(p.groups, active, |g, l| {
+        let single = |g: usize, l: usize, h: &mut PacketHits| {
             let mut hit = h.get(g, l);
             if self.intersect_k::<K, ()>(&RayPre::new(&p.ray(g, l, hit.t)), &mut hit, &mut ()) {
                 hit.inst = inst;
             }
             h.put(g, l, &hit);
-        });
+        };
+        if let (TriangleTest::UnitTriangle, Nodes::W8(n)) = (self.test, &self.nodes) {
+            let leaves = UnitPacketLeaves::<K> { tris: &self.tris, inst, k: std::marker::PhantomData };
+            coherent_parts(p, active, h, |m, _| p.interval(m), |iv, m, h| intersect::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()), single);
+        } else {
+            for_lanes(p.groups, active, |g, l| single(g, l, h));
+        }
     }
 
     /// Occlusion of the lanes of `active` (occluded lanes get `t = -inf`).
     #[inline(always)]
     pub(crate) fn packet_occluded_k<K: KernelSet>(&self, p: &Packet, active: &Masks, h: &mut PacketHits) {
-        if let (TriangleTest::UnitTriangle, Nodes::W8(n)) = (self.test, &self.nodes) {
-            if let Some(iv) = p.interval(active) {
-                occluded::<K, _, _>(n, &UnitPacketLeaves::<K> { tris: &self.tris, inst: INVALID, k: std::marker::PhantomData }, p, &iv, active, h, &mut ());
-                return;
-            }
-        }
-        for_lanes(p.groups, active, |g, l| {
+        let single = |g: usize, l: usize, h: &mut PacketHits| {
             let t = h.t[g].0[l];
             if self.occluded_k::<K, ()>(&RayPre::new(&p.ray(g, l, t)), t, &mut ()) {
                 h.t[g].0[l] = f32::NEG_INFINITY;
             }
-        });
+        };
+        if let (TriangleTest::UnitTriangle, Nodes::W8(n)) = (self.test, &self.nodes) {
+            let leaves = UnitPacketLeaves::<K> { tris: &self.tris, inst: INVALID, k: std::marker::PhantomData };
+            coherent_parts(p, active, h, |m, h| p.occlusion_interval(m, h), |iv, m, h| occluded::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()), single);
+        } else {
+            for_lanes(p.groups, active, |g, l| single(g, l, h));
+        }
     }
 
     /// Closest hits of coherent rays, traced together in packets of up to [`MAX_PACKET`]
@@ -932,39 +1020,47 @@ impl TwoLevel {
     fn packet_intersect_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
         let active = p.valid;
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
-        match p.interval(&active) {
-            Some(iv) => {
-                intersect::<K, _, _>(&self.nodes, &leaves, p, &iv, &active, h, &mut ());
+        coherent_parts(
+            p,
+            &active,
+            h,
+            |m, _| p.interval(m),
+            |iv, m, h| {
+                intersect::<K, _, _>(&self.nodes, &leaves, p, iv, m, h, &mut ());
                 for &i in &self.unbounded {
-                    leaves.hit_instance(i, p, &active, h);
+                    leaves.hit_instance(i, p, m, h);
                 }
-            }
-            None => for_lanes(p.groups, &active, |g, l| {
+            },
+            |g, l, h| {
                 let mut hit = h.get(g, l);
                 self.intersect_k::<K>(&RayPre::new(&p.ray(g, l, hit.t)), &mut hit);
                 h.put(g, l, &hit);
-            }),
-        }
+            },
+        );
     }
 
     #[inline(always)]
     fn packet_occluded_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
         let active = p.valid;
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
-        match p.interval(&active) {
-            Some(iv) => {
+        coherent_parts(
+            p,
+            &active,
+            h,
+            |m, h| p.occlusion_interval(m, h),
+            |iv, m, h| {
                 for &i in &self.unbounded {
-                    leaves.occluded_one(i, p, &active, h);
+                    leaves.occluded_one(i, p, m, h);
                 }
-                occluded::<K, _, _>(&self.nodes, &leaves, p, &iv, &active, h, &mut ());
-            }
-            None => for_lanes(p.groups, &active, |g, l| {
+                occluded::<K, _, _>(&self.nodes, &leaves, p, iv, m, h, &mut ());
+            },
+            |g, l, h| {
                 let t = h.t[g].0[l];
                 if self.occluded_k::<K>(&RayPre::new(&p.ray(g, l, t)), t) {
                     h.t[g].0[l] = f32::NEG_INFINITY;
                 }
-            }),
-        }
+            },
+        );
     }
 
     /// Closest hits of coherent rays over all instances, traced together in packets of up
@@ -1084,7 +1180,7 @@ mod avx {
         let mut tn = _mm256_set1_ps(iv.tmin);
         let mut tf = _mm256_set1_ps(tmax);
         for k in 0..3 {
-            let (bn, bf) = (row(iv.near[k]), row(iv.far[k]));
+            let (bn, bf) = (row(iv.inear[k]), row(iv.ifar[k]));
             let (olo, ohi) = (_mm256_set1_ps(iv.olo[k]), _mm256_set1_ps(iv.ohi[k]));
             let (rlo, rhi) = (_mm256_set1_ps(iv.rlo[k]), _mm256_set1_ps(iv.rhi[k]));
             let (n0, n1) = (_mm256_sub_ps(bn, olo), _mm256_sub_ps(bn, ohi));
