@@ -86,6 +86,8 @@ impl F8 {
     compare!(lt, <);
     compare!(le, <=);
     compare!(ge, >=);
+    compare!(eq, ==);
+    compare!(ne, !=);
     /// `minps`: the second operand when either is NaN.
     #[inline(always)]
     fn min(self, o: Self) -> Self {
@@ -261,6 +263,7 @@ impl Packet {
             prim: [[INVALID; LANES]; GROUPS],
             inst: [[INVALID; LANES]; GROUPS],
         };
+        let mut tmax = [F8::splat(f32::NEG_INFINITY); GROUPS];
         for (i, r) in rays[..n].iter().enumerate() {
             let (g, l) = (i / LANES, i % LANES);
             for k in 0..3 {
@@ -268,12 +271,21 @@ impl Packet {
                 p.d[g][k].0[l] = r.dir[k];
             }
             p.tmin[g].0[l] = r.tmin;
-            let ok = r.org.is_finite() && r.dir.is_finite() && r.dir != Vec3::ZERO && r.tmin < r.tmax && !r.tmin.is_nan();
-            p.valid[g].0[l] = -(ok as i32);
-            h.t[g].0[l] = if ok { r.tmax } else { f32::NEG_INFINITY };
+            tmax[g].0[l] = r.tmax;
         }
+        let zero = F8::splat(0.0);
         for g in 0..groups {
             p.inv[g] = p.d[g].map(recip);
+            // A ray counts when its origin and direction are finite (x·0 = 0), its direction
+            // is not zero and its range is not empty (false for a NaN bound).
+            let mut ok = p.tmin[g].lt(tmax[g]);
+            let mut nonzero = M8::NONE;
+            for k in 0..3 {
+                ok = ok.and(p.o[g][k].mul(zero).eq(zero)).and(p.d[g][k].mul(zero).eq(zero));
+                nonzero = nonzero.or(p.d[g][k].ne(zero));
+            }
+            p.valid[g] = ok.and(nonzero);
+            h.t[g] = F8::splat(f32::NEG_INFINITY).blend(p.valid[g], tmax[g]);
         }
         (p, h)
     }
@@ -811,37 +823,50 @@ fn chunks(rays: &[Ray], mut body: impl FnMut(usize, &Packet, &mut PacketHits)) {
 /// Traces the lanes of `active` as one packet when `interval` bounds them; else each group
 /// of eight alone when its rays agree on direction signs (a tile that straddles the light or
 /// the view axis usually splits so), else ray by ray.
-#[inline(always)]
-fn coherent_parts(
-    p: &Packet,
-    active: &Masks,
-    h: &mut PacketHits,
-    interval: impl Fn(&Masks, &PacketHits) -> Option<Interval>,
-    mut packet: impl FnMut(&Interval, &Masks, &mut PacketHits),
-    mut single: impl FnMut(usize, usize, &mut PacketHits),
-) {
-    if let Some(iv) = interval(active, h) {
-        packet(&iv, active, h);
-        return;
-    }
-    for g in 0..p.groups {
-        if active[g].bits() == 0 {
-            continue;
-        }
-        let mut one = [M8::NONE; GROUPS];
-        one[g] = active[g];
-        match interval(&one, h) {
-            Some(iv) => packet(&iv, &one, h),
-            None => {
-                let mut b = active[g].bits();
-                while b != 0 {
-                    let l = b.trailing_zeros() as usize;
-                    b &= b - 1;
-                    single(g, l, h);
+///
+/// PERF: a macro, not a function taking closures: closures are not compiled with the
+/// caller's target features, so the AVX2 kernels would not inline into them.
+macro_rules! coherent_parts {
+    ($p:expr, $active:expr, $h:expr, |$m:ident, $hh:ident| $interval:expr, |$iv:ident, $pm:ident, $ph:ident| $packet:expr, |$g:ident, $l:ident, $sh:ident| $single:expr) => {{
+        let p: &Packet = $p;
+        let active: &Masks = $active;
+        let h: &mut PacketHits = $h;
+        let whole = {
+            let ($m, $hh) = (active, &*h);
+            $interval
+        };
+        if let Some(iv) = whole {
+            let ($iv, $pm, $ph) = (&iv, active, &mut *h);
+            $packet;
+        } else {
+            for g in 0..p.groups {
+                if active[g].bits() == 0 {
+                    continue;
+                }
+                let mut one = [M8::NONE; GROUPS];
+                one[g] = active[g];
+                let part = {
+                    let ($m, $hh) = (&one, &*h);
+                    $interval
+                };
+                match part {
+                    Some(iv) => {
+                        let ($iv, $pm, $ph) = (&iv, &one, &mut *h);
+                        $packet;
+                    }
+                    None => {
+                        let mut b = active[g].bits();
+                        while b != 0 {
+                            let l = b.trailing_zeros() as usize;
+                            b &= b - 1;
+                            let ($g, $l, $sh) = (g, l, &mut *h);
+                            $single;
+                        }
+                    }
                 }
             }
         }
-    }
+    }};
 }
 
 impl MeshBvh {
@@ -858,7 +883,7 @@ impl MeshBvh {
         };
         if let (TriangleTest::UnitTriangle, Nodes::W8(n)) = (self.test, &self.nodes) {
             let leaves = UnitPacketLeaves::<K> { tris: &self.tris, inst, k: std::marker::PhantomData };
-            coherent_parts(p, active, h, |m, _| p.interval(m), |iv, m, h| intersect::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()), single);
+            coherent_parts!(p, active, h, |m, _hh| p.interval(m), |iv, m, h| intersect::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()), |g, l, h| single(g, l, h));
         } else {
             for_lanes(p.groups, active, |g, l| single(g, l, h));
         }
@@ -875,7 +900,7 @@ impl MeshBvh {
         };
         if let (TriangleTest::UnitTriangle, Nodes::W8(n)) = (self.test, &self.nodes) {
             let leaves = UnitPacketLeaves::<K> { tris: &self.tris, inst: INVALID, k: std::marker::PhantomData };
-            coherent_parts(p, active, h, |m, h| p.occlusion_interval(m, h), |iv, m, h| occluded::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()), single);
+            coherent_parts!(p, active, h, |m, hh| p.occlusion_interval(m, hh), |iv, m, h| occluded::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()), |g, l, h| single(g, l, h));
         } else {
             for_lanes(p.groups, active, |g, l| single(g, l, h));
         }
@@ -1020,11 +1045,11 @@ impl TwoLevel {
     fn packet_intersect_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
         let active = p.valid;
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
-        coherent_parts(
+        coherent_parts!(
             p,
             &active,
             h,
-            |m, _| p.interval(m),
+            |m, _hh| p.interval(m),
             |iv, m, h| {
                 intersect::<K, _, _>(&self.nodes, &leaves, p, iv, m, h, &mut ());
                 for &i in &self.unbounded {
@@ -1035,7 +1060,7 @@ impl TwoLevel {
                 let mut hit = h.get(g, l);
                 self.intersect_k::<K>(&RayPre::new(&p.ray(g, l, hit.t)), &mut hit);
                 h.put(g, l, &hit);
-            },
+            }
         );
     }
 
@@ -1043,11 +1068,11 @@ impl TwoLevel {
     fn packet_occluded_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
         let active = p.valid;
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
-        coherent_parts(
+        coherent_parts!(
             p,
             &active,
             h,
-            |m, h| p.occlusion_interval(m, h),
+            |m, hh| p.occlusion_interval(m, hh),
             |iv, m, h| {
                 for &i in &self.unbounded {
                     leaves.occluded_one(i, p, m, h);
@@ -1059,7 +1084,7 @@ impl TwoLevel {
                 if self.occluded_k::<K>(&RayPre::new(&p.ray(g, l, t)), t) {
                     h.t[g].0[l] = f32::NEG_INFINITY;
                 }
-            },
+            }
         );
     }
 

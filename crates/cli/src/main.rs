@@ -64,6 +64,10 @@ enum Cmd {
         /// Use the watertight triangle test instead of the unit-triangle test.
         #[arg(long)]
         watertight: bool,
+        /// Trace every ray on its own instead of in 8×8 packets (the same image, slower;
+        /// for comparisons).
+        #[arg(long)]
+        single_rays: bool,
     },
     /// Assemble a REND3R program (.rdr) into instruction words (.mem text or raw binary).
     Asm {
@@ -425,7 +429,7 @@ fn run() -> Result<()> {
         .init();
     let cli = Cli::parse();
     match cli.cmd {
-        Cmd::Render { scene, demo, camera, ortho, size, spp, threads, output, max_depth, no_shadows, watertight } => {
+        Cmd::Render { scene, demo, camera, ortho, size, spp, threads, output, max_depth, no_shadows, watertight, single_rays } => {
             render_cmd::run(render_cmd::RenderArgs {
                 scene,
                 demo,
@@ -438,6 +442,7 @@ fn run() -> Result<()> {
                 max_depth,
                 no_shadows,
                 watertight,
+                single_rays,
             })
         }
         Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo.as_deref()),

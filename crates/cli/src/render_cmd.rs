@@ -23,6 +23,7 @@ pub struct RenderArgs {
     pub max_depth: u32,
     pub no_shadows: bool,
     pub watertight: bool,
+    pub single_rays: bool,
 }
 
 /// Parses "WxH".
@@ -97,7 +98,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         width: w,
         height: h,
         spp: a.spp.max(1),
-        whitted: WhittedSettings { max_depth: a.max_depth, shadows: !a.no_shadows },
+        whitted: WhittedSettings { max_depth: a.max_depth, shadows: !a.no_shadows, packets: !a.single_rays },
     };
     let cam = Camera::new(&desc, w, h);
     let tiles = (w.div_ceil(lucent_render::TILE) * h.div_ceil(lucent_render::TILE)) as u64;

@@ -316,7 +316,7 @@ pub fn render_frame(state: &DeviceState, fs: &FrameSettings) -> Result<(Film, Fr
                 width: fs.width,
                 height: fs.height,
                 spp: fs.spp.max(1),
-                whitted: WhittedSettings { max_depth: 5, shadows: true },
+                whitted: WhittedSettings { max_depth: 5, shadows: true, ..WhittedSettings::default() },
             };
             let (film, rays) = render(&world, &cam, &rs, &|_| {});
             Ok((film, FrameInfo { rays, ..info }))

@@ -2,9 +2,10 @@
 
 use crate::camera::Camera;
 use crate::film::Film;
-use crate::integrator::{li, radiance, Integrator, WhittedSettings};
+use crate::integrator::{li, li_packet, radiance, Integrator, WhittedSettings};
 use crate::world::World;
 use glam::Vec3;
+use lucent_accel::Ray;
 use rayon::prelude::*;
 
 /// Render settings.
@@ -55,7 +56,33 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
 /// Renders a frame; `progress(tiles_done)` is called after each tile. Returns the film and
 /// the number of rays traced.
 pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u64) + Sync)) -> (Film, u64) {
-    render_tiles(w, cam, s.width, s.height, progress, &|x, y| render_pixel(w, cam, s, x, y))
+    if !s.whitted.packets {
+        return render_tiles(w, cam, s.width, s.height, progress, &|px, out| {
+            for (o, &(x, y)) in out.iter_mut().zip(px) {
+                *o = render_pixel(w, cam, s, x, y);
+            }
+        });
+    }
+    let spp = s.spp.max(1);
+    render_tiles(w, cam, s.width, s.height, progress, &|px, out| {
+        let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); BLOCK];
+        let mut c = [Vec3::ZERO; BLOCK];
+        let n = px.len();
+        out.fill(Vec3::ZERO);
+        for k in 0..spp {
+            for (r, &(x, y)) in rays.iter_mut().zip(px) {
+                let (jx, jy) = if spp == 1 { (0.5, 0.5) } else { jitter(x, y, k) };
+                *r = cam.ray(x as f32 + jx, y as f32 + jy);
+            }
+            li_packet(w, &rays[..n], &s.whitted, &mut c[..n]);
+            for (o, v) in out.iter_mut().zip(&c) {
+                *o += *v;
+            }
+        }
+        for o in out.iter_mut() {
+            *o /= spp as f32;
+        }
+    })
 }
 
 /// One sample per pixel: sample `index` of every pixel (0 = the pixel centre, then the
@@ -63,21 +90,37 @@ pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u6
 /// an n-sample image that does not depend on how the passes were split (the viewer
 /// accumulates these while the camera stands still).
 pub fn render_pass(w: &World, cam: &Camera, s: &RenderSettings, integrator: Integrator, index: u32) -> (Film, u64) {
-    render_tiles(w, cam, s.width, s.height, &|_| {}, &|x, y| {
+    let ray = |x: u32, y: u32| {
         let (jx, jy) = if index == 0 { (0.5, 0.5) } else { jitter(x, y, index) };
-        radiance(w, &cam.ray(x as f32 + jx, y as f32 + jy), &s.whitted, integrator)
+        cam.ray(x as f32 + jx, y as f32 + jy)
+    };
+    render_tiles(w, cam, s.width, s.height, &|_| {}, &|px, out| {
+        if integrator == Integrator::Whitted && s.whitted.packets {
+            let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); BLOCK];
+            for (r, &(x, y)) in rays.iter_mut().zip(px) {
+                *r = ray(x, y);
+            }
+            li_packet(w, &rays[..px.len()], &s.whitted, out);
+        } else {
+            for (o, &(x, y)) in out.iter_mut().zip(px) {
+                *o = radiance(w, &ray(x, y), &s.whitted, integrator);
+            }
+        }
     })
 }
 
+/// Pixels per block handed to the integrators: 8×8, one ray packet.
+const BLOCK: usize = 64;
+
 /// The tile loop shared by every renderer: tiles on rayon, empty tiles culled by their
-/// frustum, `pixel(x, y)` for the rest.
+/// frustum; the pixels of the others are handed out in 8×8 blocks, `block(pixels, out)`.
 fn render_tiles(
     w: &World,
     cam: &Camera,
     width: u32,
     height: u32,
     progress: &(dyn Fn(u64) + Sync),
-    pixel: &(dyn Fn(u32, u32) -> Vec3 + Sync),
+    block: &(dyn Fn(&[(u32, u32)], &mut [Vec3]) + Sync),
 ) -> (Film, u64) {
     let (tw, th) = (width.div_ceil(TILE), height.div_ceil(TILE));
     let tiles: Vec<(u32, u32)> = (0..th).flat_map(|ty| (0..tw).map(move |tx| (tx, ty))).collect();
@@ -87,17 +130,29 @@ fn render_tiles(
             let (x0, y0) = (tx * TILE, ty * TILE);
             let (x1, y1) = ((x0 + TILE).min(width), (y0 + TILE).min(height));
             let before = crate::world::rays_traced_here();
-            let n = ((x1 - x0) * (y1 - y0)) as usize;
+            let wdt = (x1 - x0) as usize;
+            let n = wdt * (y1 - y0) as usize;
             // Frustum culling: a tile whose frustum meets no instance shows the background
             // (exactly what its primary rays would return), so nothing is traced.
             let empty = cam.tile_frustum(x0 as f32, y0 as f32, x1 as f32, y1 as f32).is_some_and(|f| !w.accel.frustum_may_hit(&f));
             let px = if empty {
                 vec![w.scene.background; n]
             } else {
-                let mut px = Vec::with_capacity(n);
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        px.push(pixel(x, y));
+                let mut px = vec![Vec3::ZERO; n];
+                let mut coords = Vec::with_capacity(BLOCK);
+                let mut out = [Vec3::ZERO; BLOCK];
+                for by in (y0..y1).step_by(8) {
+                    for bx in (x0..x1).step_by(8) {
+                        coords.clear();
+                        for y in by..(by + 8).min(y1) {
+                            for x in bx..(bx + 8).min(x1) {
+                                coords.push((x, y));
+                            }
+                        }
+                        block(&coords, &mut out[..coords.len()]);
+                        for (&(x, y), c) in coords.iter().zip(&out) {
+                            px[(y - y0) as usize * wdt + (x - x0) as usize] = *c;
+                        }
                     }
                 }
                 px

@@ -203,6 +203,18 @@ impl World {
         self.accel.occluded(r)
     }
 
+    /// Closest hits of coherent rays, traced in packets (see `TwoLevel::intersect_packet`).
+    pub fn intersect_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        RAYS.with(|c| c.set(c.get() + rays.len() as u64));
+        self.accel.intersect_packet(rays, out);
+    }
+
+    /// Occlusion of coherent rays, traced in packets (see `TwoLevel::occluded_packet`).
+    pub fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
+        RAYS.with(|c| c.set(c.get() + rays.len() as u64));
+        self.accel.occluded_packet(rays, out);
+    }
+
     /// Rebuilds the surface point of a hit.
     #[must_use]
     pub fn surface(&self, r: &Ray, h: &Hit) -> Surface {
