@@ -39,7 +39,7 @@ pub mod wide;
 pub use geom::{Aabb, Hit, Ray, INVALID};
 pub use glam;
 pub use kernel::Kernel;
-pub use packet::MAX_PACKET;
+pub use packet::{RayBlock, MAX_PACKET};
 pub use mesh::{BuildError, BvhStats, MeshBvh, MeshOptions, TriangleTest, Width};
 pub use shape::{Shape, ShapeHit};
 pub use tlas::{Geometry, Instance, TopBuilder, TwoLevel};

@@ -23,7 +23,7 @@
 
 use crate::geom::{Hit, Ray, INVALID};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
-use crate::traverse::{Counters, STACK};
+use crate::traverse::{Counters, TraversalStats, STACK};
 use crate::triangle::Tri4;
 use crate::wide::{leaf_range, WideNode, EMPTY, LEAF};
 use glam::{Affine3A, Vec3};
@@ -203,6 +203,38 @@ impl M8 {
     }
 }
 
+/// Eight rays in SoA form (the layout the packet kernels work in, and the benchmark
+/// harness's): lane `l` of each row belongs to ray `l`. A lane with an empty range
+/// (`tmin >= tmax`, as in [`RayBlock::EMPTY`]) holds no ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(32))]
+pub struct RayBlock {
+    /// Origins: x, y, z rows.
+    pub org: [[f32; LANES]; 3],
+    /// Directions: x, y, z rows.
+    pub dir: [[f32; LANES]; 3],
+    /// Lower ends of the ranges.
+    pub tmin: [f32; LANES],
+    /// Upper ends of the ranges.
+    pub tmax: [f32; LANES],
+}
+
+impl RayBlock {
+    /// A block with no rays.
+    pub const EMPTY: Self = Self { org: [[0.0; LANES]; 3], dir: [[0.0; LANES]; 3], tmin: [0.0; LANES], tmax: [f32::NEG_INFINITY; LANES] };
+
+    /// Puts `r` into lane `l` (< 8).
+    #[inline(always)]
+    pub fn set(&mut self, l: usize, r: &Ray) {
+        for k in 0..3 {
+            self.org[k][l] = r.org[k];
+            self.dir[k][l] = r.dir[k];
+        }
+        self.tmin[l] = r.tmin;
+        self.tmax[l] = r.tmax;
+    }
+}
+
 /// Up to 64 rays in SoA groups of eight, with their box-test constants.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Packet {
@@ -215,6 +247,9 @@ pub(crate) struct Packet {
     /// Reciprocal directions (|d| clamped to ≥ 1e-18 as in the single-ray kernel).
     pub inv: [[F8; 3]; GROUPS],
     pub tmin: [F8; GROUPS],
+    /// All valid rays start at this one point (primary rays of a pinhole camera): the
+    /// origin's part of the triangle test is then computed once per triangle.
+    pub common: Option<[f32; 3]>,
 }
 
 /// The closest hits (or, for occlusion, the remaining ranges) of a packet's rays. A lane
@@ -253,9 +288,19 @@ impl Packet {
     #[inline(always)]
     pub(crate) fn load(rays: &[Ray]) -> (Self, PacketHits) {
         let n = rays.len().min(MAX_PACKET);
-        let groups = n.div_ceil(LANES);
+        let mut blocks = [RayBlock::EMPTY; GROUPS];
+        for (i, r) in rays[..n].iter().enumerate() {
+            blocks[i / LANES].set(i % LANES, r);
+        }
+        Self::load_blocks(&blocks[..n.div_ceil(LANES)])
+    }
+
+    /// Loads up to [`GROUPS`] blocks of eight rays.
+    #[inline(always)]
+    pub(crate) fn load_blocks(blocks: &[RayBlock]) -> (Self, PacketHits) {
+        let groups = blocks.len().min(GROUPS);
         let z = F8::splat(0.0);
-        let mut p = Packet { groups, valid: [M8::NONE; GROUPS], o: [[z; 3]; GROUPS], d: [[z; 3]; GROUPS], inv: [[z; 3]; GROUPS], tmin: [z; GROUPS] };
+        let mut p = Packet { groups, valid: [M8::NONE; GROUPS], o: [[z; 3]; GROUPS], d: [[z; 3]; GROUPS], inv: [[z; 3]; GROUPS], tmin: [z; GROUPS], common: None };
         let mut h = PacketHits {
             t: [F8::splat(f32::NEG_INFINITY); GROUPS],
             u: [z; GROUPS],
@@ -263,31 +308,44 @@ impl Packet {
             prim: [[INVALID; LANES]; GROUPS],
             inst: [[INVALID; LANES]; GROUPS],
         };
-        let mut tmax = [F8::splat(f32::NEG_INFINITY); GROUPS];
-        for (i, r) in rays[..n].iter().enumerate() {
-            let (g, l) = (i / LANES, i % LANES);
-            for k in 0..3 {
-                p.o[g][k].0[l] = r.org[k];
-                p.d[g][k].0[l] = r.dir[k];
-            }
-            p.tmin[g].0[l] = r.tmin;
-            tmax[g].0[l] = r.tmax;
-        }
-        let zero = F8::splat(0.0);
-        for g in 0..groups {
+        for (g, b) in blocks[..groups].iter().enumerate() {
+            p.o[g] = b.org.map(F8);
+            p.d[g] = b.dir.map(F8);
+            p.tmin[g] = F8(b.tmin);
+            let tmax = F8(b.tmax);
             p.inv[g] = p.d[g].map(recip);
             // A ray counts when its origin and direction are finite (x·0 = 0), its direction
             // is not zero and its range is not empty (false for a NaN bound).
-            let mut ok = p.tmin[g].lt(tmax[g]);
+            let mut ok = p.tmin[g].lt(tmax);
             let mut nonzero = M8::NONE;
             for k in 0..3 {
-                ok = ok.and(p.o[g][k].mul(zero).eq(zero)).and(p.d[g][k].mul(zero).eq(zero));
-                nonzero = nonzero.or(p.d[g][k].ne(zero));
+                ok = ok.and(p.o[g][k].mul(z).eq(z)).and(p.d[g][k].mul(z).eq(z));
+                nonzero = nonzero.or(p.d[g][k].ne(z));
             }
             p.valid[g] = ok.and(nonzero);
-            h.t[g] = F8::splat(f32::NEG_INFINITY).blend(p.valid[g], tmax[g]);
+            h.t[g] = F8::splat(f32::NEG_INFINITY).blend(p.valid[g], tmax);
         }
+        p.common = p.find_common_origin();
         (p, h)
+    }
+
+    /// The origin every valid ray shares, bit for bit, if there is one.
+    fn find_common_origin(&self) -> Option<[f32; 3]> {
+        let mut first: Option<[u32; 3]> = None;
+        for g in 0..self.groups {
+            let mut b = self.valid[g].bits();
+            while b != 0 {
+                let l = b.trailing_zeros() as usize;
+                b &= b - 1;
+                let o = [self.o[g][0].0[l].to_bits(), self.o[g][1].0[l].to_bits(), self.o[g][2].0[l].to_bits()];
+                match first {
+                    None => first = Some(o),
+                    Some(f) if f != o => return None,
+                    _ => {}
+                }
+            }
+        }
+        first.map(|o| o.map(f32::from_bits))
     }
 
     /// The ray in lane `l` of group `g`, its range ending at `tmax`.
@@ -321,6 +379,11 @@ impl Packet {
             }
             p.inv[g] = p.d[g].map(recip);
         }
+        // The same arithmetic on the same origin gives the same point in every lane.
+        p.common = self.common.map(|o| {
+            let r = |k: usize| c[0][k] * o[0] + c[1][k] * o[1] + c[2][k] * o[2] + tr[k];
+            [r(0), r(1), r(2)]
+        });
         p
     }
 
@@ -439,7 +502,12 @@ impl IntoArr3 for (F8, F8) {
 impl PacketHits {
     /// Largest `t` over the lanes of `active` (−inf when none).
     #[inline(always)]
-    fn max_t(&self, groups: usize, active: &Masks) -> f32 {
+    fn max_t<K: KernelSet>(&self, groups: usize, active: &Masks) -> f32 {
+        #[cfg(target_arch = "x86_64")]
+        if K::SIMD {
+            // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
+            return unsafe { avx::max_t(self, groups, active) };
+        }
         let mut m = F8::splat(f32::NEG_INFINITY);
         for g in 0..groups {
             m = m.max(F8::splat(f32::NEG_INFINITY).blend(active[g], self.t[g]));
@@ -574,10 +642,12 @@ pub(crate) fn intersect<K: KernelSet, L: PacketLeaves, C: Counters>(
     if nodes.is_empty() {
         return;
     }
-    let mut st = [Entry { code: 0, at: 0, dist: 0.0 }; STACK];
+    // PERF: left uninitialised (zeroing 6 KB per packet showed in profiles); entries below
+    // `sp` are always written before they are read.
+    let mut st = [std::mem::MaybeUninit::<Entry>::uninit(); STACK];
     let mut sp = 0usize;
     let mut cur = Entry { code: 0, at: 0, dist: 0.0 };
-    let mut tmax = h.max_t(p.groups, active);
+    let mut tmax = h.max_t::<K>(p.groups, active);
     let mut dist = [0f32; 8];
     loop {
         if cur.code & LEAF == 0 {
@@ -594,11 +664,12 @@ pub(crate) fn intersect<K: KernelSet, L: PacketLeaves, C: Counters>(
                     // Insertion: nearest on top.
                     let e = Entry { code: node.child[k], at: at0 | k as u32, dist: dist[k] };
                     let mut j = sp;
-                    while j > base && st[j - 1].dist < e.dist {
+                    // SAFETY: entries base..sp were written by earlier pushes.
+                    while j > base && unsafe { st[j - 1].assume_init() }.dist < e.dist {
                         st[j] = st[j - 1];
                         j -= 1;
                     }
-                    st[j] = e;
+                    st[j].write(e);
                     sp += 1;
                 }
             }
@@ -608,7 +679,7 @@ pub(crate) fn intersect<K: KernelSet, L: PacketLeaves, C: Counters>(
                 let (first, count) = leaf_range(cur.code);
                 c.items(count);
                 leaves.intersect(first, count, p, &m, h);
-                tmax = h.max_t(p.groups, active);
+                tmax = h.max_t::<K>(p.groups, active);
             }
         }
         loop {
@@ -616,8 +687,10 @@ pub(crate) fn intersect<K: KernelSet, L: PacketLeaves, C: Counters>(
                 return;
             }
             sp -= 1;
-            if st[sp].dist <= tmax {
-                cur = st[sp];
+            // SAFETY: every entry below the old `sp` was written by a push.
+            let e = unsafe { st[sp].assume_init() };
+            if e.dist <= tmax {
+                cur = e;
                 break;
             }
         }
@@ -638,10 +711,12 @@ pub(crate) fn occluded<K: KernelSet, L: PacketLeaves, C: Counters>(
     if nodes.is_empty() {
         return;
     }
-    let mut st = [Entry { code: 0, at: 0, dist: 0.0 }; STACK];
+    // PERF: left uninitialised (zeroing 6 KB per packet showed in profiles); entries below
+    // `sp` are always written before they are read.
+    let mut st = [std::mem::MaybeUninit::<Entry>::uninit(); STACK];
     let mut sp = 0usize;
     let mut cur = Entry { code: 0, at: 0, dist: 0.0 };
-    let mut tmax = h.max_t(p.groups, active);
+    let mut tmax = h.max_t::<K>(p.groups, active);
     let mut dist = [0f32; 8];
     loop {
         if cur.code & LEAF == 0 {
@@ -653,7 +728,7 @@ pub(crate) fn occluded<K: KernelSet, L: PacketLeaves, C: Counters>(
             while mask != 0 {
                 let k = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                st[sp] = Entry { code: node.child[k], at: at0 | k as u32, dist: 0.0 };
+                st[sp].write(Entry { code: node.child[k], at: at0 | k as u32, dist: 0.0 });
                 sp += 1;
             }
         } else if cur.code != EMPTY {
@@ -662,7 +737,7 @@ pub(crate) fn occluded<K: KernelSet, L: PacketLeaves, C: Counters>(
                 let (first, count) = leaf_range(cur.code);
                 c.items(count);
                 leaves.occluded(first, count, p, &m, h);
-                tmax = h.max_t(p.groups, active);
+                tmax = h.max_t::<K>(p.groups, active);
                 if tmax == f32::NEG_INFINITY {
                     return;
                 }
@@ -672,7 +747,8 @@ pub(crate) fn occluded<K: KernelSet, L: PacketLeaves, C: Counters>(
             return;
         }
         sp -= 1;
-        cur = st[sp];
+        // SAFETY: written by a push.
+        cur = unsafe { st[sp].assume_init() };
     }
 }
 
@@ -713,14 +789,17 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
         for gi in first..first + count {
             // SAFETY: leaf ranges are in range of `tris` (built so, checked by `validate`).
             let t4 = unsafe { self.tris.get_unchecked(gi as usize) };
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
+            let org = if K::SIMD { p.common.map(|o| unsafe { avx::origin_terms(t4, &o) }) } else { None };
             for g in 0..p.groups {
                 if m[g].bits() == 0 {
                     continue;
                 }
                 #[cfg(target_arch = "x86_64")]
                 if K::SIMD {
-                    // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
-                    unsafe { avx::tri4_intersect(t4, p, g, &m[g], h, self.inst) };
+                    // SAFETY: as above.
+                    unsafe { avx::tri4_intersect(t4, p, g, &m[g], h, self.inst, org.as_ref()) };
                     continue;
                 }
                 // As the four-lane single-ray test: all lanes against the same limit, then
@@ -732,6 +811,10 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
                 let mut bv = bt;
                 let mut bp = [INVALID; LANES];
                 for lane in 0..4 {
+                    // Padding lanes come last and never hit.
+                    if t4.prim[lane] == u32::MAX {
+                        break;
+                    }
                     let (ok, [tt, uu, vv, adz]) = tri_eval(t4, lane, p, g, limit);
                     let ok = ok.and(m[g]);
                     if ok.bits() == 0 {
@@ -776,6 +859,9 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
                 }
                 if !K::SIMD {
                     for lane in 0..4 {
+                        if t4.prim[lane] == u32::MAX {
+                            break;
+                        }
                         hit = hit.or(tri_eval(t4, lane, p, g, limit).0);
                     }
                 }
@@ -816,6 +902,15 @@ use crate::traverse::RayPre;
 fn chunks(rays: &[Ray], mut body: impl FnMut(usize, &Packet, &mut PacketHits)) {
     for (c, chunk) in rays.chunks(MAX_PACKET).enumerate() {
         let (p, mut h) = Packet::load(chunk);
+        body(c * MAX_PACKET, &p, &mut h);
+    }
+}
+
+/// Runs `body` on every run of at most [`GROUPS`] blocks, with the packet loaded.
+#[inline(always)]
+fn block_chunks(blocks: &[RayBlock], mut body: impl FnMut(usize, &Packet, &mut PacketHits)) {
+    for (c, chunk) in blocks.chunks(GROUPS).enumerate() {
+        let (p, mut h) = Packet::load_blocks(chunk);
         body(c * MAX_PACKET, &p, &mut h);
     }
 }
@@ -911,32 +1006,78 @@ impl MeshBvh {
     /// [`MeshBvh::intersect`] ray by ray, except which of two triangles at exactly the same
     /// distance is reported. `out` must be as long as `rays`.
     pub fn intersect_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        let f = |base: usize, p: &Packet, h: &mut PacketHits| {
-            let active = p.valid;
-            match self.kernel() {
-                // SAFETY: the kernel is only Simd/Avx512 when AVX2 and FMA were detected.
-                #[cfg(target_arch = "x86_64")]
-                Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_intersect(self, p, &active, h) },
-                _ => self.packet_intersect_k::<ScalarSet>(p, &active, h, INVALID),
-            }
+        chunks(rays, |base, p, h| {
+            self.trace_intersect(p, h);
             write_hits(base, p, h, out);
-        };
-        chunks(rays, f);
+        });
     }
 
     /// Occlusion of coherent rays within `[tmin, tmax)`, traced in packets (for example the
     /// shadow rays of a tile toward one light): the same answers as [`MeshBvh::occluded`].
     pub fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
         chunks(rays, |base, p, h| {
-            let active = p.valid;
-            match self.kernel() {
-                // SAFETY: as above.
-                #[cfg(target_arch = "x86_64")]
-                Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_occluded(self, p, &active, h) },
-                _ => self.packet_occluded_k::<ScalarSet>(p, &active, h),
-            }
+            self.trace_occluded(p, h);
             write_occluded(base, p, h, out);
         });
+    }
+
+    /// [`MeshBvh::intersect_packet`] counting the work into `stats` (scalar kernel: the
+    /// same answers and the same nodes visited as the fast ones): one inner node is one
+    /// interval test for the whole packet, items are the 4-triangle groups of the leaves
+    /// some ray of the packet entered.
+    pub fn intersect_packet_with_stats(&self, rays: &[Ray], out: &mut [Option<Hit>], stats: &mut TraversalStats) {
+        chunks(rays, |base, p, h| {
+            let active = p.valid;
+            if let (TriangleTest::UnitTriangle, Nodes::W8(n)) = (self.test, &self.nodes) {
+                if let Some(iv) = p.interval(&active) {
+                    let leaves = UnitPacketLeaves::<ScalarSet> { tris: &self.tris, inst: INVALID, k: std::marker::PhantomData };
+                    intersect::<ScalarSet, _, _>(n, &leaves, p, &iv, &active, h, stats);
+                    write_hits(base, p, h, out);
+                    return;
+                }
+            }
+            self.packet_intersect_k::<ScalarSet>(p, &active, h, INVALID);
+            write_hits(base, p, h, out);
+        });
+    }
+
+    /// [`MeshBvh::intersect_packet`] on rays already in SoA blocks (eight blocks make one
+    /// packet); `out` holds eight entries per block.
+    pub fn intersect_blocks(&self, blocks: &[RayBlock], out: &mut [Option<Hit>]) {
+        block_chunks(blocks, |base, p, h| {
+            self.trace_intersect(p, h);
+            write_hits(base, p, h, out);
+        });
+    }
+
+    /// [`MeshBvh::occluded_packet`] on rays in SoA blocks; `out` holds eight entries per block.
+    pub fn occluded_blocks(&self, blocks: &[RayBlock], out: &mut [bool]) {
+        block_chunks(blocks, |base, p, h| {
+            self.trace_occluded(p, h);
+            write_occluded(base, p, h, out);
+        });
+    }
+
+    #[inline(always)]
+    fn trace_intersect(&self, p: &Packet, h: &mut PacketHits) {
+        let active = p.valid;
+        match self.kernel() {
+            // SAFETY: the kernel is only Simd/Avx512 when AVX2 and FMA were detected.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_intersect(self, p, &active, h) },
+            _ => self.packet_intersect_k::<ScalarSet>(p, &active, h, INVALID),
+        }
+    }
+
+    #[inline(always)]
+    fn trace_occluded(&self, p: &Packet, h: &mut PacketHits) {
+        let active = p.valid;
+        match self.kernel() {
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_occluded(self, p, &active, h) },
+            _ => self.packet_occluded_k::<ScalarSet>(p, &active, h),
+        }
     }
 }
 
@@ -953,22 +1094,19 @@ fn avx2_mesh_occluded(m: &MeshBvh, p: &Packet, active: &Masks, h: &mut PacketHit
 }
 
 fn write_hits(base: usize, p: &Packet, h: &PacketHits, out: &mut [Option<Hit>]) {
-    for g in 0..p.groups {
-        for l in 0..LANES {
-            if let Some(o) = out.get_mut(base + g * LANES + l) {
-                let hit = h.get(g, l);
-                *o = (p.valid[g].0[l] != 0 && hit.is_hit()).then_some(hit);
-            }
+    let out = out.get_mut(base..).unwrap_or_default();
+    for (g, chunk) in out.chunks_mut(LANES).take(p.groups).enumerate() {
+        for (l, o) in chunk.iter_mut().enumerate() {
+            *o = (h.prim[g][l] != INVALID).then(|| h.get(g, l));
         }
     }
 }
 
 fn write_occluded(base: usize, p: &Packet, h: &PacketHits, out: &mut [bool]) {
-    for g in 0..p.groups {
-        for l in 0..LANES {
-            if let Some(o) = out.get_mut(base + g * LANES + l) {
-                *o = p.valid[g].0[l] != 0 && h.t[g].0[l] == f32::NEG_INFINITY;
-            }
+    let out = out.get_mut(base..).unwrap_or_default();
+    for (g, chunk) in out.chunks_mut(LANES).take(p.groups).enumerate() {
+        for (l, o) in chunk.iter_mut().enumerate() {
+            *o = p.valid[g].0[l] != 0 && h.t[g].0[l] == f32::NEG_INFINITY;
         }
     }
 }
@@ -1094,12 +1232,7 @@ impl TwoLevel {
     /// the same distance is reported. `out` must be as long as `rays`.
     pub fn intersect_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         chunks(rays, |base, p, h| {
-            match self.kernel {
-                // SAFETY: the kernel is only Simd/Avx512 when AVX2 and FMA were detected.
-                #[cfg(target_arch = "x86_64")]
-                Kernel::Simd | Kernel::Avx512 => unsafe { avx2_tl_intersect(self, p, h) },
-                _ => self.packet_intersect_k::<ScalarSet>(p, h),
-            }
+            self.trace_intersect(p, h);
             write_hits(base, p, h, out);
         });
     }
@@ -1108,14 +1241,45 @@ impl TwoLevel {
     /// tile toward one light), traced in packets: the same answers as [`TwoLevel::occluded`].
     pub fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
         chunks(rays, |base, p, h| {
-            match self.kernel {
-                // SAFETY: as above.
-                #[cfg(target_arch = "x86_64")]
-                Kernel::Simd | Kernel::Avx512 => unsafe { avx2_tl_occluded(self, p, h) },
-                _ => self.packet_occluded_k::<ScalarSet>(p, h),
-            }
+            self.trace_occluded(p, h);
             write_occluded(base, p, h, out);
         });
+    }
+
+    /// [`TwoLevel::intersect_packet`] on rays in SoA blocks; `out` holds eight entries per block.
+    pub fn intersect_blocks(&self, blocks: &[RayBlock], out: &mut [Option<Hit>]) {
+        block_chunks(blocks, |base, p, h| {
+            self.trace_intersect(p, h);
+            write_hits(base, p, h, out);
+        });
+    }
+
+    /// [`TwoLevel::occluded_packet`] on rays in SoA blocks; `out` holds eight entries per block.
+    pub fn occluded_blocks(&self, blocks: &[RayBlock], out: &mut [bool]) {
+        block_chunks(blocks, |base, p, h| {
+            self.trace_occluded(p, h);
+            write_occluded(base, p, h, out);
+        });
+    }
+
+    #[inline(always)]
+    fn trace_intersect(&self, p: &Packet, h: &mut PacketHits) {
+        match self.kernel {
+            // SAFETY: the kernel is only Simd/Avx512 when AVX2 and FMA were detected.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_tl_intersect(self, p, h) },
+            _ => self.packet_intersect_k::<ScalarSet>(p, h),
+        }
+    }
+
+    #[inline(always)]
+    fn trace_occluded(&self, p: &Packet, h: &mut PacketHits) {
+        match self.kernel {
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_tl_occluded(self, p, h) },
+            _ => self.packet_occluded_k::<ScalarSet>(p, h),
+        }
     }
 }
 
@@ -1226,6 +1390,21 @@ mod avx {
         _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tn, _mm256_mul_ps(tf, _mm256_set1_ps(FAR_SCALE)))) as u32
     }
 
+    /// `PacketHits::max_t`.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn max_t(h: &PacketHits, groups: usize, active: &super::Masks) -> f32 {
+        let ninf = _mm256_set1_ps(f32::NEG_INFINITY);
+        let mut m = ninf;
+        for g in 0..groups {
+            m = _mm256_max_ps(m, _mm256_blendv_ps(ninf, ld(&h.t[g]), ldm(&active[g])));
+        }
+        let m4 = _mm_max_ps(_mm256_castps256_ps128(m), _mm256_extractf128_ps::<1>(m));
+        let m2 = _mm_max_ps(m4, _mm_movehl_ps(m4, m4));
+        let m1 = _mm_max_ss(m2, _mm_shuffle_ps::<1>(m2, m2));
+        _mm_cvtss_f32(m1)
+    }
+
     /// `super::group_box`.
     #[inline]
     #[target_feature(enable = "avx2,fma")]
@@ -1245,17 +1424,21 @@ mod avx {
     /// `super::tri_eval` for all four lanes of `t4`, rays of group `g`.
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    fn eval(t4: &Tri4, lane: usize, p: &Packet, g: usize, tmax: __m256) -> (__m256, [__m256; 4]) {
+    fn eval(t4: &Tri4, lane: usize, p: &Packet, g: usize, tmax: __m256, org: Option<&[[f32; 4]; 3]>) -> (__m256, [__m256; 4]) {
         let m = |c: usize| _mm256_set1_ps(t4.m[c][lane]);
-        let (ox, oy, oz) = (ld(&p.o[g][0]), ld(&p.o[g][1]), ld(&p.o[g][2]));
         let (dx, dy, dz) = (ld(&p.d[g][0]), ld(&p.d[g][1]), ld(&p.d[g][2]));
         let dot = |r: usize, x, y, z| _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(m(r), x), _mm256_mul_ps(m(r + 1), y)), _mm256_mul_ps(m(r + 2), z));
         let dzp = dot(8, dx, dy, dz);
-        let ozp = _mm256_add_ps(dot(8, ox, oy, oz), m(11));
         let dxp = dot(0, dx, dy, dz);
-        let oxp = _mm256_add_ps(dot(0, ox, oy, oz), m(3));
         let dyp = dot(4, dx, dy, dz);
-        let oyp = _mm256_add_ps(dot(4, ox, oy, oz), m(7));
+        let (oxp, oyp, ozp) = match org {
+            // The origin's terms, computed once per triangle (`origin_terms`), broadcast.
+            Some(o) => (_mm256_set1_ps(o[0][lane]), _mm256_set1_ps(o[1][lane]), _mm256_set1_ps(o[2][lane])),
+            None => {
+                let (ox, oy, oz) = (ld(&p.o[g][0]), ld(&p.o[g][1]), ld(&p.o[g][2]));
+                (_mm256_add_ps(dot(0, ox, oy, oz), m(3)), _mm256_add_ps(dot(4, ox, oy, oz), m(7)), _mm256_add_ps(dot(8, ox, oy, oz), m(11)))
+            }
+        };
         let signbit = _mm256_set1_ps(-0.0);
         let s = _mm256_and_ps(dzp, signbit);
         let adz = _mm256_xor_ps(dzp, s);
@@ -1276,10 +1459,28 @@ mod avx {
         (ok, [tt, uu, vv, adz])
     }
 
+    /// `O'x, O'y, O'z` of the four triangles of `t4` for the common origin `o`, with the
+    /// same operations in the same order as the per-lane test (so the same values).
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn origin_terms(t4: &Tri4, o: &[f32; 3]) -> [[f32; 4]; 3] {
+        // SAFETY: `Tri4` rows are 16-byte aligned `[f32; 4]`s.
+        let row = |c: usize| unsafe { _mm_load_ps(t4.m[c].as_ptr()) };
+        let (ox, oy, oz) = (_mm_set1_ps(o[0]), _mm_set1_ps(o[1]), _mm_set1_ps(o[2]));
+        let mut out = [[0f32; 4]; 3];
+        for (r, slot) in out.iter_mut().enumerate() {
+            let b = 4 * r;
+            let v = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(row(b), ox), _mm_mul_ps(row(b + 1), oy)), _mm_mul_ps(row(b + 2), oz)), row(b + 3));
+            // SAFETY: `slot` is 16 bytes.
+            unsafe { _mm_storeu_ps(slot.as_mut_ptr(), v) };
+        }
+        out
+    }
+
     /// The closest-hit leaf step of one group against one `Tri4` (see the portable loop).
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    pub(super) fn tri4_intersect(t4: &Tri4, p: &Packet, g: usize, m: &M8, h: &mut PacketHits, inst: u32) {
+    pub(super) fn tri4_intersect(t4: &Tri4, p: &Packet, g: usize, m: &M8, h: &mut PacketHits, inst: u32, org: Option<&[[f32; 4]; 3]>) {
         let limit = ld(&h.t[g]);
         let mask = ldm(m);
         let mut found = _mm256_setzero_ps();
@@ -1287,7 +1488,11 @@ mod avx {
         let (mut bu, mut bv) = (bt, bt);
         let mut bp = _mm256_setzero_ps();
         for lane in 0..4 {
-            let (ok, [tt, uu, vv, adz]) = eval(t4, lane, p, g, limit);
+            // Padding lanes come last and never hit.
+            if t4.prim[lane] == u32::MAX {
+                break;
+            }
+            let (ok, [tt, uu, vv, adz]) = eval(t4, lane, p, g, limit, org);
             let ok = _mm256_and_ps(ok, mask);
             if _mm256_movemask_ps(ok) == 0 {
                 continue;
@@ -1318,7 +1523,10 @@ mod avx {
         let lim = ld(limit);
         let mut hit = _mm256_setzero_ps();
         for lane in 0..4 {
-            hit = _mm256_or_ps(hit, eval(t4, lane, p, g, lim).0);
+            if t4.prim[lane] == u32::MAX {
+                break;
+            }
+            hit = _mm256_or_ps(hit, eval(t4, lane, p, g, lim, None).0);
         }
         stm(hit)
     }

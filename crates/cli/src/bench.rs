@@ -193,6 +193,17 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
         let path = dir.join(format!("rays_{kind}.bin"));
         let batch = read_rays(&path)?;
         let shadow = kind == "shadow";
+        // The blocks as the kernels take them (outside the timing, as the harness's own).
+        let soa: Vec<lucent_accel::RayBlock> = batch
+            .blocks
+            .iter()
+            .map(|b| lucent_accel::RayBlock {
+                org: b.o,
+                dir: b.d,
+                tmin: [0.0; 8],
+                tmax: std::array::from_fn(|l| if b.valid[l] != 0 { b.tfar[l] } else { f32::NEG_INFINITY }),
+            })
+            .collect();
         for (api, per) in o.apis.iter().map(|&a| (a, a.rays())) {
         let api = format!("{}-{kname}", api.name());
         for &threads in &o.threads {
@@ -225,23 +236,19 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
                         }
                         continue;
                     }
-                    // Packets of `per` rays: consecutive blocks (a tile is 8 blocks), ray
-                    // i of the packet is lane i % 8 of its block i / 8; invalid lanes have
-                    // an empty range and are skipped by the kernel.
-                    let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); lucent_accel::MAX_PACKET];
+                    // Packets of `per` rays: consecutive blocks (a tile is 8 blocks), handed
+                    // over in the SoA layout they were dumped in; invalid lanes have an empty
+                    // range and are skipped by the kernel.
                     let mut hits = [None; lucent_accel::MAX_PACKET];
                     let mut occ = [false; lucent_accel::MAX_PACKET];
                     let bpp = per / 8;
                     for pb in (b0..b1).step_by(bpp) {
                         let pe = (pb + bpp).min(b1);
                         let n = (pe - pb) * 8;
-                        for (k, r) in rays[..n].iter_mut().enumerate() {
-                            *r = batch.blocks[pb + k / 8].ray(k % 8);
-                        }
                         if shadow {
-                            bvh.occluded_packet(&rays[..n], &mut occ[..n]);
+                            bvh.occluded_blocks(&soa[pb..pe], &mut occ[..n]);
                         } else {
-                            bvh.intersect_packet(&rays[..n], &mut hits[..n]);
+                            bvh.intersect_blocks(&soa[pb..pe], &mut hits[..n]);
                         }
                         for k in 0..n {
                             let v = if shadow { occ[k] as i32 } else { hits[k].map_or(-1, |h| h.prim as i32) };

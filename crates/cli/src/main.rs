@@ -6,6 +6,7 @@ use std::path::PathBuf;
 mod animate_cmd;
 mod bench;
 mod dynamic_bench;
+mod frame_bench;
 mod isa_cmd;
 mod net_cmd;
 mod rend3r_bench;
@@ -329,6 +330,30 @@ struct ServeArgs {
 
 #[derive(Subcommand)]
 enum BenchCmd {
+    /// Shaded frames per second (primary rays, one shadow ray per light, shading; no
+    /// reflections) on the benchmark presets at 512x384 and 1024x768, traced in packets and
+    /// ray by ray. One JSON line per figure, and SaarCOR's Table 3 rate where it has one.
+    Frame {
+        /// Scene presets: conference, sponza, kitchen, bunny, museum (the cameras of
+        /// shared/bench/compare.sh, one point light where the Embree harness puts it).
+        #[arg(value_delimiter = ',', default_value = "conference")]
+        scenes: Vec<String>,
+        /// The shared scenes folder.
+        #[arg(long, default_value = "../shared/scenes")]
+        dir: PathBuf,
+        /// Frame sizes, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "512x384,1024x768", value_parser = render_cmd::parse_size)]
+        sizes: Vec<(u32, u32)>,
+        /// Thread counts, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "2")]
+        threads: Vec<usize>,
+        /// Timed frames per figure (the median is reported).
+        #[arg(long, default_value_t = 15)]
+        frames: usize,
+        /// Time packets only (by default ray-by-ray tracing is timed too, for comparison).
+        #[arg(long)]
+        packets_only: bool,
+    },
     /// Dynamic scenes: TLAS rebuild for 1k/10k/100k instances, BLAS refit (100k-triangle
     /// grid, the museum's animated mesh, and how its SAH cost decays), and whole animated
     /// frames of the BART kitchen and museum. One JSON line per figure.
@@ -482,6 +507,9 @@ fn run() -> Result<()> {
         }
         Cmd::Disasm { file, camera_table, triangles } => isa_cmd::disasm(&file, isa_cmd::table(camera_table == "old"), triangles),
         Cmd::Bench(BenchCmd::Rend3r { frames, size }) => rend3r_bench::run(frames, size),
+        Cmd::Bench(BenchCmd::Frame { scenes, dir, sizes, threads, frames, packets_only }) => {
+            frame_bench::run(&frame_bench::FrameOptions { scenes, dir, sizes, threads, frames, single: !packets_only })
+        }
         Cmd::Bench(BenchCmd::Dynamic { scenes, frames, size }) => dynamic_bench::run(&scenes, frames, size),
         Cmd::Bench(BenchCmd::Net { clients, seconds, size, format }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),
         Cmd::Serve(a) => net_cmd::serve(lucent_net::ServerConfig {
