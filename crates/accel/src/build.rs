@@ -159,12 +159,18 @@ impl BinaryBvh {
     /// SAH cost of the tree (Goldsmith & Salmon / MacDonald & Booth), with leaf cost in blocks.
     #[must_use]
     pub fn sah_cost(&self, cfg: &BuildConfig) -> f32 {
-        let Some(root) = self.nodes.first() else {
+        Self::cost_of(&self.nodes, cfg)
+    }
+
+    /// SAH cost of a node array (root first) that may hold unused slots only if they are
+    /// reachable; every entry is counted.
+    pub(crate) fn cost_of(nodes: &[BinNode], cfg: &BuildConfig) -> f32 {
+        let Some(root) = nodes.first() else {
             return 0.0;
         };
         let ra = root.bounds.half_area().max(f32::MIN_POSITIVE);
         let mut c = 0.0f64;
-        for n in &self.nodes {
+        for n in nodes {
             let a = (n.bounds.half_area() / ra) as f64;
             if n.is_leaf() {
                 c += a * blocks(n.count as usize, cfg.leaf_block) as f64;

@@ -300,7 +300,15 @@ impl Packet {
     pub(crate) fn load_blocks(blocks: &[RayBlock]) -> (Self, PacketHits) {
         let groups = blocks.len().min(GROUPS);
         let z = F8::splat(0.0);
-        let mut p = Packet { groups, valid: [M8::NONE; GROUPS], o: [[z; 3]; GROUPS], d: [[z; 3]; GROUPS], inv: [[z; 3]; GROUPS], tmin: [z; GROUPS], common: None };
+        let mut p = Packet {
+            groups,
+            valid: [M8::NONE; GROUPS],
+            o: [[z; 3]; GROUPS],
+            d: [[z; 3]; GROUPS],
+            inv: [[z; 3]; GROUPS],
+            tmin: [z; GROUPS],
+            common: None,
+        };
         let mut h = PacketHits {
             t: [F8::splat(f32::NEG_INFINITY); GROUPS],
             u: [z; GROUPS],
@@ -412,7 +420,17 @@ impl Packet {
             return None;
         }
         let lo = |v: F8| -(v.neg().hmax());
-        let mut iv = Interval { near: [0; 3], far: [0; 3], inear: [0; 3], ifar: [0; 3], olo: [0.0; 3], ohi: [0.0; 3], rlo: [0.0; 3], rhi: [0.0; 3], tmin: lo(tmin) };
+        let mut iv = Interval {
+            near: [0; 3],
+            far: [0; 3],
+            inear: [0; 3],
+            ifar: [0; 3],
+            olo: [0.0; 3],
+            ohi: [0.0; 3],
+            rlo: [0.0; 3],
+            rhi: [0.0; 3],
+            tmin: lo(tmin),
+        };
         for k in 0..3 {
             iv.olo[k] = lo(olo[k]);
             iv.ohi[k] = ohi[k].hmax();
@@ -487,6 +505,30 @@ fn recip(d: F8) -> F8 {
         r[i] = 1.0 / if x.abs() < tiny { tiny.copysign(x) } else { x };
     }
     F8(r)
+}
+
+impl Interval {
+    /// True when tracing the rays of `m` together pays: at least three of them, and their
+    /// origins within `extent` of each other on every axis. Scattered origins (the shadow
+    /// rays toward a distant light of a tile that spans near and far surfaces) make the
+    /// interval bound a large prism that many boxes meet; such rays go alone.
+    #[inline(always)]
+    pub(crate) fn worth(&self, m: &Masks, extent: f32) -> bool {
+        let lanes: u32 = m.iter().map(|x| x.bits().count_ones()).sum();
+        lanes >= 3 && (0..3).all(|k| self.ohi[k] - self.olo[k] <= extent)
+    }
+}
+
+/// The largest origin spread a packet may have over geometry of bounds `b` (1% of the
+/// diagonal: tuned on the sunflower field, the kitchen and the conference room).
+#[inline(always)]
+fn max_spread(b: &crate::geom::Aabb) -> f32 {
+    let d = (b.max - b.min).length();
+    if d.is_finite() {
+        0.01 * d
+    } else {
+        f32::INFINITY
+    }
 }
 
 trait IntoArr3 {
@@ -725,10 +767,20 @@ pub(crate) fn occluded<K: KernelSet, L: PacketLeaves, C: Counters>(
             let mut mask = node_test::<K>(node, iv, tmax, &mut dist);
             c.node();
             let at0 = cur.code << 3;
+            // Nearest (along the interval's rays) on top: occluders near the start are
+            // found first.
+            let base = sp;
             while mask != 0 {
                 let k = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                st[sp].write(Entry { code: node.child[k], at: at0 | k as u32, dist: 0.0 });
+                let e = Entry { code: node.child[k], at: at0 | k as u32, dist: dist[k] };
+                let mut j = sp;
+                // SAFETY: entries base..sp were written by earlier pushes.
+                while j > base && unsafe { st[j - 1].assume_init() }.dist < e.dist {
+                    st[j] = st[j - 1];
+                    j -= 1;
+                }
+                st[j].write(e);
                 sp += 1;
             }
         } else if cur.code != EMPTY {
@@ -978,7 +1030,15 @@ impl MeshBvh {
         };
         if let (TriangleTest::UnitTriangle, Nodes::W8(n)) = (self.test, &self.nodes) {
             let leaves = UnitPacketLeaves::<K> { tris: &self.tris, inst, k: std::marker::PhantomData };
-            coherent_parts!(p, active, h, |m, _hh| p.interval(m), |iv, m, h| intersect::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()), |g, l, h| single(g, l, h));
+            let ext = max_spread(&self.bounds());
+            coherent_parts!(
+                p,
+                active,
+                h,
+                |m, _hh| p.interval(m).filter(|iv| iv.worth(m, ext)),
+                |iv, m, h| intersect::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()),
+                |g, l, h| single(g, l, h)
+            );
         } else {
             for_lanes(p.groups, active, |g, l| single(g, l, h));
         }
@@ -995,7 +1055,15 @@ impl MeshBvh {
         };
         if let (TriangleTest::UnitTriangle, Nodes::W8(n)) = (self.test, &self.nodes) {
             let leaves = UnitPacketLeaves::<K> { tris: &self.tris, inst: INVALID, k: std::marker::PhantomData };
-            coherent_parts!(p, active, h, |m, hh| p.occlusion_interval(m, hh), |iv, m, h| occluded::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()), |g, l, h| single(g, l, h));
+            let ext = max_spread(&self.bounds());
+            coherent_parts!(
+                p,
+                active,
+                h,
+                |m, hh| p.occlusion_interval(m, hh).filter(|iv| iv.worth(m, ext)),
+                |iv, m, h| occluded::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()),
+                |g, l, h| single(g, l, h)
+            );
         } else {
             for_lanes(p.groups, active, |g, l| single(g, l, h));
         }
@@ -1183,11 +1251,12 @@ impl TwoLevel {
     fn packet_intersect_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
         let active = p.valid;
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
+        let ext = max_spread(&self.bounds());
         coherent_parts!(
             p,
             &active,
             h,
-            |m, _hh| p.interval(m),
+            |m, _hh| p.interval(m).filter(|iv| iv.worth(m, ext)),
             |iv, m, h| {
                 intersect::<K, _, _>(&self.nodes, &leaves, p, iv, m, h, &mut ());
                 for &i in &self.unbounded {
@@ -1206,11 +1275,12 @@ impl TwoLevel {
     fn packet_occluded_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
         let active = p.valid;
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
+        let ext = max_spread(&self.bounds());
         coherent_parts!(
             p,
             &active,
             h,
-            |m, hh| p.occlusion_interval(m, hh),
+            |m, hh| p.occlusion_interval(m, hh).filter(|iv| iv.worth(m, ext)),
             |iv, m, h| {
                 for &i in &self.unbounded {
                     leaves.occluded_one(i, p, m, h);
@@ -1427,7 +1497,9 @@ mod avx {
     fn eval(t4: &Tri4, lane: usize, p: &Packet, g: usize, tmax: __m256, org: Option<&[[f32; 4]; 3]>) -> (__m256, [__m256; 4]) {
         let m = |c: usize| _mm256_set1_ps(t4.m[c][lane]);
         let (dx, dy, dz) = (ld(&p.d[g][0]), ld(&p.d[g][1]), ld(&p.d[g][2]));
-        let dot = |r: usize, x, y, z| _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(m(r), x), _mm256_mul_ps(m(r + 1), y)), _mm256_mul_ps(m(r + 2), z));
+        let dot = |r: usize, x, y, z| {
+            _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(m(r), x), _mm256_mul_ps(m(r + 1), y)), _mm256_mul_ps(m(r + 2), z))
+        };
         let dzp = dot(8, dx, dy, dz);
         let dxp = dot(0, dx, dy, dz);
         let dyp = dot(4, dx, dy, dz);
@@ -1470,7 +1542,10 @@ mod avx {
         let mut out = [[0f32; 4]; 3];
         for (r, slot) in out.iter_mut().enumerate() {
             let b = 4 * r;
-            let v = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(row(b), ox), _mm_mul_ps(row(b + 1), oy)), _mm_mul_ps(row(b + 2), oz)), row(b + 3));
+            let v = _mm_add_ps(
+                _mm_add_ps(_mm_add_ps(_mm_mul_ps(row(b), ox), _mm_mul_ps(row(b + 1), oy)), _mm_mul_ps(row(b + 2), oz)),
+                row(b + 3),
+            );
             // SAFETY: `slot` is 16 bytes.
             unsafe { _mm_storeu_ps(slot.as_mut_ptr(), v) };
         }
@@ -1498,7 +1573,10 @@ mod avx {
                 continue;
             }
             let t = _mm256_div_ps(tt, adz);
-            let take = _mm256_and_ps(ok, _mm256_or_ps(_mm256_andnot_ps(found, _mm256_castsi256_ps(_mm256_set1_epi32(-1))), _mm256_cmp_ps::<_CMP_LT_OQ>(t, bt)));
+            let take = _mm256_and_ps(
+                ok,
+                _mm256_or_ps(_mm256_andnot_ps(found, _mm256_castsi256_ps(_mm256_set1_epi32(-1))), _mm256_cmp_ps::<_CMP_LT_OQ>(t, bt)),
+            );
             bt = _mm256_blendv_ps(bt, t, take);
             bu = _mm256_blendv_ps(bu, _mm256_div_ps(uu, adz), take);
             bv = _mm256_blendv_ps(bv, _mm256_div_ps(vv, adz), take);

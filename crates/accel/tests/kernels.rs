@@ -250,7 +250,7 @@ fn a_refit_bvh_gives_the_hits_of_a_fresh_build() {
     };
     for test in [TriangleTest::UnitTriangle, TriangleTest::Watertight] {
         for width in [Width::W4, Width::W8] {
-            let opts = MeshOptions { width, test, refittable: true };
+            let opts = MeshOptions { width, test, refittable: true, ..MeshOptions::default() };
             let mut bvh = MeshBvh::build(&p, &idx, opts).expect("build");
             let mut idx2 = idx.clone();
             for (i, t) in idx2.iter_mut().take(50).enumerate() {
@@ -261,7 +261,8 @@ fn a_refit_bvh_gives_the_hits_of_a_fresh_build() {
                 let ratio = bvh.refit(&q, &idx2).expect("refit");
                 assert!(ratio.is_finite() && ratio > 0.5, "cost ratio {ratio}");
                 bvh.validate().expect("valid after refit");
-                let fresh = MeshBvh::build(&q, &idx2, MeshOptions { width, test, refittable: false }).expect("fresh");
+                let fresh =
+                    MeshBvh::build(&q, &idx2, MeshOptions { width, test, refittable: false, ..MeshOptions::default() }).expect("fresh");
                 let mut rng = Pcg64::seed_from_u64(22);
                 let mut hits = 0;
                 for _ in 0..3000 {
@@ -281,6 +282,36 @@ fn a_refit_bvh_gives_the_hits_of_a_fresh_build() {
             let centre = (a + b + c) / 3.0;
             let h = bvh.intersect(&Ray::new(centre + n * 1e-3, -n).with_range(0.0, 2e-3)).expect("hit");
             assert_eq!(h.prim, 7);
+        }
+    }
+}
+
+/// Insertion-based optimization keeps every primitive in exactly one leaf and every box
+/// around its children, lowers the SAH cost, and leaves the answers unchanged.
+#[test]
+fn reinsertion_keeps_the_tree_valid_and_lowers_its_cost() {
+    use lucent_accel::build::{build_binary, BuildConfig, PrimRef};
+    use lucent_accel::{Aabb, Quality};
+    let mut rng = Pcg64::seed_from_u64(11);
+    for n in [5usize, 60, 3000] {
+        let (p, idx) = soup(&mut rng, n, 10.0);
+        let prims: Vec<PrimRef> = idx
+            .iter()
+            .enumerate()
+            .map(|(i, t)| PrimRef::new(Aabb::from_points(&[p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]]), i as u32))
+            .collect();
+        let cfg = BuildConfig::default();
+        let mut bin = build_binary(prims, &cfg);
+        let (before, after) = lucent_accel::reinsert::optimize(&mut bin, &cfg);
+        bin.validate(&cfg).expect("valid after reinsertion");
+        assert!(after <= before, "{n}: cost {before} -> {after}");
+        let plain = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("build");
+        let high = MeshBvh::build(&p, &idx, MeshOptions { quality: Quality::High, ..MeshOptions::default() }).expect("build");
+        high.validate().expect("well formed");
+        for _ in 0..300 {
+            let r = random_ray(&mut rng, 10.0);
+            assert_eq!(plain.intersect(&r).map(|h| h.t), high.intersect(&r).map(|h| h.t), "{n}: {r:?}");
+            assert_eq!(plain.occluded(&r), high.occluded(&r));
         }
     }
 }

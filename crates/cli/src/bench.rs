@@ -109,6 +109,8 @@ pub struct RaysOptions {
     pub width: Width,
     pub test: TriangleTest,
     pub kernel: Kernel,
+    /// Build quality.
+    pub quality: lucent_accel::Quality,
     /// Kernels to time, one JSON line each.
     pub apis: Vec<Api>,
     /// Write the per-pixel primary hit ids here (i32 little-endian, like `embree_bench --dump-ids`).
@@ -153,7 +155,7 @@ fn pool(threads: usize) -> Result<rayon::ThreadPool> {
 pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
     let mesh = read_mesh(&dir.join("mesh.bin"))?;
     let tris = mesh.indices.len();
-    let opts = MeshOptions { width: o.width, test: o.test, ..MeshOptions::default() };
+    let opts = MeshOptions { width: o.width, test: o.test, quality: o.quality, ..MeshOptions::default() };
     let bvh_label = format!(
         "{}{}",
         if o.width == Width::W8 { "bvh8" } else { "bvh4" },
@@ -171,8 +173,9 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
         }
         let st = bvh.as_ref().map(|b| b.stats()).unwrap_or_default();
         println!(
-            "{{\"kind\":\"build\",\"tracer\":\"lucent\",\"scene\":\"{}\",\"tris\":{tris},\"quality\":\"sah\",\"bvh\":\"{bvh_label}\",\"threads\":{threads},\"median_ms\":{:.2},\"nodes\":{},\"sah\":{:.2},\"bytes\":{},\"bytes_per_tri\":{:.1}}}",
+            "{{\"kind\":\"build\",\"tracer\":\"lucent\",\"scene\":\"{}\",\"tris\":{tris},\"quality\":\"{}\",\"bvh\":\"{bvh_label}\",\"threads\":{threads},\"median_ms\":{:.2},\"nodes\":{},\"sah\":{:.2},\"bytes\":{},\"bytes_per_tri\":{:.1}}}",
             o.name,
+            if o.quality == lucent_accel::Quality::High { "high" } else { "sah" },
             1e3 * crate::stats::median(&mut times),
             st.nodes,
             st.sah,
@@ -205,82 +208,82 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
             })
             .collect();
         for (api, per) in o.apis.iter().map(|&a| (a, a.rays())) {
-        let api = format!("{}-{kname}", api.name());
-        for &threads in &o.threads {
-            let p = pool(threads)?;
-            // Like the Embree harness: every worker pulls chunks of 32 blocks (4 tiles, 256
-            // rays) from an atomic counter, so both tracers pay the same scheduling cost.
-            let out_cells: Vec<std::sync::atomic::AtomicI32> =
-                (0..batch.blocks.len() * 8).map(|_| std::sync::atomic::AtomicI32::new(-1)).collect();
-            let pass = || {
-                let next = std::sync::atomic::AtomicUsize::new(0);
-                let nchunks = batch.blocks.len().div_ceil(CHUNK_BLOCKS);
-                rayon::broadcast(|_| loop {
-                    let c = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    if c >= nchunks {
-                        break;
-                    }
-                    let b0 = c * CHUNK_BLOCKS;
-                    let b1 = (b0 + CHUNK_BLOCKS).min(batch.blocks.len());
-                    if per == 1 {
-                        for bi in b0..b1 {
-                            let b = &batch.blocks[bi];
-                            for l in 0..8 {
-                                if b.valid[l] == 0 {
-                                    continue;
+            let api = format!("{}-{kname}", api.name());
+            for &threads in &o.threads {
+                let p = pool(threads)?;
+                // Like the Embree harness: every worker pulls chunks of 32 blocks (4 tiles, 256
+                // rays) from an atomic counter, so both tracers pay the same scheduling cost.
+                let out_cells: Vec<std::sync::atomic::AtomicI32> =
+                    (0..batch.blocks.len() * 8).map(|_| std::sync::atomic::AtomicI32::new(-1)).collect();
+                let pass = || {
+                    let next = std::sync::atomic::AtomicUsize::new(0);
+                    let nchunks = batch.blocks.len().div_ceil(CHUNK_BLOCKS);
+                    rayon::broadcast(|_| loop {
+                        let c = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if c >= nchunks {
+                            break;
+                        }
+                        let b0 = c * CHUNK_BLOCKS;
+                        let b1 = (b0 + CHUNK_BLOCKS).min(batch.blocks.len());
+                        if per == 1 {
+                            for bi in b0..b1 {
+                                let b = &batch.blocks[bi];
+                                for l in 0..8 {
+                                    if b.valid[l] == 0 {
+                                        continue;
+                                    }
+                                    let r = b.ray(l);
+                                    let v = if shadow { bvh.occluded(&r) as i32 } else { bvh.intersect(&r).map_or(-1, |h| h.prim as i32) };
+                                    out_cells[bi * 8 + l].store(v, std::sync::atomic::Ordering::Relaxed);
                                 }
-                                let r = b.ray(l);
-                                let v = if shadow { bvh.occluded(&r) as i32 } else { bvh.intersect(&r).map_or(-1, |h| h.prim as i32) };
-                                out_cells[bi * 8 + l].store(v, std::sync::atomic::Ordering::Relaxed);
+                            }
+                            continue;
+                        }
+                        // Packets of `per` rays: consecutive blocks (a tile is 8 blocks), handed
+                        // over in the SoA layout they were dumped in; invalid lanes have an empty
+                        // range and are skipped by the kernel.
+                        let mut hits = [None; lucent_accel::MAX_PACKET];
+                        let mut occ = [false; lucent_accel::MAX_PACKET];
+                        let bpp = per / 8;
+                        for pb in (b0..b1).step_by(bpp) {
+                            let pe = (pb + bpp).min(b1);
+                            let n = (pe - pb) * 8;
+                            if shadow {
+                                bvh.occluded_blocks(&soa[pb..pe], &mut occ[..n]);
+                            } else {
+                                bvh.intersect_blocks(&soa[pb..pe], &mut hits[..n]);
+                            }
+                            for k in 0..n {
+                                let v = if shadow { occ[k] as i32 } else { hits[k].map_or(-1, |h| h.prim as i32) };
+                                out_cells[pb * 8 + k].store(v, std::sync::atomic::Ordering::Relaxed);
                             }
                         }
-                        continue;
-                    }
-                    // Packets of `per` rays: consecutive blocks (a tile is 8 blocks), handed
-                    // over in the SoA layout they were dumped in; invalid lanes have an empty
-                    // range and are skipped by the kernel.
-                    let mut hits = [None; lucent_accel::MAX_PACKET];
-                    let mut occ = [false; lucent_accel::MAX_PACKET];
-                    let bpp = per / 8;
-                    for pb in (b0..b1).step_by(bpp) {
-                        let pe = (pb + bpp).min(b1);
-                        let n = (pe - pb) * 8;
-                        if shadow {
-                            bvh.occluded_blocks(&soa[pb..pe], &mut occ[..n]);
-                        } else {
-                            bvh.intersect_blocks(&soa[pb..pe], &mut hits[..n]);
-                        }
-                        for k in 0..n {
-                            let v = if shadow { occ[k] as i32 } else { hits[k].map_or(-1, |h| h.prim as i32) };
-                            out_cells[pb * 8 + k].store(v, std::sync::atomic::Ordering::Relaxed);
-                        }
-                    }
-                });
-            };
-            let mut times: Vec<f64> = p.install(|| {
-                for _ in 0..o.warmup {
-                    pass();
-                }
-                (0..o.frames.max(1))
-                    .map(|_| {
-                        let t0 = Instant::now();
+                    });
+                };
+                let mut times: Vec<f64> = p.install(|| {
+                    for _ in 0..o.warmup {
                         pass();
-                        t0.elapsed().as_secs_f64()
-                    })
-                    .collect()
-            });
-            let med = crate::stats::median(&mut times);
-            let out: Vec<i32> = out_cells.iter().map(|c| c.load(std::sync::atomic::Ordering::Relaxed)).collect();
-            let npix = (batch.width * batch.height) as usize;
-            let mut px = vec![-1i32; npix];
-            for (bi, b) in batch.blocks.iter().enumerate() {
-                for l in 0..8 {
-                    if let Some(slot) = usize::try_from(b.pixel[l]).ok().filter(|&p| p < npix) {
-                        px[slot] = if b.valid[l] != 0 { out[bi * 8 + l] } else { -1 };
+                    }
+                    (0..o.frames.max(1))
+                        .map(|_| {
+                            let t0 = Instant::now();
+                            pass();
+                            t0.elapsed().as_secs_f64()
+                        })
+                        .collect()
+                });
+                let med = crate::stats::median(&mut times);
+                let out: Vec<i32> = out_cells.iter().map(|c| c.load(std::sync::atomic::Ordering::Relaxed)).collect();
+                let npix = (batch.width * batch.height) as usize;
+                let mut px = vec![-1i32; npix];
+                for (bi, b) in batch.blocks.iter().enumerate() {
+                    for l in 0..8 {
+                        if let Some(slot) = usize::try_from(b.pixel[l]).ok().filter(|&p| p < npix) {
+                            px[slot] = if b.valid[l] != 0 { out[bi * 8 + l] } else { -1 };
+                        }
                     }
                 }
-            }
-            let mut line = format!(
+                let mut line = format!(
                 "{{\"kind\":\"{kind}\",\"tracer\":\"lucent\",\"scene\":\"{}\",\"tris\":{tris},\"bvh\":\"{bvh_label}\",\"api\":\"{api}\",\"threads\":{threads},\"width\":{},\"height\":{},\"rays\":{},\"median_ms\":{:.3},\"mrays_s\":{:.2}",
                 o.name,
                 batch.width,
@@ -289,23 +292,23 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
                 1e3 * med,
                 batch.active as f64 / med * 1e-6
             );
-            if shadow {
-                line += &format!(",\"occluded\":{}", px.iter().filter(|&&v| v == 1).count());
-            } else {
-                line += &format!(",\"hits\":{}", px.iter().filter(|&&v| v >= 0).count());
-                if kind == "primary" {
-                    if let Some(path) = &o.dump_ids {
-                        let bytes: Vec<u8> = px.iter().flat_map(|v| v.to_le_bytes()).collect();
-                        std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
-                    }
-                    if let Some(r) = &ref_ids {
-                        let diff = px.iter().zip(r.iter()).filter(|(a, b)| a != b).count();
-                        line += &format!(",\"diff_px_vs_ref\":{diff}");
+                if shadow {
+                    line += &format!(",\"occluded\":{}", px.iter().filter(|&&v| v == 1).count());
+                } else {
+                    line += &format!(",\"hits\":{}", px.iter().filter(|&&v| v >= 0).count());
+                    if kind == "primary" {
+                        if let Some(path) = &o.dump_ids {
+                            let bytes: Vec<u8> = px.iter().flat_map(|v| v.to_le_bytes()).collect();
+                            std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
+                        }
+                        if let Some(r) = &ref_ids {
+                            let diff = px.iter().zip(r.iter()).filter(|(a, b)| a != b).count();
+                            line += &format!(",\"diff_px_vs_ref\":{diff}");
+                        }
                     }
                 }
+                println!("{line}}}");
             }
-            println!("{line}}}");
-        }
         }
     }
     Ok(())

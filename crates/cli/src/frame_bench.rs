@@ -21,11 +21,36 @@ struct Preset {
 
 /// The presets of `shared/bench/compare.sh` (cameras from `shared/scenes/README.md`).
 const PRESETS: &[Preset] = &[
-    Preset { name: "conference", file: "conference/conference.obj.gz", cam: [1550.0, 420.0, -150.0, 300.0, 150.0, -200.0, 0.0, 1.0, 0.0, 60.0], saarcor_fps: Some(22.1) },
-    Preset { name: "sponza", file: "sponza_dabrovic/sponza.obj.gz", cam: [-10.0, 2.5, 0.0, 0.0, 4.5, 0.0, 0.0, 1.0, 0.0, 70.0], saarcor_fps: None },
-    Preset { name: "kitchen", file: "bart/kitchen/kitchen_t0.obj.gz", cam: [3.75, 2.3, 3.6, 3.4365, 1.8802, 2.7482, -0.1270, 0.9074, -0.4005, 40.0], saarcor_fps: None },
-    Preset { name: "bunny", file: "stanford/bunny.ply", cam: [-0.0168, 0.11, 0.40, -0.0168, 0.11, -0.0015, 0.0, 1.0, 0.0, 30.0], saarcor_fps: None },
-    Preset { name: "museum", file: "bart/museum/museum5_t0.obj.gz", cam: [0.0, 1.6, -6.0, 0.0, 1.6, 0.0, 0.0, 1.0, 0.0, 45.0], saarcor_fps: None },
+    Preset {
+        name: "conference",
+        file: "conference/conference.obj.gz",
+        cam: [1550.0, 420.0, -150.0, 300.0, 150.0, -200.0, 0.0, 1.0, 0.0, 60.0],
+        saarcor_fps: Some(22.1),
+    },
+    Preset {
+        name: "sponza",
+        file: "sponza_dabrovic/sponza.obj.gz",
+        cam: [-10.0, 2.5, 0.0, 0.0, 4.5, 0.0, 0.0, 1.0, 0.0, 70.0],
+        saarcor_fps: None,
+    },
+    Preset {
+        name: "kitchen",
+        file: "bart/kitchen/kitchen_t0.obj.gz",
+        cam: [3.75, 2.3, 3.6, 3.4365, 1.8802, 2.7482, -0.1270, 0.9074, -0.4005, 40.0],
+        saarcor_fps: None,
+    },
+    Preset {
+        name: "bunny",
+        file: "stanford/bunny.ply",
+        cam: [-0.0168, 0.11, 0.40, -0.0168, 0.11, -0.0015, 0.0, 1.0, 0.0, 30.0],
+        saarcor_fps: None,
+    },
+    Preset {
+        name: "museum",
+        file: "bart/museum/museum5_t0.obj.gz",
+        cam: [0.0, 1.6, -6.0, 0.0, 1.6, 0.0, 0.0, 1.0, 0.0, 45.0],
+        saarcor_fps: None,
+    },
 ];
 
 /// Options of `bench frame`.
@@ -66,12 +91,8 @@ pub fn run(o: &FrameOptions) -> Result<()> {
             for &threads in &o.threads {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start the thread pool")?;
                 for (api, packets) in [("packet", true), ("single", false)].into_iter().take(1 + o.single as usize) {
-                    let s = RenderSettings {
-                        width: w,
-                        height: h,
-                        spp: 1,
-                        whitted: WhittedSettings { max_depth: 0, shadows: true, packets },
-                    };
+                    let s =
+                        RenderSettings { width: w, height: h, spp: 1, whitted: WhittedSettings { max_depth: 0, shadows: true, packets } };
                     let (mut times, rays) = pool.install(|| {
                         let (_, rays) = render(&world, &cam, &s, &|_| {});
                         let times: Vec<f64> = (0..o.frames.max(1))
@@ -95,7 +116,11 @@ pub fn run(o: &FrameOptions) -> Result<()> {
                         j["vs_saarcor"] = (fps / sc as f64).into();
                     }
                     println!("{j}");
-                    rows.push(format!("{name:<11} {w}x{h} {threads} thr {api:<6}: {:7.2} ms  {fps:7.1} fps  {:6.1} Mrays/s", med * 1e3, rays as f64 / med * 1e-6));
+                    rows.push(format!(
+                        "{name:<11} {w}x{h} {threads} thr {api:<6}: {:7.2} ms  {fps:7.1} fps  {:6.1} Mrays/s",
+                        med * 1e3,
+                        rays as f64 / med * 1e-6
+                    ));
                 }
             }
         }

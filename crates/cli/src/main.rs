@@ -430,6 +430,10 @@ enum BenchCmd {
         /// packets (8×8-pixel tiles). One JSON line each.
         #[arg(long, value_delimiter = ',', default_value = "single,packet8,packet64")]
         api: Vec<bench::Api>,
+        /// BVH quality: `sah` (binned SAH, parallel) or `high` (then insertion-based
+        /// optimization: a better tree for a longer build).
+        #[arg(long, default_value = "sah", value_parser = ["sah", "high"])]
+        quality: String,
     },
 }
 
@@ -549,21 +553,24 @@ fn run() -> Result<()> {
             camera_table_old: camera_table == "old",
             output,
         }),
-        Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar, dump_ids, api }) => bench::rays(
-            &dir,
-            &bench::RaysOptions {
-                name,
-                threads,
-                frames,
-                warmup,
-                kinds,
-                width: if width == 4 { lucent_accel::Width::W4 } else { lucent_accel::Width::W8 },
-                test: if watertight { lucent_accel::TriangleTest::Watertight } else { lucent_accel::TriangleTest::UnitTriangle },
-                kernel: if scalar { lucent_accel::Kernel::Scalar } else { lucent_accel::Kernel::detect() },
-                dump_ids,
-                apis: api,
-            },
-        ),
+        Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar, dump_ids, api, quality }) => {
+            bench::rays(
+                &dir,
+                &bench::RaysOptions {
+                    name,
+                    threads,
+                    frames,
+                    warmup,
+                    kinds,
+                    width: if width == 4 { lucent_accel::Width::W4 } else { lucent_accel::Width::W8 },
+                    test: if watertight { lucent_accel::TriangleTest::Watertight } else { lucent_accel::TriangleTest::UnitTriangle },
+                    kernel: if scalar { lucent_accel::Kernel::Scalar } else { lucent_accel::Kernel::detect() },
+                    dump_ids,
+                    apis: api,
+                    quality: if quality == "high" { lucent_accel::Quality::High } else { lucent_accel::Quality::Sah },
+                },
+            )
+        }
     }
 }
 

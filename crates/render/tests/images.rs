@@ -267,10 +267,18 @@ fn packets_render_the_same_image_as_single_rays() {
     let kitchen = load(&scene("bart/kitchen/kitchen.gltf")).expect("kitchen");
     let kcam = kitchen.camera.expect("kitchen camera");
     let cornell = load(&scene("cornell_box/cornell_box.obj")).expect("cornell");
-    let ccam = CameraDesc { eye: Vec3::new(278.0, 273.0, -800.0), look_at: Vec3::new(278.0, 273.0, 0.0), up: Vec3::Y, vfov_deg: 39.3, ortho_height: None };
+    let ccam = CameraDesc {
+        eye: Vec3::new(278.0, 273.0, -800.0),
+        look_at: Vec3::new(278.0, 273.0, 0.0),
+        up: Vec3::Y,
+        vfov_deg: 39.3,
+        ortho_height: None,
+    };
     let demo = demo_scene();
     let dcam = demo.camera.expect("demo camera");
-    for (name, s, cam, (w, h), spp) in [("demo", demo, dcam, (101, 67), 2), ("kitchen", kitchen, kcam, (96, 72), 1), ("cornell", cornell, ccam, (64, 64), 1)] {
+    for (name, s, cam, (w, h), spp) in
+        [("demo", demo, dcam, (101, 67), 2), ("kitchen", kitchen, kcam, (96, 72), 1), ("cornell", cornell, ccam, (64, 64), 1)]
+    {
         let mut world = World::new(s, MeshOptions::default()).expect("world");
         world.ensure_light(cam.eye);
         let c = Camera::new(&cam, w, h);

@@ -5,7 +5,7 @@ mod common;
 use common::scene;
 use glam::Vec3;
 use lucent_accel::reference::{intersect_triangles, intersect_triangles_watertight};
-use lucent_accel::{Kernel, MeshBvh, MeshOptions, Ray, TriangleTest, Width};
+use lucent_accel::{Kernel, MeshBvh, MeshOptions, Quality, Ray, TriangleTest, Width};
 use lucent_render::Camera;
 use lucent_scene::{load, CameraDesc};
 use rand::{Rng, SeedableRng};
@@ -60,12 +60,14 @@ const VIEWS: &[(&str, [f32; 10])] = &[
 
 #[test]
 fn kernels_match_reference_on_shared_scenes() {
-    let mut variants: Vec<(Width, Kernel, TriangleTest)> = Kernel::available()
+    let mut variants: Vec<(Width, Kernel, TriangleTest, Quality)> = Kernel::available()
         .into_iter()
-        .flat_map(|k| [(Width::W8, k, TriangleTest::UnitTriangle), (Width::W4, k, TriangleTest::UnitTriangle)])
+        .flat_map(|k| [(Width::W8, k, TriangleTest::UnitTriangle, Quality::Sah), (Width::W4, k, TriangleTest::UnitTriangle, Quality::Sah)])
         .collect();
-    variants.push((Width::W8, Kernel::detect(), TriangleTest::Watertight));
-    variants.push((Width::W4, Kernel::Scalar, TriangleTest::Watertight));
+    variants.push((Width::W8, Kernel::detect(), TriangleTest::Watertight, Quality::Sah));
+    variants.push((Width::W4, Kernel::Scalar, TriangleTest::Watertight, Quality::Sah));
+    // The optimized tree (insertion-based): same answers, a lower SAH cost.
+    variants.push((Width::W8, Kernel::detect(), TriangleTest::UnitTriangle, Quality::High));
     for &(file, c) in VIEWS {
         let s = load(&scene(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
         let m = &s.meshes[0];
@@ -95,9 +97,23 @@ fn kernels_match_reference_on_shared_scenes() {
         }
         let want_unit: Vec<_> = rays.iter().map(|r| intersect_triangles(&m.positions, &m.indices, r)).collect();
         let want_wt: Vec<_> = rays.iter().map(|r| intersect_triangles_watertight(&m.positions, &m.indices, r)).collect();
-        for &(width, kernel, test) in &variants {
-            let mut bvh = MeshBvh::build(&m.positions, &m.indices, MeshOptions { width, test, ..MeshOptions::default() }).expect("build");
+        for &(width, kernel, test, quality) in &variants {
+            let mut bvh =
+                MeshBvh::build(&m.positions, &m.indices, MeshOptions { width, test, quality, ..MeshOptions::default() }).expect("build");
             bvh.validate().expect("well formed");
+            if quality == Quality::High && m.indices.len() > 1000 {
+                let plain = MeshBvh::build(&m.positions, &m.indices, MeshOptions::default()).expect("build");
+                // Lower on every scene but the bunny, whose tree it leaves as it is.
+                assert!(
+                    bvh.stats().sah <= plain.stats().sah,
+                    "{file}: reinsertion raised the SAH cost ({} vs {})",
+                    bvh.stats().sah,
+                    plain.stats().sah
+                );
+                if file.contains("conference") {
+                    assert!(bvh.stats().sah < 0.9 * plain.stats().sah, "conference: {} vs {}", bvh.stats().sah, plain.stats().sah);
+                }
+            }
             bvh.set_kernel(kernel);
             let want = if test == TriangleTest::Watertight { &want_wt } else { &want_unit };
             for (r, w) in rays.iter().zip(want) {
@@ -196,7 +212,11 @@ fn packet_kernels_match_single_rays_on_shared_scenes() {
                             if (w.prim, w.inst) != (g.prim, g.inst) {
                                 ties += 1; // two surfaces at exactly this distance
                             } else {
-                                assert_eq!((w.u.to_bits(), w.v.to_bits()), (g.u.to_bits(), g.v.to_bits()), "{file} {kernel:?} {what} ray {i}: u, v");
+                                assert_eq!(
+                                    (w.u.to_bits(), w.v.to_bits()),
+                                    (g.u.to_bits(), g.v.to_bits()),
+                                    "{file} {kernel:?} {what} ray {i}: u, v"
+                                );
                             }
                         }
                         _ => panic!("{file} {kernel:?} {what} ray {i}: single {want:?}, packet {g:?}"),
