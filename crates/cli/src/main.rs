@@ -69,6 +69,10 @@ enum Cmd {
         /// for comparisons).
         #[arg(long)]
         single_rays: bool,
+        /// BVH quality: `sah` (binned SAH, parallel: the default) or `high` (then
+        /// insertion-based optimization: a better tree for a longer build).
+        #[arg(long, default_value = "sah", value_parser = ["sah", "high"])]
+        quality: String,
     },
     /// Assemble a REND3R program (.rdr) into instruction words (.mem text or raw binary).
     Asm {
@@ -458,7 +462,7 @@ fn run() -> Result<()> {
         .init();
     let cli = Cli::parse();
     match cli.cmd {
-        Cmd::Render { scene, demo, camera, ortho, size, spp, threads, output, max_depth, no_shadows, watertight, single_rays } => {
+        Cmd::Render { scene, demo, camera, ortho, size, spp, threads, output, max_depth, no_shadows, watertight, single_rays, quality } => {
             render_cmd::run(render_cmd::RenderArgs {
                 scene,
                 demo,
@@ -472,6 +476,7 @@ fn run() -> Result<()> {
                 no_shadows,
                 watertight,
                 single_rays,
+                quality_high: quality == "high",
             })
         }
         Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo.as_deref()),

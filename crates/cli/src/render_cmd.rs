@@ -24,6 +24,7 @@ pub struct RenderArgs {
     pub no_shadows: bool,
     pub watertight: bool,
     pub single_rays: bool,
+    pub quality_high: bool,
 }
 
 /// Parses "WxH".
@@ -87,7 +88,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let st = scene.stats();
     let t1 = Instant::now();
     let opts =
-        MeshOptions { test: if a.watertight { TriangleTest::Watertight } else { TriangleTest::UnitTriangle }, ..MeshOptions::default() };
+        MeshOptions {
+            test: if a.watertight { TriangleTest::Watertight } else { TriangleTest::UnitTriangle },
+            quality: if a.quality_high { lucent_accel::Quality::High } else { lucent_accel::Quality::Sah },
+            ..MeshOptions::default()
+        };
     let mut world = World::new(scene, opts)?;
     if world.ensure_light(desc.eye) {
         tracing::info!("the scene has no lights: using a headlight at the camera");
