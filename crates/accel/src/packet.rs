@@ -1200,6 +1200,18 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
             mesh.packet_intersect_k::<K>(&lp, m, h, id);
             return;
         }
+        if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
+            // The same object-space rays as the single-ray path, without its box-test
+            // constants (a shape needs none).
+            let lp = p.transformed(&inst.object_from_world, m);
+            for_lanes(p.groups, m, |g, l| {
+                let r = lp.ray(g, l, h.t[g].0[l]);
+                if let Some(s) = shape.intersect_local(r.org, r.dir, r.tmin, r.tmax) {
+                    h.put(g, l, &Hit { t: s.t, u: 0.0, v: 0.0, prim: s.part, inst: id });
+                }
+            });
+            return;
+        }
         let single = self.single();
         for_lanes(p.groups, m, |g, l| {
             let mut hit = h.get(g, l);
@@ -1214,6 +1226,16 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
         if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
             let lp = p.transformed(&inst.object_from_world, m);
             mesh.packet_occluded_k::<K>(&lp, m, h);
+            return;
+        }
+        if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
+            let lp = p.transformed(&inst.object_from_world, m);
+            for_lanes(p.groups, m, |g, l| {
+                let r = lp.ray(g, l, h.t[g].0[l]);
+                if shape.intersect_local(r.org, r.dir, r.tmin, r.tmax).is_some() {
+                    h.t[g].0[l] = f32::NEG_INFINITY;
+                }
+            });
             return;
         }
         let single = self.single();

@@ -44,7 +44,13 @@ impl Film {
     /// A black film.
     #[must_use]
     pub fn new(width: u32, height: u32) -> Self {
-        Self { width, height, pixels: vec![Vec3::ZERO; width as usize * height as usize] }
+        Self::filled(width, height, Vec3::ZERO)
+    }
+
+    /// A film with every pixel `c`.
+    #[must_use]
+    pub fn filled(width: u32, height: u32, c: Vec3) -> Self {
+        Self { width, height, pixels: vec![c; width as usize * height as usize] }
     }
 
     /// Pixel at (x, y).

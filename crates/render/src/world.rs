@@ -70,7 +70,7 @@ pub struct Surface {
     pub ng: Vec3,
     /// Shading normal (world, unit, same side as `ng`).
     pub ns: Vec3,
-    /// Texture coordinates.
+    /// Texture coordinates (left at zero on analytic shapes whose material has no texture).
     pub uv: Vec2,
     /// Material index.
     pub material: u32,
@@ -252,8 +252,16 @@ impl World {
                 let p_obj = object_from_world.transform_point3(p);
                 let n_obj = shape_of(kind).normal_local(p_obj, h.prim);
                 let ng: Vec3 = (inst.normal_to_world * glam::Vec3A::from(n_obj)).normalize_or_zero().into();
-                let (u, v) = shape_of(kind).uv_local(p_obj, h.prim);
-                Surface { p, ng, ns: ng, uv: Vec2::new(u, v), material }
+                // PERF: the uv (atan2, acos) only for textured materials (a tenth of a
+                // 4,096-sphere REND3R frame went to uvs nobody read).
+                let textured = self.scene.materials.get(material as usize).is_some_and(|m| m.diffuse_tex.is_some());
+                let uv = if textured {
+                    let (u, v) = shape_of(kind).uv_local(p_obj, h.prim);
+                    Vec2::new(u, v)
+                } else {
+                    Vec2::ZERO
+                };
+                Surface { p, ng, ns: ng, uv, material }
             }
         }
     }
