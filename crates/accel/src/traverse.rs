@@ -353,6 +353,7 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves, C: Count
     }
     // PERF: uninitialised, as in `intersect`.
     let mut st = [std::mem::MaybeUninit::<u32>::uninit(); STACK];
+    let mut st_t = [std::mem::MaybeUninit::<f32>::uninit(); STACK];
     let mut sp = 0usize;
     let mut cur = 0u32;
     let mut dist = [0f32; W];
@@ -363,15 +364,36 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves, C: Count
             let mut mask = unsafe { B::test(node, r, tmax, &mut dist) };
             c.node();
             if mask != 0 {
+                // Nearest child first (an occluder near the ray's start ends the query
+                // soonest), the others pushed farthest-first.
                 let i = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
+                if mask == 0 {
+                    cur = node.child[i];
+                    continue;
+                }
+                let base = sp;
+                let mut push = |code: u32, d: f32, sp: &mut usize| {
+                    let mut j = *sp;
+                    // SAFETY: entries base..sp were written by earlier pushes.
+                    while j > base && unsafe { st_t[j - 1].assume_init() } < d {
+                        st_t[j] = st_t[j - 1];
+                        st[j] = st[j - 1];
+                        j -= 1;
+                    }
+                    st_t[j].write(d);
+                    st[j].write(code);
+                    *sp += 1;
+                };
+                push(node.child[i], dist[i], &mut sp);
                 while mask != 0 {
                     let k = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
-                    st[sp].write(node.child[k]);
-                    sp += 1;
+                    push(node.child[k], dist[k], &mut sp);
                 }
-                cur = node.child[i];
+                sp -= 1;
+                // SAFETY: just pushed.
+                cur = unsafe { st[sp].assume_init() };
                 continue;
             }
         } else if cur != EMPTY {
