@@ -163,12 +163,17 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
             mesh.indices.len()
         ));
     }
-    // 3. Whole animated frames (update + render, shadows on).
-    for (name, path, builder) in [
-        ("kitchen", Some(&kitchen), TopBuilder::Sah),
-        ("museum", Some(&museum), TopBuilder::Sah),
-        ("sunflowers", None, TopBuilder::Sah),
-        ("sunflowers, linear TLAS", None, TopBuilder::Linear),
+    // 3. Whole animated frames (update + render, shadows on): full Whitted (reflections and
+    // refractions up to depth 6), then primary rays with shadows and shading only.
+    let full = WhittedSettings::default();
+    let direct = WhittedSettings { max_depth: 0, ..full };
+    for (name, path, builder, whitted) in [
+        ("kitchen", Some(&kitchen), TopBuilder::Sah, full),
+        ("museum", Some(&museum), TopBuilder::Sah, full),
+        ("sunflowers", None, TopBuilder::Sah, full),
+        ("sunflowers, linear TLAS", None, TopBuilder::Linear, full),
+        ("kitchen, no reflections", Some(&kitchen), TopBuilder::Sah, direct),
+        ("museum, no reflections", Some(&museum), TopBuilder::Sah, direct),
     ] {
         let scene = match path {
             Some(p) if !p.exists() => continue,
@@ -180,7 +185,7 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
         let mut world = World::new(scene, MeshOptions::default())?;
         world.ensure_light(fallback.eye);
         world.accel.set_top_builder(builder);
-        let rs = RenderSettings { width: size.0, height: size.1, spp: 1, whitted: WhittedSettings::default() };
+        let rs = RenderSettings { width: size.0, height: size.1, spp: 1, whitted };
         let (mut upd, mut ren, mut tot) = (Vec::new(), Vec::new(), Vec::new());
         for f in 0..frames.max(1) {
             let t = t0 + (t1 - t0) * f as f32 / frames.max(1) as f32;

@@ -210,12 +210,11 @@ fn light_term(l: &Light, h: &Local, s: &WhittedSettings) -> Option<(Vec3, Option
     Some((rad * (h.kd * cos * h.opaque + spec), shadow))
 }
 
-/// Adds the refracted and reflected light (traced ray by ray) to `c`.
-fn secondary(w: &World, h: &Local, s: &WhittedSettings, depth: u32, c: &mut Vec3) {
-    if depth >= s.max_depth {
-        return;
-    }
+/// The refracted and the reflected ray of a hit, each with its weight (either may be
+/// absent), in the order their light is added.
+fn secondary_rays(w: &World, h: &Local) -> [Option<(Vec3, Ray)>; 2] {
     let (d, mat) = (h.d, h.mat);
+    let mut out = [None, None];
     let mut kr = mat.reflect;
     if h.transmit > 0.0 {
         // Entering when the ray meets the front side.
@@ -225,7 +224,7 @@ fn secondary(w: &World, h: &Local, s: &WhittedSettings, depth: u32, c: &mut Vec3
         match refract(d, h.ns, eta) {
             Some(t) if f < 1.0 => {
                 let p_in = offset(w, h.surf.p, -h.ng);
-                *c += mat.transmit * (1.0 - f) * li(w, &Ray::new(p_in, t), s, depth + 1);
+                out[0] = Some((mat.transmit * (1.0 - f), Ray::new(p_in, t)));
                 if mat.fresnel {
                     kr = kr.max(Vec3::splat(f));
                 }
@@ -234,8 +233,18 @@ fn secondary(w: &World, h: &Local, s: &WhittedSettings, depth: u32, c: &mut Vec3
         }
     }
     if kr.max_element() > 0.0 {
-        let r = reflect(d, h.ns);
-        *c += kr * li(w, &Ray::new(h.p_out, r), s, depth + 1);
+        out[1] = Some((kr, Ray::new(h.p_out, reflect(d, h.ns))));
+    }
+    out
+}
+
+/// Adds the refracted and reflected light (traced ray by ray) to `c`.
+fn secondary(w: &World, h: &Local, s: &WhittedSettings, depth: u32, c: &mut Vec3) {
+    if depth >= s.max_depth {
+        return;
+    }
+    for (k, r) in secondary_rays(w, h).into_iter().flatten() {
+        *c += k * li(w, &r, s, depth + 1);
     }
 }
 
@@ -257,6 +266,13 @@ fn shade(w: &World, ray: &Ray, surf: &Surface, mat: &Material, s: &WhittedSettin
 /// reflected and refracted rays one by one. The same radiance as [`li`] on each ray (only
 /// which of two surfaces at exactly the same distance is seen may differ).
 pub fn li_packet(w: &World, rays: &[Ray], s: &WhittedSettings, out: &mut [Vec3]) {
+    li_packet_at(w, rays, s, 0, out);
+}
+
+/// [`li_packet`] at recursion depth `depth`: the refracted rays of the block, then its
+/// reflected rays, are traced as packets of their own (a flat mirror's or a window's rays
+/// stay coherent; scattered ones fall back to single rays inside the kernels).
+fn li_packet_at(w: &World, rays: &[Ray], s: &WhittedSettings, depth: u32, out: &mut [Vec3]) {
     const N: usize = lucent_accel::MAX_PACKET;
     static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
     for (rays, out) in rays.chunks(N).zip(out.chunks_mut(N)) {
@@ -306,9 +322,29 @@ pub fn li_packet(w: &World, rays: &[Ray], s: &WhittedSettings, out: &mut [Vec3])
                 }
             }
         }
-        for (i, h) in locals.iter().enumerate() {
-            if let Some(h) = h {
-                secondary(w, h, s, 0, &mut out[i]);
+        if depth >= s.max_depth {
+            continue;
+        }
+        // Transmitted light first, then reflected, as `secondary` adds them.
+        let sec: Vec<[Option<(Vec3, Ray)>; 2]> = locals.iter().map(|h| h.as_ref().map_or([None, None], |h| secondary_rays(w, h))).collect();
+        let mut res = [Vec3::ZERO; N];
+        for pass in 0..2 {
+            let mut k = 0;
+            for (i, r) in sec.iter().enumerate() {
+                if let Some((_, ray)) = r[pass] {
+                    shadow[k] = ray;
+                    who[k] = i;
+                    k += 1;
+                }
+            }
+            if k == 0 {
+                continue;
+            }
+            li_packet_at(w, &shadow[..k], s, depth + 1, &mut res[..k]);
+            for j in 0..k {
+                if let Some((weight, _)) = sec[who[j]][pass] {
+                    out[who[j]] += weight * res[j];
+                }
             }
         }
     }
