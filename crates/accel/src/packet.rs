@@ -21,6 +21,9 @@
 //! AVX instruction. No multiply-add is fused (Rust never contracts), so both builds give
 //! identical answers; tests check both against the single-ray and the reference kernels.
 
+// Group and lane indices address several SoA arrays at once throughout this module.
+#![allow(clippy::needless_range_loop)]
+
 use crate::geom::{Hit, Ray, INVALID};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::traverse::{Counters, TraversalStats, STACK};
@@ -73,7 +76,6 @@ macro_rules! compare {
     };
 }
 
-#[allow(clippy::needless_range_loop)] // fixed 8-lane loops, written for the vectorizer
 impl F8 {
     #[inline(always)]
     pub(crate) const fn splat(x: f32) -> Self {
@@ -143,7 +145,6 @@ impl F8 {
     }
 }
 
-#[allow(clippy::needless_range_loop)]
 impl M8 {
     const NONE: Self = M8([0; LANES]);
     #[inline(always)]
@@ -496,7 +497,6 @@ impl Packet {
 
 /// Lane-wise `1/d`, with |d| clamped to ≥ 1e-18 as in the single-ray kernel.
 #[inline(always)]
-#[allow(clippy::needless_range_loop)]
 fn recip(d: F8) -> F8 {
     let tiny = 1e-18f32;
     let mut r = [0f32; LANES];

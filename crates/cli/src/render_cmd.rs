@@ -87,12 +87,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let desc = choose_camera(&scene, a.camera.as_deref(), a.ortho)?;
     let st = scene.stats();
     let t1 = Instant::now();
-    let opts =
-        MeshOptions {
-            test: if a.watertight { TriangleTest::Watertight } else { TriangleTest::UnitTriangle },
-            quality: if a.quality_high { lucent_accel::Quality::High } else { lucent_accel::Quality::Sah },
-            ..MeshOptions::default()
-        };
+    let opts = MeshOptions {
+        test: if a.watertight { TriangleTest::Watertight } else { TriangleTest::UnitTriangle },
+        quality: if a.quality_high { lucent_accel::Quality::High } else { lucent_accel::Quality::Sah },
+        ..MeshOptions::default()
+    };
     let mut world = World::new(scene, opts)?;
     if world.ensure_light(desc.eye) {
         tracing::info!("the scene has no lights: using a headlight at the camera");

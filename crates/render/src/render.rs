@@ -109,19 +109,15 @@ pub fn render_pass(w: &World, cam: &Camera, s: &RenderSettings, integrator: Inte
     })
 }
 
+/// Computes the pixels of a block: `block(pixels, out)`.
+type BlockFn<'a> = dyn Fn(&[(u32, u32)], &mut [Vec3]) + Sync + 'a;
+
 /// Pixels per block handed to the integrators: 8×8, one ray packet.
 const BLOCK: usize = 64;
 
 /// The tile loop shared by every renderer: tiles on rayon, empty tiles culled by their
 /// frustum; the pixels of the others are handed out in 8×8 blocks, `block(pixels, out)`.
-fn render_tiles(
-    w: &World,
-    cam: &Camera,
-    width: u32,
-    height: u32,
-    progress: &(dyn Fn(u64) + Sync),
-    block: &(dyn Fn(&[(u32, u32)], &mut [Vec3]) + Sync),
-) -> (Film, u64) {
+fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dyn Fn(u64) + Sync), block: &BlockFn) -> (Film, u64) {
     let (tw, th) = (width.div_ceil(TILE), height.div_ceil(TILE));
     // The background everywhere first (one streaming fill): culled tiles are then done.
     let mut film = Film::filled(width, height, w.scene.background);
