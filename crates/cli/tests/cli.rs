@@ -124,13 +124,21 @@ fn bench_rays_reads_the_harness_format() {
     let t = String::from_utf8_lossy(&o.stdout);
     let lines: Vec<&str> = t.lines().filter(|l| l.starts_with('{')).collect();
     assert_eq!(lines.iter().filter(|l| l.contains("\"kind\":\"build\"")).count(), 2, "{t}");
+    // One line per kernel (single rays, 8- and 64-ray packets) and thread count, all with
+    // the same answers.
     let primary: Vec<&&str> = lines.iter().filter(|l| l.contains("\"kind\":\"primary\"")).collect();
-    assert_eq!(primary.len(), 2);
+    assert_eq!(primary.len(), 6, "{t}");
+    for api in ["single", "packet8", "packet64"] {
+        assert_eq!(primary.iter().filter(|l| l.contains(&format!("\"api\":\"{api}-"))).count(), 2, "{api}: {t}");
+    }
     for l in &primary {
         assert!(l.contains("\"hits\":10") && l.contains("\"diff_px_vs_ref\":0") && l.contains("\"mrays_s\":"), "{l}");
     }
-    let shadow = lines.iter().find(|l| l.contains("\"kind\":\"shadow\"")).expect("shadow line");
-    assert!(shadow.contains("\"occluded\":10"), "{shadow}");
+    let shadow: Vec<&&str> = lines.iter().filter(|l| l.contains("\"kind\":\"shadow\"")).collect();
+    assert_eq!(shadow.len(), 6, "{t}");
+    for l in shadow {
+        assert!(l.contains("\"occluded\":10"), "{l}");
+    }
     // Bad input: a truncated file gives a clear error.
     std::fs::write(d.path().join("mesh.bin"), b"RTBMESH1\x05\0\0\0").expect("cut");
     let o = lucent().args(["bench", "rays"]).arg(d.path()).output().expect("run");
@@ -233,4 +241,32 @@ fn serve_and_send_give_the_frames_of_run() {
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("bad.rdr: 3:") && e.contains("server reported 1 error"), "{e}");
+}
+
+/// `bench frame` times shaded frames on a harness preset (packets and single rays, the
+/// same rays traced) and refuses an unknown preset by name.
+#[test]
+fn bench_frame_reports_shaded_frames() {
+    let scenes = std::env::var("LUCENT_SCENES")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes"));
+    let o = lucent()
+        .args(["bench", "frame", "museum", "--sizes", "64x48", "--frames", "2", "--threads", "1", "--dir"])
+        .arg(&scenes)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let t = String::from_utf8_lossy(&o.stdout);
+    let lines: Vec<serde_json::Value> = t.lines().filter_map(|l| serde_json::from_str(l).ok()).collect();
+    assert_eq!(lines.len(), 2, "{t}");
+    for l in &lines {
+        assert_eq!(l["kind"], "frame");
+        assert!(l["fps"].as_f64().is_some_and(|f| f > 0.0), "{l}");
+        // Primary rays for every pixel plus shadow rays toward the one light.
+        assert!(l["rays"].as_u64().is_some_and(|r| r > 64 * 48), "{l}");
+    }
+    assert_eq!(lines[0]["rays"], lines[1]["rays"], "packets and single rays trace the same rays");
+    let o = lucent().args(["bench", "frame", "nosuch"]).output().expect("run");
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown scene preset 'nosuch'"));
 }
