@@ -1020,10 +1020,17 @@ impl MeshBvh {
     /// Closest hits of the lanes of `active` (packet traversal when the mesh has 8-wide
     /// unit-triangle nodes and the rays agree on direction signs; else ray by ray).
     #[inline(always)]
-    pub(crate) fn packet_intersect_k<K: KernelSet>(&self, p: &Packet, active: &Masks, h: &mut PacketHits, inst: u32) {
-        let single = |g: usize, l: usize, h: &mut PacketHits| {
+    pub(crate) fn packet_intersect_k<K: KernelSet, C: Counters>(
+        &self,
+        p: &Packet,
+        active: &Masks,
+        h: &mut PacketHits,
+        inst: u32,
+        c: &mut C,
+    ) {
+        let single = |g: usize, l: usize, h: &mut PacketHits, c: &mut C| {
             let mut hit = h.get(g, l);
-            if self.intersect_k::<K, ()>(&RayPre::new(&p.ray(g, l, hit.t)), &mut hit, &mut ()) {
+            if self.intersect_k::<K, C>(&RayPre::new(&p.ray(g, l, hit.t)), &mut hit, c) {
                 hit.inst = inst;
             }
             h.put(g, l, &hit);
@@ -1036,20 +1043,20 @@ impl MeshBvh {
                 active,
                 h,
                 |m, _hh| p.interval(m).filter(|iv| iv.worth(m, ext)),
-                |iv, m, h| intersect::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()),
-                |g, l, h| single(g, l, h)
+                |iv, m, h| intersect::<K, _, _>(n, &leaves, p, iv, m, h, c),
+                |g, l, h| single(g, l, h, c)
             );
         } else {
-            for_lanes(p.groups, active, |g, l| single(g, l, h));
+            for_lanes(p.groups, active, |g, l| single(g, l, h, c));
         }
     }
 
     /// Occlusion of the lanes of `active` (occluded lanes get `t = -inf`).
     #[inline(always)]
-    pub(crate) fn packet_occluded_k<K: KernelSet>(&self, p: &Packet, active: &Masks, h: &mut PacketHits) {
-        let single = |g: usize, l: usize, h: &mut PacketHits| {
+    pub(crate) fn packet_occluded_k<K: KernelSet, C: Counters>(&self, p: &Packet, active: &Masks, h: &mut PacketHits, c: &mut C) {
+        let single = |g: usize, l: usize, h: &mut PacketHits, c: &mut C| {
             let t = h.t[g].0[l];
-            if self.occluded_k::<K, ()>(&RayPre::new(&p.ray(g, l, t)), t, &mut ()) {
+            if self.occluded_k::<K, C>(&RayPre::new(&p.ray(g, l, t)), t, c) {
                 h.t[g].0[l] = f32::NEG_INFINITY;
             }
         };
@@ -1061,11 +1068,11 @@ impl MeshBvh {
                 active,
                 h,
                 |m, hh| p.occlusion_interval(m, hh).filter(|iv| iv.worth(m, ext)),
-                |iv, m, h| occluded::<K, _, _>(n, &leaves, p, iv, m, h, &mut ()),
-                |g, l, h| single(g, l, h)
+                |iv, m, h| occluded::<K, _, _>(n, &leaves, p, iv, m, h, c),
+                |g, l, h| single(g, l, h, c)
             );
         } else {
-            for_lanes(p.groups, active, |g, l| single(g, l, h));
+            for_lanes(p.groups, active, |g, l| single(g, l, h, c));
         }
     }
 
@@ -1090,22 +1097,22 @@ impl MeshBvh {
     }
 
     /// [`MeshBvh::intersect_packet`] counting the work into `stats` (scalar kernel: the
-    /// same answers and the same nodes visited as the fast ones): one inner node is one
-    /// interval test for the whole packet, items are the 4-triangle groups of the leaves
-    /// some ray of the packet entered.
+    /// same answers and the same nodes visited as the fast ones): a packet's inner node is
+    /// one interval test for all its rays, its items the 4-triangle groups of the leaves
+    /// some ray entered; rays traced alone (incoherent ones) count as single rays do.
     pub fn intersect_packet_with_stats(&self, rays: &[Ray], out: &mut [Option<Hit>], stats: &mut TraversalStats) {
         chunks(rays, |base, p, h| {
-            let active = p.valid;
-            if let (TriangleTest::UnitTriangle, Nodes::W8(n)) = (self.test, &self.nodes) {
-                if let Some(iv) = p.interval(&active) {
-                    let leaves = UnitPacketLeaves::<ScalarSet> { tris: &self.tris, inst: INVALID, k: std::marker::PhantomData };
-                    intersect::<ScalarSet, _, _>(n, &leaves, p, &iv, &active, h, stats);
-                    write_hits(base, p, h, out);
-                    return;
-                }
-            }
-            self.packet_intersect_k::<ScalarSet>(p, &active, h, INVALID);
+            self.packet_intersect_k::<ScalarSet, _>(p, &p.valid, h, INVALID, stats);
             write_hits(base, p, h, out);
+        });
+    }
+
+    /// [`MeshBvh::occluded_packet`] counting the work into `stats` (scalar kernel), as
+    /// [`MeshBvh::intersect_packet_with_stats`] does.
+    pub fn occluded_packet_with_stats(&self, rays: &[Ray], out: &mut [bool], stats: &mut TraversalStats) {
+        chunks(rays, |base, p, h| {
+            self.packet_occluded_k::<ScalarSet, _>(p, &p.valid, h, stats);
+            write_occluded(base, p, h, out);
         });
     }
 
@@ -1133,7 +1140,7 @@ impl MeshBvh {
             // SAFETY: the kernel is only Simd/Avx512 when AVX2 and FMA were detected.
             #[cfg(target_arch = "x86_64")]
             Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_intersect(self, p, &active, h) },
-            _ => self.packet_intersect_k::<ScalarSet>(p, &active, h, INVALID),
+            _ => self.packet_intersect_k::<ScalarSet, _>(p, &active, h, INVALID, &mut ()),
         }
     }
 
@@ -1144,7 +1151,7 @@ impl MeshBvh {
             // SAFETY: as above.
             #[cfg(target_arch = "x86_64")]
             Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_occluded(self, p, &active, h) },
-            _ => self.packet_occluded_k::<ScalarSet>(p, &active, h),
+            _ => self.packet_occluded_k::<ScalarSet, _>(p, &active, h, &mut ()),
         }
     }
 }
@@ -1152,13 +1159,13 @@ impl MeshBvh {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn avx2_mesh_intersect(m: &MeshBvh, p: &Packet, active: &Masks, h: &mut PacketHits) {
-    m.packet_intersect_k::<crate::kernel::SimdSet>(p, active, h, INVALID);
+    m.packet_intersect_k::<crate::kernel::SimdSet, _>(p, active, h, INVALID, &mut ());
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn avx2_mesh_occluded(m: &MeshBvh, p: &Packet, active: &Masks, h: &mut PacketHits) {
-    m.packet_occluded_k::<crate::kernel::SimdSet>(p, active, h);
+    m.packet_occluded_k::<crate::kernel::SimdSet, _>(p, active, h, &mut ());
 }
 
 fn write_hits(base: usize, p: &Packet, h: &PacketHits, out: &mut [Option<Hit>]) {
@@ -1197,7 +1204,7 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
         if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
             // The rays carried into object space exactly as the single-ray path does.
             let lp = p.transformed(&inst.object_from_world, m);
-            mesh.packet_intersect_k::<K>(&lp, m, h, id);
+            mesh.packet_intersect_k::<K, _>(&lp, m, h, id, &mut ());
             return;
         }
         if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
@@ -1225,7 +1232,7 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
         let inst = &self.tl.instances()[id as usize];
         if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
             let lp = p.transformed(&inst.object_from_world, m);
-            mesh.packet_occluded_k::<K>(&lp, m, h);
+            mesh.packet_occluded_k::<K, _>(&lp, m, h, &mut ());
             return;
         }
         if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {

@@ -315,3 +315,44 @@ fn reinsertion_keeps_the_tree_valid_and_lowers_its_cost() {
         }
     }
 }
+
+/// The counting packet kernels give the plain ones' answers and count their work: a packet
+/// of coherent rays visits far fewer nodes than its rays do one by one.
+#[test]
+fn packet_stats_count_and_agree() {
+    use lucent_accel::TraversalStats;
+    let mut rng = Pcg64::seed_from_u64(5);
+    let (p, idx) = soup(&mut rng, 4000, 10.0);
+    let bvh = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("build");
+    // An 8×8 fan of rays from one point (a pinhole tile) and their shadow rays toward a light.
+    let eye = Vec3::new(5.0, 5.0, -20.0);
+    let rays: Vec<Ray> =
+        (0..64).map(|i| Ray::new(eye, Vec3::new(0.001 + (i % 8) as f32 * 0.01, 0.001 + (i / 8) as f32 * 0.01, 1.0).normalize())).collect();
+    let (mut plain, mut counted) = (vec![None; 64], vec![None; 64]);
+    bvh.intersect_packet(&rays, &mut plain);
+    let mut st = TraversalStats::default();
+    bvh.intersect_packet_with_stats(&rays, &mut counted, &mut st);
+    assert_eq!(plain, counted);
+    assert!(plain.iter().filter(|h| h.is_some()).count() > 32, "the fan looks into the soup");
+    let mut single = TraversalStats::default();
+    for r in &rays {
+        let _ = bvh.intersect_with_stats(r, &mut single);
+    }
+    assert!(st.nodes > 0 && st.nodes * 4 < single.nodes, "packet {st:?}, rays one by one {single:?}");
+    let light = Vec3::new(5.0, 30.0, 5.0);
+    let shadow: Vec<Ray> = plain
+        .iter()
+        .zip(&rays)
+        .filter_map(|(h, r)| h.map(|h| r.at(h.t) - r.dir * 1e-3))
+        .map(|o| Ray::new(o, (light - o).normalize()).with_range(0.0, (light - o).length()))
+        .collect();
+    let (mut a, mut b) = (vec![false; shadow.len()], vec![false; shadow.len()]);
+    bvh.occluded_packet(&shadow, &mut a);
+    let mut st = TraversalStats::default();
+    bvh.occluded_packet_with_stats(&shadow, &mut b, &mut st);
+    assert_eq!(a, b);
+    assert!(st.nodes > 0);
+    for (r, o) in shadow.iter().zip(&a) {
+        assert_eq!(bvh.occluded(r), *o);
+    }
+}
