@@ -401,8 +401,8 @@ impl Packet {
     #[inline(always)]
     pub(crate) fn interval(&self, active: &Masks) -> Option<Interval> {
         let inf = f32::INFINITY;
-        let (mut olo, mut ohi) = (F8::splat(inf), F8::splat(-inf)).into_arr3();
-        let (mut rlo, mut rhi) = (F8::splat(inf), F8::splat(-inf)).into_arr3();
+        let (mut olo, mut ohi) = ([F8::splat(inf); 3], [F8::splat(-inf); 3]);
+        let (mut rlo, mut rhi) = (olo, ohi);
         let mut tmin = F8::splat(inf);
         let mut any = 0;
         for g in 0..self.groups {
@@ -528,16 +528,6 @@ fn max_spread(b: &crate::geom::Aabb) -> f32 {
         0.01 * d
     } else {
         f32::INFINITY
-    }
-}
-
-trait IntoArr3 {
-    fn into_arr3(self) -> ([F8; 3], [F8; 3]);
-}
-impl IntoArr3 for (F8, F8) {
-    #[inline(always)]
-    fn into_arr3(self) -> ([F8; 3], [F8; 3]) {
-        ([self.0; 3], [self.1; 3])
     }
 }
 
@@ -681,67 +671,29 @@ pub(crate) fn intersect<K: KernelSet, L: PacketLeaves, C: Counters>(
     h: &mut PacketHits,
     c: &mut C,
 ) {
-    if nodes.is_empty() {
-        return;
-    }
-    // PERF: left uninitialised (zeroing 6 KB per packet showed in profiles); entries below
-    // `sp` are always written before they are read.
-    let mut st = [std::mem::MaybeUninit::<Entry>::uninit(); STACK];
-    let mut sp = 0usize;
-    let mut cur = Entry { code: 0, at: 0, dist: 0.0 };
-    let mut tmax = h.max_t::<K>(p.groups, active);
-    let mut dist = [0f32; 8];
-    loop {
-        if cur.code & LEAF == 0 {
-            // SAFETY: node indices come from the builder and are in range.
-            let node = unsafe { nodes.get_unchecked(cur.code as usize) };
-            let mut mask = node_test::<K>(node, iv, tmax, &mut dist);
-            c.node();
-            if mask != 0 {
-                let base = sp;
-                let at0 = cur.code << 3;
-                while mask != 0 {
-                    let k = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    // Insertion: nearest on top.
-                    let e = Entry { code: node.child[k], at: at0 | k as u32, dist: dist[k] };
-                    let mut j = sp;
-                    // SAFETY: entries base..sp were written by earlier pushes.
-                    while j > base && unsafe { st[j - 1].assume_init() }.dist < e.dist {
-                        st[j] = st[j - 1];
-                        j -= 1;
-                    }
-                    st[j].write(e);
-                    sp += 1;
-                }
-            }
-        } else if cur.code != EMPTY {
-            let (m, any) = leaf_masks::<K>(nodes, cur.at, p, iv, h, active);
-            if any != 0 {
-                let (first, count) = leaf_range(cur.code);
-                c.items(count);
-                leaves.intersect(first, count, p, &m, h);
-                tmax = h.max_t::<K>(p.groups, active);
-            }
-        }
-        loop {
-            if sp == 0 {
-                return;
-            }
-            sp -= 1;
-            // SAFETY: every entry below the old `sp` was written by a push.
-            let e = unsafe { st[sp].assume_init() };
-            if e.dist <= tmax {
-                cur = e;
-                break;
-            }
-        }
-    }
+    traverse::<false, K, L, C>(nodes, leaves, p, iv, active, h, c);
 }
 
 /// Any-hit traversal of the lanes of `active`: occluded lanes get `t = -inf`.
 #[inline(always)]
 pub(crate) fn occluded<K: KernelSet, L: PacketLeaves, C: Counters>(
+    nodes: &[WideNode<8>],
+    leaves: &L,
+    p: &Packet,
+    iv: &Interval,
+    active: &Masks,
+    h: &mut PacketHits,
+    c: &mut C,
+) {
+    traverse::<true, K, L, C>(nodes, leaves, p, iv, active, h, c);
+}
+
+/// The one packet traversal: children nearest first (along the interval's rays), leaves
+/// handed to `leaves.intersect` or, with `ANY`, to `leaves.occluded`, which ends the walk
+/// once every lane is occluded. A closest-hit walk skips popped entries that start beyond
+/// every lane's current hit; an any-hit walk visits them all.
+#[inline(always)]
+fn traverse<const ANY: bool, K: KernelSet, L: PacketLeaves, C: Counters>(
     nodes: &[WideNode<8>],
     leaves: &L,
     p: &Packet,
@@ -762,17 +714,15 @@ pub(crate) fn occluded<K: KernelSet, L: PacketLeaves, C: Counters>(
     let mut dist = [0f32; 8];
     loop {
         if cur.code & LEAF == 0 {
-            // SAFETY: as in `intersect`.
+            // SAFETY: node indices come from the builder and are in range.
             let node = unsafe { nodes.get_unchecked(cur.code as usize) };
             let mut mask = node_test::<K>(node, iv, tmax, &mut dist);
             c.node();
-            let at0 = cur.code << 3;
-            // Nearest (along the interval's rays) on top: occluders near the start are
-            // found first.
-            let base = sp;
+            let (base, at0) = (sp, cur.code << 3);
             while mask != 0 {
                 let k = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
+                // Insertion: nearest on top.
                 let e = Entry { code: node.child[k], at: at0 | k as u32, dist: dist[k] };
                 let mut j = sp;
                 // SAFETY: entries base..sp were written by earlier pushes.
@@ -788,19 +738,29 @@ pub(crate) fn occluded<K: KernelSet, L: PacketLeaves, C: Counters>(
             if any != 0 {
                 let (first, count) = leaf_range(cur.code);
                 c.items(count);
-                leaves.occluded(first, count, p, &m, h);
+                if ANY {
+                    leaves.occluded(first, count, p, &m, h);
+                } else {
+                    leaves.intersect(first, count, p, &m, h);
+                }
                 tmax = h.max_t::<K>(p.groups, active);
-                if tmax == f32::NEG_INFINITY {
+                if ANY && tmax == f32::NEG_INFINITY {
                     return;
                 }
             }
         }
-        if sp == 0 {
-            return;
+        loop {
+            if sp == 0 {
+                return;
+            }
+            sp -= 1;
+            // SAFETY: every entry below the old `sp` was written by a push.
+            let e = unsafe { st[sp].assume_init() };
+            if ANY || e.dist <= tmax {
+                cur = e;
+                break;
+            }
         }
-        sp -= 1;
-        // SAFETY: written by a push.
-        cur = unsafe { st[sp].assume_init() };
     }
 }
 
