@@ -255,6 +255,67 @@ fn prefetch_node<const W: usize>(nodes: &[WideNode<W>], i: u32) {
     }
 }
 
+/// The child to visit next among the hit children `mask` of `node` (the nearest); the
+/// others are pushed farthest first, so they pop nearest first. Of two children at the same
+/// distance (a ray starting inside both boxes), the insertion sort visits the later slot
+/// first; `LATER_ON_TIE` makes the two-child shortcut do the same. The any-hit walk wants
+/// that (measured: kitchen shadow rays twice as fast), the closest-hit walk keeps the
+/// earlier slot.
+#[inline(always)]
+fn visit_children<const W: usize, const LATER_ON_TIE: bool>(
+    nodes: &[WideNode<W>],
+    node: &WideNode<W>,
+    mut mask: u32,
+    dist: &[f32; W],
+    st_code: &mut [std::mem::MaybeUninit<u32>; STACK],
+    st_t: &mut [std::mem::MaybeUninit<f32>; STACK],
+    sp: &mut usize,
+) -> u32 {
+    let i = mask.trailing_zeros() as usize;
+    mask &= mask - 1;
+    if mask == 0 {
+        return node.child[i];
+    }
+    let j = mask.trailing_zeros() as usize;
+    if mask & (mask - 1) == 0 {
+        // PERF: exactly two (the common case): go to the nearer, push the farther.
+        let (ci, cj, di, dj) = (node.child[i], node.child[j], dist[i], dist[j]);
+        let near_first = if LATER_ON_TIE { di < dj } else { di <= dj };
+        let (cn, cf, df) = if near_first { (ci, cj, dj) } else { (cj, ci, di) };
+        // Start loading the farther node: it is likely visited later.
+        if cf & LEAF == 0 {
+            prefetch_node(nodes, cf);
+        }
+        st_t[*sp].write(df);
+        st_code[*sp].write(cf);
+        *sp += 1;
+        return cn;
+    }
+    // Three or more: push all, nearest on top (insertion sort of at most W).
+    let base = *sp;
+    let mut push = |code: u32, d: f32, sp: &mut usize| {
+        let mut j = *sp;
+        // SAFETY: entries base..sp were written by earlier pushes.
+        while j > base && unsafe { st_t[j - 1].assume_init() } < d {
+            st_t[j] = st_t[j - 1];
+            st_code[j] = st_code[j - 1];
+            j -= 1;
+        }
+        st_t[j].write(d);
+        st_code[j].write(code);
+        *sp += 1;
+    };
+    push(node.child[i], dist[i], sp);
+    while mask != 0 {
+        let k = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        push(node.child[k], dist[k], sp);
+    }
+    *sp -= 1;
+    // SAFETY: just pushed.
+    unsafe { st_code[*sp].assume_init() }
+}
+
 /// Closest-hit traversal. `hit.t` is the current far limit.
 ///
 /// # Safety
@@ -282,54 +343,10 @@ pub(crate) unsafe fn intersect<const W: usize, B: BoxTest<W>, L: Leaves, C: Coun
             // SAFETY: node indices come from the builder and are in range (checked by
             // `validate` in tests); the caller guarantees B's CPU features.
             let node = unsafe { nodes.get_unchecked(cur as usize) };
-            let mut mask = unsafe { B::test(node, r, hit.t, &mut dist) };
+            let mask = unsafe { B::test(node, r, hit.t, &mut dist) };
             c.node();
             if mask != 0 {
-                let i = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if mask == 0 {
-                    cur = node.child[i];
-                    continue;
-                }
-                let j = mask.trailing_zeros() as usize;
-                if mask & (mask - 1) == 0 {
-                    // PERF: exactly two (the common case): go to the nearer, push the farther.
-                    let (ci, cj, di, dj) = (node.child[i], node.child[j], dist[i], dist[j]);
-                    let near_first = di <= dj;
-                    let (cn, cf, df) = if near_first { (ci, cj, dj) } else { (cj, ci, di) };
-                    // Start loading the farther node: it is likely visited later.
-                    if cf & LEAF == 0 {
-                        prefetch_node(nodes, cf);
-                    }
-                    st_t[sp].write(df);
-                    st_code[sp].write(cf);
-                    sp += 1;
-                    cur = cn;
-                    continue;
-                }
-                // Three or more: push all, nearest on top (insertion sort of at most W).
-                let base = sp;
-                let mut push = |code: u32, d: f32, sp: &mut usize| {
-                    let mut j = *sp;
-                    // SAFETY: entries base..sp were written by earlier pushes.
-                    while j > base && unsafe { st_t[j - 1].assume_init() } < d {
-                        st_t[j] = st_t[j - 1];
-                        st_code[j] = st_code[j - 1];
-                        j -= 1;
-                    }
-                    st_t[j].write(d);
-                    st_code[j].write(code);
-                    *sp += 1;
-                };
-                push(node.child[i], dist[i], &mut sp);
-                while mask != 0 {
-                    let k = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    push(node.child[k], dist[k], &mut sp);
-                }
-                sp -= 1;
-                // SAFETY: just pushed.
-                cur = unsafe { st_code[sp].assume_init() };
+                cur = visit_children::<W, false>(nodes, node, mask, &dist, &mut st_code, &mut st_t, &mut sp);
                 continue;
             }
         } else if cur != EMPTY {
@@ -369,7 +386,7 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves, C: Count
         return false;
     }
     // PERF: uninitialised, as in `intersect`.
-    let mut st = [std::mem::MaybeUninit::<u32>::uninit(); STACK];
+    let mut st_code = [std::mem::MaybeUninit::<u32>::uninit(); STACK];
     let mut st_t = [std::mem::MaybeUninit::<f32>::uninit(); STACK];
     let mut sp = 0usize;
     let mut cur = 0u32;
@@ -378,39 +395,11 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves, C: Count
         if cur & LEAF == 0 {
             // SAFETY: as in `intersect`.
             let node = unsafe { nodes.get_unchecked(cur as usize) };
-            let mut mask = unsafe { B::test(node, r, tmax, &mut dist) };
+            let mask = unsafe { B::test(node, r, tmax, &mut dist) };
             c.node();
             if mask != 0 {
-                // Nearest child first (an occluder near the ray's start ends the query
-                // soonest), the others pushed farthest-first.
-                let i = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if mask == 0 {
-                    cur = node.child[i];
-                    continue;
-                }
-                let base = sp;
-                let mut push = |code: u32, d: f32, sp: &mut usize| {
-                    let mut j = *sp;
-                    // SAFETY: entries base..sp were written by earlier pushes.
-                    while j > base && unsafe { st_t[j - 1].assume_init() } < d {
-                        st_t[j] = st_t[j - 1];
-                        st[j] = st[j - 1];
-                        j -= 1;
-                    }
-                    st_t[j].write(d);
-                    st[j].write(code);
-                    *sp += 1;
-                };
-                push(node.child[i], dist[i], &mut sp);
-                while mask != 0 {
-                    let k = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    push(node.child[k], dist[k], &mut sp);
-                }
-                sp -= 1;
-                // SAFETY: just pushed.
-                cur = unsafe { st[sp].assume_init() };
+                // Nearest child first: an occluder near the ray's start ends the query soonest.
+                cur = visit_children::<W, true>(nodes, node, mask, &dist, &mut st_code, &mut st_t, &mut sp);
                 continue;
             }
         } else if cur != EMPTY {
@@ -425,6 +414,6 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves, C: Count
         }
         sp -= 1;
         // SAFETY: written by a push.
-        cur = unsafe { st[sp].assume_init() };
+        cur = unsafe { st_code[sp].assume_init() };
     }
 }
