@@ -326,7 +326,14 @@ fn li_packet_at(w: &World, rays: &[Ray], s: &WhittedSettings, depth: u32, out: &
             continue;
         }
         // Transmitted light first, then reflected, as `secondary` adds them.
-        let sec: Vec<[Option<(Vec3, Ray)>; 2]> = locals.iter().map(|h| h.as_ref().map_or([None, None], |h| secondary_rays(w, h))).collect();
+        // PERF: a fixed array, as `locals` (no allocation per block and depth).
+        let mut sec = [[None; 2]; N];
+        for (slot, h) in sec.iter_mut().zip(locals.iter()) {
+            if let Some(h) = h {
+                *slot = secondary_rays(w, h);
+            }
+        }
+        let sec = &sec[..n];
         let mut res = [Vec3::ZERO; N];
         for pass in 0..2 {
             let mut k = 0;
