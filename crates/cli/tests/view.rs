@@ -229,6 +229,21 @@ fn viewer_without_a_display_says_so() {
     assert!(e.contains("needs an X11 display") && !e.contains("panicked"), "{e}");
 }
 
+/// Starts `lucent view ARGS FILE` on `display`; returns it (killed when dropped) and its window.
+fn view(display: &str, args: &[&str], file: &std::path::Path) -> (Kill, String) {
+    let viewer = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .arg("view")
+        .args(args)
+        .arg(file)
+        .env("DISPLAY", display)
+        .stdout(Stdio::null())
+        .spawn()
+        .expect("lucent view");
+    let viewer = Kill(viewer);
+    let wid = viewer_window(display);
+    (viewer, wid)
+}
+
 fn frame_number(title: &str) -> u64 {
     title.split("frame ").nth(1).and_then(|s| s.split([',', ']']).next()).and_then(|n| n.trim().parse().ok()).unwrap_or(0)
 }
@@ -238,15 +253,7 @@ fn frame_number(title: &str) -> u64 {
 fn viewer_plays_a_rend3r_program_and_space_pauses_it() {
     let (_x, display) = xvfb();
     let prog = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/rend3r/programs/raytracing/sw/sphere.rdr");
-    let viewer = Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(["view", "--size", "512x384"])
-        .arg(&prog)
-        .env("DISPLAY", &display)
-        .stdout(Stdio::null())
-        .spawn()
-        .expect("lucent view");
-    let _viewer = Kill(viewer);
-    let wid = viewer_window(&display);
+    let (_viewer, wid) = view(&display, &["--size", "512x384"], &prog);
     // sphere.rdr loops (`lr`): the frame count keeps rising.
     let a = frame_number(&wait_title(&display, &wid, "frame 3", 20));
     std::thread::sleep(Duration::from_millis(500));
@@ -271,15 +278,7 @@ fn viewer_plays_a_rend3r_program_and_space_pauses_it() {
 fn viewer_plays_a_gltf_animation_and_space_pauses_it() {
     let (_x, display) = xvfb();
     let gltf = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes/gltf_animated/BoxAnimated.glb");
-    let viewer = Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(["view", "--size", "320x240", "--samples", "4", "--camera", "2,1.5,2.5,0,0.3,0,0,1,0,40"])
-        .arg(&gltf)
-        .env("DISPLAY", &display)
-        .stdout(Stdio::null())
-        .spawn()
-        .expect("lucent view");
-    let _viewer = Kill(viewer);
-    let wid = viewer_window(&display);
+    let (_viewer, wid) = view(&display, &["--size", "320x240", "--samples", "4", "--camera", "2,1.5,2.5,0,0.3,0,0,1,0,40"], &gltf);
     // Playing: the scene moves (the title says so, and the picture changes).
     let title = wait_title(&display, &wid, "[moving]", 10);
     assert!(title.contains("[moving]"), "{title}");

@@ -28,16 +28,21 @@ fn render_scene(s: Scene, cam: CameraDesc, w: u32, h: u32) -> Film {
     render(&world, &Camera::new(&cam, w, h), &settings(w, h), &|_| {}).0
 }
 
-#[test]
-fn cornell_box_probes() {
-    let s = load(&scene("cornell_box/cornell_box.obj")).expect("load");
-    let cam = CameraDesc {
+/// The Cornell box's published camera.
+fn cornell_camera() -> CameraDesc {
+    CameraDesc {
         eye: Vec3::new(278.0, 273.0, -800.0),
         look_at: Vec3::new(278.0, 273.0, 0.0),
         up: Vec3::Y,
         vfov_deg: 39.3,
         ortho_height: None,
-    };
+    }
+}
+
+#[test]
+fn cornell_box_probes() {
+    let s = load(&scene("cornell_box/cornell_box.obj")).expect("load");
+    let cam = cornell_camera();
     let f = render_scene(s, cam, 128, 128);
     // The light on the ceiling: the brightest patch, white, at the top centre.
     let light = avg(&f, 58, 16, 70, 18);
@@ -267,13 +272,7 @@ fn packets_render_the_same_image_as_single_rays() {
     let kitchen = load(&scene("bart/kitchen/kitchen.gltf")).expect("kitchen");
     let kcam = kitchen.camera.expect("kitchen camera");
     let cornell = load(&scene("cornell_box/cornell_box.obj")).expect("cornell");
-    let ccam = CameraDesc {
-        eye: Vec3::new(278.0, 273.0, -800.0),
-        look_at: Vec3::new(278.0, 273.0, 0.0),
-        up: Vec3::Y,
-        vfov_deg: 39.3,
-        ortho_height: None,
-    };
+    let ccam = cornell_camera();
     let demo = demo_scene();
     let dcam = demo.camera.expect("demo camera");
     for (name, s, cam, (w, h), spp) in

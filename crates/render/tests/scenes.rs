@@ -71,17 +71,7 @@ fn kernels_match_reference_on_shared_scenes() {
     for &(file, c) in VIEWS {
         let s = load(&scene(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
         let m = &s.meshes[0];
-        let cam = Camera::new(
-            &CameraDesc {
-                eye: Vec3::new(c[0], c[1], c[2]),
-                look_at: Vec3::new(c[3], c[4], c[5]),
-                up: Vec3::new(c[6], c[7], c[8]),
-                vfov_deg: c[9],
-                ortho_height: None,
-            },
-            64,
-            48,
-        );
+        let cam = view_camera(&c, 64, 48);
         let (lo, hi) = s.bounds().expect("bounds");
         let mut rng = Pcg64::seed_from_u64(42);
         // Camera rays over a 64x48 grid (subsampled) plus random rays through the bounds.
