@@ -194,6 +194,11 @@ impl M8 {
             b
         }
     }
+    /// Lanes whose bit is set in `b`.
+    #[inline(always)]
+    fn from_bits(b: u32) -> Self {
+        M8(std::array::from_fn(|i| -(((b >> i) & 1) as i32)))
+    }
     #[inline(always)]
     fn blend_u32(m: Self, old: [u32; LANES], new: [u32; LANES]) -> [u32; LANES] {
         let mut r = [0u32; LANES];
@@ -906,6 +911,7 @@ pub(crate) fn for_lanes(groups: usize, m: &Masks, mut f: impl FnMut(usize, usize
 // Entry points: the bottom level (one mesh) and the two-level index.
 
 use crate::mesh::{MeshBvh, Nodes, TriangleTest};
+use crate::shape::Shape;
 use crate::tlas::{Geometry, InstLeaves, TwoLevel};
 use crate::traverse::RayPre;
 
@@ -1168,6 +1174,34 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
             return;
         }
         if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
+            #[cfg(target_arch = "x86_64")]
+            if K::SIMD && *shape == Shape::Sphere {
+                for g in 0..p.groups {
+                    if m[g].bits() == 0 {
+                        continue;
+                    }
+                    // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
+                    let (bits, t, odd) = unsafe { avx::sphere8(p, g, &inst.object_from_world, &h.t[g]) };
+                    let hit = M8::from_bits(bits).and(m[g]);
+                    if hit.bits() != 0 {
+                        h.t[g] = h.t[g].blend(hit, t);
+                        h.u[g] = h.u[g].blend(hit, F8::splat(0.0));
+                        h.v[g] = h.v[g].blend(hit, F8::splat(0.0));
+                        h.prim[g] = M8::blend_u32(hit, h.prim[g], [0; LANES]);
+                        h.inst[g] = M8::blend_u32(hit, h.inst[g], [id; LANES]);
+                    }
+                    let mut b = odd & m[g].bits();
+                    while b != 0 {
+                        let l = b.trailing_zeros() as usize;
+                        b &= b - 1;
+                        let r = p.ray(g, l, h.t[g].0[l]).transformed(&inst.object_from_world);
+                        if let Some(s) = shape.intersect_local(r.org, r.dir, r.tmin, r.tmax) {
+                            h.put(g, l, &Hit { t: s.t, u: 0.0, v: 0.0, prim: s.part, inst: id });
+                        }
+                    }
+                }
+                return;
+            }
             // The same object-space rays as the single-ray path, without its box-test
             // constants (a shape needs none).
             let lp = p.transformed(&inst.object_from_world, m);
@@ -1196,6 +1230,28 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
             return;
         }
         if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
+            #[cfg(target_arch = "x86_64")]
+            if K::SIMD && *shape == Shape::Sphere {
+                for g in 0..p.groups {
+                    if m[g].bits() == 0 {
+                        continue;
+                    }
+                    // SAFETY: as above.
+                    let (bits, _, odd) = unsafe { avx::sphere8(p, g, &inst.object_from_world, &h.t[g]) };
+                    let mut hit = bits & m[g].bits();
+                    let mut b = odd & m[g].bits();
+                    while b != 0 {
+                        let l = b.trailing_zeros() as usize;
+                        b &= b - 1;
+                        let r = p.ray(g, l, h.t[g].0[l]).transformed(&inst.object_from_world);
+                        if shape.intersect_local(r.org, r.dir, r.tmin, r.tmax).is_some() {
+                            hit |= 1 << l;
+                        }
+                    }
+                    h.t[g] = h.t[g].blend(M8::from_bits(hit), F8::splat(f32::NEG_INFINITY));
+                }
+                return;
+            }
             let lp = p.transformed(&inst.object_from_world, m);
             for_lanes(p.groups, m, |g, l| {
                 let r = lp.ray(g, l, h.t[g].0[l]);
@@ -1581,6 +1637,67 @@ mod avx {
             let ids = _mm256_blendv_ps(ldu(&h.inst[g]), _mm256_castsi256_ps(_mm256_set1_epi32(inst as i32)), found);
             stu(ids, &mut h.inst[g]);
         }
+    }
+
+    /// [`crate::shape::Shape::intersect_local`] of the unit sphere for the eight rays of
+    /// group `g` carried by `m` into object space, with the same operations in the same
+    /// order (the transform as [`Packet::transformed`], the quadric in f64 as
+    /// `shape::quadric`), so the same answers bit for bit. Returns the lanes that hit within
+    /// `[tmin, hi)`, their distances, and the lanes whose object-space direction is zero
+    /// (`a = 0`: the caller tests those one by one).
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn sphere8(p: &Packet, g: usize, m: &glam::Affine3A, hi: &F8) -> (u32, F8, u32) {
+        let c = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
+        let tr = m.translation;
+        let (ox, oy, oz) = (ld(&p.o[g][0]), ld(&p.o[g][1]), ld(&p.o[g][2]));
+        let (dx, dy, dz) = (ld(&p.d[g][0]), ld(&p.d[g][1]), ld(&p.d[g][2]));
+        let mut lo = [_mm256_setzero_ps(); 3];
+        let mut ld_ = [_mm256_setzero_ps(); 3];
+        for r in 0..3 {
+            let (a, b, cc) = (_mm256_set1_ps(c[0][r]), _mm256_set1_ps(c[1][r]), _mm256_set1_ps(c[2][r]));
+            lo[r] = _mm256_add_ps(
+                _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a, ox), _mm256_mul_ps(b, oy)), _mm256_mul_ps(cc, oz)),
+                _mm256_set1_ps(tr[r]),
+            );
+            ld_[r] = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a, dx), _mm256_mul_ps(b, dy)), _mm256_mul_ps(cc, dz));
+        }
+        let (tmin, tmax) = (ld(&p.tmin[g]), ld(hi));
+        let mut hit = 0u32;
+        let mut odd = 0u32;
+        let mut t = [_mm_setzero_ps(); 2];
+        for half in 0..2 {
+            let wide = |v: __m256| _mm256_cvtps_pd(if half == 0 { _mm256_castps256_ps128(v) } else { _mm256_extractf128_ps::<1>(v) });
+            let (ox, oy, oz) = (wide(lo[0]), wide(lo[1]), wide(lo[2]));
+            let (dx, dy, dz) = (wide(ld_[0]), wide(ld_[1]), wide(ld_[2]));
+            let dot = |ax: __m256d, ay: __m256d, az: __m256d, bx: __m256d, by: __m256d, bz: __m256d| {
+                _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(ax, bx), _mm256_mul_pd(ay, by)), _mm256_mul_pd(az, bz))
+            };
+            let a = dot(dx, dy, dz, dx, dy, dz);
+            let b = dot(dx, dy, dz, ox, oy, oz);
+            let cq = _mm256_sub_pd(dot(ox, oy, oz, ox, oy, oz), _mm256_set1_pd(1.0));
+            let zero = _mm256_setzero_pd();
+            odd |= (_mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(a, zero)) as u32) << (4 * half);
+            // A negative discriminant gives NaN roots, which no range test accepts (the
+            // scalar code returns no roots: the same outcome).
+            let disc = _mm256_sub_pd(_mm256_mul_pd(b, b), _mm256_mul_pd(a, cq));
+            let sign = _mm256_blendv_pd(_mm256_set1_pd(-1.0), _mm256_set1_pd(1.0), _mm256_cmp_pd::<_CMP_GE_OQ>(b, zero));
+            let q = _mm256_xor_pd(_mm256_add_pd(b, _mm256_mul_pd(sign, _mm256_sqrt_pd(disc))), _mm256_set1_pd(-0.0));
+            let qnz = _mm256_cmp_pd::<_CMP_NEQ_UQ>(q, zero);
+            let t0 = _mm256_and_pd(_mm256_div_pd(q, a), qnz);
+            let t1 = _mm256_and_pd(_mm256_div_pd(cq, q), qnz);
+            let swap = _mm256_cmp_pd::<_CMP_GT_OQ>(t0, t1);
+            let (t0, t1) = (_mm256_blendv_pd(t0, t1, swap), _mm256_blendv_pd(t1, t0, swap));
+            let (lo, hi) = (wide(tmin), wide(tmax));
+            let inr = |t| _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(t, lo), _mm256_cmp_pd::<_CMP_LT_OQ>(t, hi));
+            let in0 = inr(t0);
+            // The second root replaces the first when the first is out of range or farther.
+            let all = _mm256_castsi256_pd(_mm256_set1_epi32(-1));
+            let in1 = _mm256_and_pd(inr(t1), _mm256_or_pd(_mm256_xor_pd(in0, all), _mm256_cmp_pd::<_CMP_LT_OQ>(t1, t0)));
+            hit |= (_mm256_movemask_pd(_mm256_or_pd(in0, in1)) as u32) << (4 * half);
+            t[half] = _mm256_cvtpd_ps(_mm256_blendv_pd(t0, t1, in1));
+        }
+        (hit & !odd, st(_mm256_set_m128(t[1], t[0])), odd)
     }
 
     /// The lanes of group `g` that hit any triangle of `t4` within `[tmin, limit)`.
