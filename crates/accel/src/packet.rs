@@ -500,6 +500,62 @@ impl Packet {
     }
 }
 
+/// Bounds of a set of ray origins.
+#[derive(Clone, Copy)]
+pub(crate) struct OriginBounds {
+    lo: [f32; 3],
+    hi: [f32; 3],
+}
+
+impl OriginBounds {
+    /// The widest axis and its extent.
+    #[inline(always)]
+    fn widest(&self) -> (usize, f32) {
+        let mut best = (0, self.hi[0] - self.lo[0]);
+        for k in 1..3 {
+            if self.hi[k] - self.lo[k] > best.1 {
+                best = (k, self.hi[k] - self.lo[k]);
+            }
+        }
+        best
+    }
+}
+
+impl Packet {
+    /// Bounds of the origins of the lanes of `set`.
+    #[inline(always)]
+    fn origin_bounds(&self, set: &Masks) -> OriginBounds {
+        let inf = f32::INFINITY;
+        let (mut lo, mut hi) = ([F8::splat(inf); 3], [F8::splat(-inf); 3]);
+        for g in 0..self.groups {
+            if set[g].bits() == 0 {
+                continue;
+            }
+            for k in 0..3 {
+                lo[k] = lo[k].min(F8::splat(inf).blend(set[g], self.o[g][k]));
+                hi[k] = hi[k].max(F8::splat(-inf).blend(set[g], self.o[g][k]));
+            }
+        }
+        OriginBounds { lo: lo.map(|v| -(v.neg().hmax())), hi: hi.map(F8::hmax) }
+    }
+
+    /// The lanes of `set` split at the middle of the widest axis of their origins' bounds
+    /// `b`: those below it and the rest (both non-empty when the origins differ).
+    #[inline(always)]
+    fn split_at(&self, set: &Masks, b: OriginBounds) -> (Masks, Masks) {
+        let (axis, _) = b.widest();
+        let mid = F8::splat(0.5 * b.lo[axis] + 0.5 * b.hi[axis]);
+        let mut below = [M8::NONE; GROUPS];
+        let mut above = [M8::NONE; GROUPS];
+        for g in 0..self.groups {
+            let m = self.o[g][axis].lt(mid);
+            below[g] = m.and(set[g]);
+            above[g] = m.andnot(set[g]);
+        }
+        (below, above)
+    }
+}
+
 /// Lane-wise `1/d`, with |d| clamped to ≥ 1e-18 as in the single-ray kernel.
 #[inline(always)]
 fn recip(d: F8) -> F8 {
@@ -513,24 +569,26 @@ fn recip(d: F8) -> F8 {
 }
 
 impl Interval {
-    /// True when tracing the rays of `m` together pays: at least three of them, and their
+    /// True when tracing `lanes` rays together pays: at least three of them, and their
     /// origins within `extent` of each other on every axis. Scattered origins (the shadow
     /// rays toward a distant light of a tile that spans near and far surfaces) make the
     /// interval bound a large prism that many boxes meet; such rays go alone.
     #[inline(always)]
-    pub(crate) fn worth(&self, m: &Masks, extent: f32) -> bool {
-        let lanes: u32 = m.iter().map(|x| x.bits().count_ones()).sum();
+    pub(crate) fn worth(&self, lanes: u32, extent: f32) -> bool {
         lanes >= 3 && (0..3).all(|k| self.ohi[k] - self.olo[k] <= extent)
     }
 }
 
-/// The largest origin spread a packet may have over geometry of bounds `b` (1% of the
-/// diagonal: tuned on the sunflower field, the kitchen and the conference room).
+/// The largest origin spread a packet may have over geometry of bounds `b`: 4% of the
+/// diagonal. Chosen from A/B runs with packet splitting on (`lucent bench dynamic`, `bench
+/// rend3r`, `bench frame`): against 1%, the sphere field of REND3R's Table IV with a light
+/// went from 16.1 to 13.9 ms and the sunflowers from 45.6 to 45.0 ms; the kitchen and the
+/// mesh presets moved within noise (±3%).
 #[inline(always)]
 fn max_spread(b: &crate::geom::Aabb) -> f32 {
     let d = (b.max - b.min).length();
     if d.is_finite() {
-        0.01 * d
+        0.04 * d
     } else {
         f32::INFINITY
     }
@@ -933,53 +991,106 @@ fn block_chunks(blocks: &[RayBlock], mut body: impl FnMut(usize, &Packet, &mut P
     }
 }
 
-/// Traces the lanes of `active` as one packet when `interval` bounds them; else each group
-/// of eight alone when its rays agree on direction signs (a tile that straddles the light or
-/// the view axis usually splits so), else ray by ray.
+/// How many times a packet whose origins spread too far may be halved (up to 16 parts).
+const SPLIT_DEPTH: usize = 4;
+
+/// Traces the lanes of `active` as one packet when `interval` bounds them and tracing them
+/// together pays ([`Interval::worth`] with origin spread `ext`). A packet whose origins
+/// spread too far (the shadow rays of a tile that spans several objects) is halved at the
+/// middle of its widest origin axis, up to [`SPLIT_DEPTH`] times, and each half tried again:
+/// rays that start on one object stay together. What is left (mixed direction signs, fewer
+/// than three rays, or still scattered) goes as groups of eight when a group agrees on
+/// direction signs, else ray by ray. `split` false turns the halving off: inside an
+/// instance the packet was already formed by the top level (splitting there again cost the
+/// sunflowers 8%).
 ///
 /// PERF: a macro, not a function taking closures: closures are not compiled with the
 /// caller's target features, so the AVX2 kernels would not inline into them.
 macro_rules! coherent_parts {
-    ($p:expr, $active:expr, $h:expr, |$m:ident, $hh:ident| $interval:expr, |$iv:ident, $pm:ident, $ph:ident| $packet:expr, |$g:ident, $l:ident, $sh:ident| $single:expr) => {{
+    ($p:expr, $active:expr, $h:expr, $ext:expr, $split:expr, |$m:ident, $hh:ident| $interval:expr, |$iv:ident, $pm:ident, $ph:ident| $packet:expr, |$g:ident, $l:ident, $sh:ident| $single:expr) => {{
         let p: &Packet = $p;
-        let active: &Masks = $active;
         let h: &mut PacketHits = $h;
-        let whole = {
-            let ($m, $hh) = (active, &*h);
-            $interval
-        };
-        if let Some(iv) = whole {
-            let ($iv, $pm, $ph) = (&iv, active, &mut *h);
-            $packet;
-        } else {
-            for g in 0..p.groups {
-                if active[g].bits() == 0 {
-                    continue;
-                }
-                let mut one = [M8::NONE; GROUPS];
-                one[g] = active[g];
-                let part = {
-                    let ($m, $hh) = (&one, &*h);
+        let ext: f32 = $ext;
+        let mut work = [([M8::NONE; GROUPS], 0usize); SPLIT_DEPTH + 1];
+        work[0] = (*$active, 0);
+        let max_depth = if $split { SPLIT_DEPTH } else { 0 };
+        let mut n = 1;
+        // Lanes no packet took; they go by groups (and rays) afterwards, each group once.
+        let mut rest = [M8::NONE; GROUPS];
+        while n > 0 {
+            n -= 1;
+            let (set, depth) = work[n];
+            let lanes = lane_count(&set);
+            // The parts of a split are bounded by their origins first (cheap), and only
+            // those that are close enough get the full interval.
+            let bounds = (depth > 0).then(|| p.origin_bounds(&set));
+            let close = bounds.is_none_or(|b| b.widest().1 <= ext && lanes >= 3);
+            if close {
+                let whole = {
+                    let ($m, $hh) = (&set, &*h);
                     $interval
                 };
-                match part {
-                    Some(iv) => {
-                        let ($iv, $pm, $ph) = (&iv, &one, &mut *h);
+                match whole {
+                    Some(iv) if iv.worth(lanes, ext) => {
+                        let ($iv, $pm, $ph) = (&iv, &set, &mut *h);
                         $packet;
+                        continue;
                     }
+                    Some(_) => {}
+                    // Mixed direction signs: no split helps.
                     None => {
-                        let mut b = active[g].bits();
-                        while b != 0 {
-                            let l = b.trailing_zeros() as usize;
-                            b &= b - 1;
-                            let ($g, $l, $sh) = (g, l, &mut *h);
-                            $single;
+                        for g in 0..GROUPS {
+                            rest[g] = rest[g].or(set[g]);
                         }
+                        continue;
+                    }
+                }
+            }
+            if depth < max_depth && lanes >= 6 {
+                let b = bounds.unwrap_or_else(|| p.origin_bounds(&set));
+                let (below, above) = p.split_at(&set, b);
+                work[n] = (below, depth + 1);
+                work[n + 1] = (above, depth + 1);
+                n += 2;
+            } else {
+                for g in 0..GROUPS {
+                    rest[g] = rest[g].or(set[g]);
+                }
+            }
+        }
+        for g in 0..p.groups {
+            if rest[g].bits() == 0 {
+                continue;
+            }
+            let mut one = [M8::NONE; GROUPS];
+            one[g] = rest[g];
+            let part = {
+                let ($m, $hh) = (&one, &*h);
+                $interval
+            };
+            match part {
+                Some(iv) if iv.worth(lane_count(&one), ext) => {
+                    let ($iv, $pm, $ph) = (&iv, &one, &mut *h);
+                    $packet;
+                }
+                _ => {
+                    let mut b = rest[g].bits();
+                    while b != 0 {
+                        let l = b.trailing_zeros() as usize;
+                        b &= b - 1;
+                        let ($g, $l, $sh) = (g, l, &mut *h);
+                        $single;
                     }
                 }
             }
         }
     }};
+}
+
+/// Number of lanes set in `m`.
+#[inline(always)]
+fn lane_count(m: &Masks) -> u32 {
+    m.iter().map(|x| x.bits().count_ones()).sum()
 }
 
 impl MeshBvh {
@@ -992,6 +1103,7 @@ impl MeshBvh {
         active: &Masks,
         h: &mut PacketHits,
         inst: u32,
+        split: bool,
         c: &mut C,
     ) {
         let single = |g: usize, l: usize, h: &mut PacketHits, c: &mut C| {
@@ -1008,7 +1120,9 @@ impl MeshBvh {
                 p,
                 active,
                 h,
-                |m, _hh| p.interval(m).filter(|iv| iv.worth(m, ext)),
+                ext,
+                split,
+                |m, _hh| p.interval(m),
                 |iv, m, h| intersect::<K, _, _>(n, &leaves, p, iv, m, h, c),
                 |g, l, h| single(g, l, h, c)
             );
@@ -1019,7 +1133,14 @@ impl MeshBvh {
 
     /// Occlusion of the lanes of `active` (occluded lanes get `t = -inf`).
     #[inline(always)]
-    pub(crate) fn packet_occluded_k<K: KernelSet, C: Counters>(&self, p: &Packet, active: &Masks, h: &mut PacketHits, c: &mut C) {
+    pub(crate) fn packet_occluded_k<K: KernelSet, C: Counters>(
+        &self,
+        p: &Packet,
+        active: &Masks,
+        h: &mut PacketHits,
+        split: bool,
+        c: &mut C,
+    ) {
         let single = |g: usize, l: usize, h: &mut PacketHits, c: &mut C| {
             let t = h.t[g].0[l];
             if self.occluded_k::<K, C>(&RayPre::new(&p.ray(g, l, t)), t, c) {
@@ -1033,7 +1154,9 @@ impl MeshBvh {
                 p,
                 active,
                 h,
-                |m, hh| p.occlusion_interval(m, hh).filter(|iv| iv.worth(m, ext)),
+                ext,
+                split,
+                |m, hh| p.occlusion_interval(m, hh),
                 |iv, m, h| occluded::<K, _, _>(n, &leaves, p, iv, m, h, c),
                 |g, l, h| single(g, l, h, c)
             );
@@ -1068,7 +1191,7 @@ impl MeshBvh {
     /// some ray entered; rays traced alone (incoherent ones) count as single rays do.
     pub fn intersect_packet_with_stats(&self, rays: &[Ray], out: &mut [Option<Hit>], stats: &mut TraversalStats) {
         chunks(rays, |base, p, h| {
-            self.packet_intersect_k::<ScalarSet, _>(p, &p.valid, h, INVALID, stats);
+            self.packet_intersect_k::<ScalarSet, _>(p, &p.valid, h, INVALID, true, stats);
             write_hits(base, p, h, out);
         });
     }
@@ -1077,7 +1200,7 @@ impl MeshBvh {
     /// [`MeshBvh::intersect_packet_with_stats`] does.
     pub fn occluded_packet_with_stats(&self, rays: &[Ray], out: &mut [bool], stats: &mut TraversalStats) {
         chunks(rays, |base, p, h| {
-            self.packet_occluded_k::<ScalarSet, _>(p, &p.valid, h, stats);
+            self.packet_occluded_k::<ScalarSet, _>(p, &p.valid, h, true, stats);
             write_occluded(base, p, h, out);
         });
     }
@@ -1106,7 +1229,7 @@ impl MeshBvh {
             // SAFETY: the kernel is only Simd/Avx512 when AVX2 and FMA were detected.
             #[cfg(target_arch = "x86_64")]
             Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_intersect(self, p, &active, h) },
-            _ => self.packet_intersect_k::<ScalarSet, _>(p, &active, h, INVALID, &mut ()),
+            _ => self.packet_intersect_k::<ScalarSet, _>(p, &active, h, INVALID, true, &mut ()),
         }
     }
 
@@ -1117,7 +1240,7 @@ impl MeshBvh {
             // SAFETY: as above.
             #[cfg(target_arch = "x86_64")]
             Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_occluded(self, p, &active, h) },
-            _ => self.packet_occluded_k::<ScalarSet, _>(p, &active, h, &mut ()),
+            _ => self.packet_occluded_k::<ScalarSet, _>(p, &active, h, true, &mut ()),
         }
     }
 }
@@ -1125,13 +1248,13 @@ impl MeshBvh {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn avx2_mesh_intersect(m: &MeshBvh, p: &Packet, active: &Masks, h: &mut PacketHits) {
-    m.packet_intersect_k::<crate::kernel::SimdSet, _>(p, active, h, INVALID, &mut ());
+    m.packet_intersect_k::<crate::kernel::SimdSet, _>(p, active, h, INVALID, true, &mut ());
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn avx2_mesh_occluded(m: &MeshBvh, p: &Packet, active: &Masks, h: &mut PacketHits) {
-    m.packet_occluded_k::<crate::kernel::SimdSet, _>(p, active, h, &mut ());
+    m.packet_occluded_k::<crate::kernel::SimdSet, _>(p, active, h, true, &mut ());
 }
 
 fn write_hits(base: usize, p: &Packet, h: &PacketHits, out: &mut [Option<Hit>]) {
@@ -1170,7 +1293,7 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
         if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
             // The rays carried into object space exactly as the single-ray path does.
             let lp = p.transformed(&inst.object_from_world, m);
-            mesh.packet_intersect_k::<K, _>(&lp, m, h, id, &mut ());
+            mesh.packet_intersect_k::<K, _>(&lp, m, h, id, false, &mut ());
             return;
         }
         if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
@@ -1226,7 +1349,7 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
         let inst = &self.tl.instances()[id as usize];
         if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
             let lp = p.transformed(&inst.object_from_world, m);
-            mesh.packet_occluded_k::<K, _>(&lp, m, h, &mut ());
+            mesh.packet_occluded_k::<K, _>(&lp, m, h, false, &mut ());
             return;
         }
         if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
@@ -1301,7 +1424,9 @@ impl TwoLevel {
             p,
             &active,
             h,
-            |m, _hh| p.interval(m).filter(|iv| iv.worth(m, ext)),
+            ext,
+            true,
+            |m, _hh| p.interval(m),
             |iv, m, h| {
                 intersect::<K, _, _>(&self.nodes, &leaves, p, iv, m, h, &mut ());
                 for &i in &self.unbounded {
@@ -1325,7 +1450,9 @@ impl TwoLevel {
             p,
             &active,
             h,
-            |m, hh| p.occlusion_interval(m, hh).filter(|iv| iv.worth(m, ext)),
+            ext,
+            true,
+            |m, hh| p.occlusion_interval(m, hh),
             |iv, m, h| {
                 for &i in &self.unbounded {
                     leaves.occluded_one(i, p, m, h);

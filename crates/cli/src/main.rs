@@ -398,6 +398,12 @@ enum BenchCmd {
         /// Frame size.
         #[arg(long, default_value = "512x384", value_parser = render_cmd::parse_size)]
         size: (u32, u32),
+        /// Sphere counts of the rows to time (Table IV has 1, 16, 256 and 4096).
+        #[arg(long, value_delimiter = ',', default_value = "1,16,256,4096")]
+        spheres: Vec<usize>,
+        /// Light counts of the rows to time (Table IV has 0 and 1).
+        #[arg(long, value_delimiter = ',', default_value = "0,1")]
+        lights: Vec<usize>,
     },
     /// Trace the rays dumped by the Embree harness (shared/bench) and print JSON lines.
     Rays {
@@ -515,7 +521,7 @@ fn run() -> Result<()> {
             })
         }
         Cmd::Disasm { file, camera_table, triangles } => isa_cmd::disasm(&file, isa_cmd::table(camera_table == "old"), triangles),
-        Cmd::Bench(BenchCmd::Rend3r { frames, size }) => rend3r_bench::run(frames, size),
+        Cmd::Bench(BenchCmd::Rend3r { frames, size, spheres, lights }) => rend3r_bench::run(frames, size, &spheres, &lights),
         Cmd::Bench(BenchCmd::Frame { scenes, dir, sizes, threads, frames, packets_only }) => {
             frame_bench::run(&frame_bench::FrameOptions { scenes, dir, sizes, threads, frames, single: !packets_only })
         }

@@ -37,12 +37,18 @@ pub fn spheres_program(n: usize, lights: usize) -> String {
     s
 }
 
-pub fn run(frames: usize, size: (u32, u32)) -> Result<()> {
+pub fn run(frames: usize, size: (u32, u32), spheres: &[usize], light_counts: &[usize]) -> Result<()> {
+    if let Some(l) = light_counts.iter().find(|&&l| l > 1) {
+        anyhow::bail!("--lights {l}: Table IV's rows have 0 or 1 lights");
+    }
+    if let Some(n) = spheres.iter().find(|&&n| n == 0 || n > lucent_engine::MAX_SETS) {
+        anyhow::bail!("--spheres {n}: give 1 to {} spheres", lucent_engine::MAX_SETS);
+    }
     println!("REND3R Table IV scenes at {}x{}, {} threads, median of {frames} frames", size.0, size.1, rayon::current_num_threads());
     println!("| spheres | lights | frame ms (process + render) | x faster than 0.405 s | x faster than 16.9 s |");
     println!("|---|---|---|---|---|");
-    for lights in [0usize, 1] {
-        for n in [1usize, 16, 256, 4096] {
+    for &lights in light_counts {
+        for &n in spheres {
             let src = spheres_program(n, lights);
             let words = assemble_words(&src, AsmOptions::default()).map_err(|e| anyhow::anyhow!("generated program: {e}"))?;
             let fs = FrameSettings { width: size.0, height: size.1, mode: Mode::Raytrace, sets: SetKind::Shapes, painter: false, spp: 1 };

@@ -270,3 +270,23 @@ fn bench_frame_reports_shaded_frames() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("unknown scene preset 'nosuch'"));
 }
+
+#[test]
+fn bench_rend3r_times_the_chosen_rows() {
+    let o = lucent()
+        .args(["bench", "rend3r", "--spheres", "16,256", "--lights", "1", "--frames", "1", "--size", "64x48"])
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let e = String::from_utf8_lossy(&o.stderr);
+    let rows: Vec<serde_json::Value> = e.lines().filter_map(|l| serde_json::from_str(l).ok()).collect();
+    assert_eq!(rows.len(), 2, "{e}");
+    for (r, n) in rows.iter().zip([16, 256]) {
+        assert_eq!((r["kind"].as_str(), r["spheres"].as_u64(), r["lights"].as_u64()), (Some("rend3r_frame"), Some(n), Some(1)), "{r}");
+        assert!(r["median_ms"].as_f64().is_some_and(|m| m > 0.0), "{r}");
+    }
+    assert!(String::from_utf8_lossy(&o.stdout).contains("| 256 | 1 |"));
+    let o = lucent().args(["bench", "rend3r", "--lights", "2"]).output().expect("run");
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--lights 2: Table IV's rows have 0 or 1 lights"));
+}
