@@ -5,7 +5,7 @@ use crate::film::Film;
 use crate::integrator::{li, li_packet, radiance, Integrator, WhittedSettings};
 use crate::world::World;
 use glam::Vec3;
-use lucent_accel::Ray;
+use lucent_accel::{frustum_excludes, FrustumCull, Ray};
 use rayon::prelude::*;
 
 /// Render settings.
@@ -66,12 +66,19 @@ pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u6
     let spp = s.spp.max(1);
     render_tiles(w, cam, s.width, s.height, progress, &|px, out| {
         let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); BLOCK];
-        let mut c = [Vec3::ZERO; BLOCK];
         let n = px.len();
+        if spp == 1 {
+            for (r, &(x, y)) in rays.iter_mut().zip(px) {
+                *r = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+            }
+            li_packet(w, &rays[..n], &s.whitted, out);
+            return;
+        }
+        let mut c = [Vec3::ZERO; BLOCK];
         out.fill(Vec3::ZERO);
         for k in 0..spp {
             for (r, &(x, y)) in rays.iter_mut().zip(px) {
-                let (jx, jy) = if spp == 1 { (0.5, 0.5) } else { jitter(x, y, k) };
+                let (jx, jy) = jitter(x, y, k);
                 *r = cam.ray(x as f32 + jx, y as f32 + jy);
             }
             li_packet(w, &rays[..n], &s.whitted, &mut c[..n]);
@@ -115,6 +122,9 @@ type BlockFn<'a> = dyn Fn(&[(u32, u32)], &mut [Vec3]) + Sync + 'a;
 /// Pixels per block handed to the integrators: 8×8, one ray packet.
 const BLOCK: usize = 64;
 
+/// Most top-level boxes a tile may meet for its blocks to be culled one by one.
+const BLOCK_CULL_BOXES: usize = 8;
+
 /// The tile loop shared by every renderer: tiles on rayon, empty tiles culled by their
 /// frustum; the pixels of the others are handed out in 8×8 blocks, `block(pixels, out)`.
 fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dyn Fn(u64) + Sync), block: &BlockFn) -> (Film, u64) {
@@ -138,16 +148,30 @@ fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dy
                 unsafe { *out.get().add((y * width + x) as usize) = c };
             };
             // Frustum culling: a tile whose frustum meets no instance shows the background
-            // (exactly what its primary rays would return), so nothing is traced.
-            let empty = cam.tile_frustum(x0 as f32, y0 as f32, x1 as f32, y1 as f32).is_some_and(|f| !w.accel.frustum_may_hit(&f));
-            if !empty {
+            // (exactly what its primary rays would return), so nothing is traced. The blocks
+            // of a tile are culled the same way against the few top-level boxes the tile
+            // meets (a sparse scene, such as REND3R's 256 small spheres, meets most tiles
+            // but few blocks).
+            let mut boxes = Vec::new();
+            let cull = match cam.tile_frustum(x0 as f32, y0 as f32, x1 as f32, y1 as f32) {
+                Some(f) => w.accel.frustum_leaves(&f, &mut boxes, BLOCK_CULL_BOXES),
+                None => FrustumCull::Many,
+            };
+            if cull != FrustumCull::Empty {
                 let mut coords = Vec::with_capacity(BLOCK);
                 let mut px = [Vec3::ZERO; BLOCK];
                 for by in (y0..y1).step_by(8) {
                     for bx in (x0..x1).step_by(8) {
+                        let (bx1, by1) = ((bx + 8).min(x1), (by + 8).min(y1));
+                        if cull == FrustumCull::Boxes {
+                            let f = cam.tile_frustum(bx as f32, by as f32, bx1 as f32, by1 as f32);
+                            if f.is_some_and(|f| boxes.iter().all(|b| frustum_excludes(&f, b))) {
+                                continue;
+                            }
+                        }
                         coords.clear();
-                        for y in by..(by + 8).min(y1) {
-                            for x in bx..(bx + 8).min(x1) {
+                        for y in by..by1 {
+                            for x in bx..bx1 {
                                 coords.push((x, y));
                             }
                         }
