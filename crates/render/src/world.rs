@@ -1,7 +1,7 @@
 //! The render-side view of a scene: the two-level acceleration structure built from it,
 //! plus everything shading needs to rebuild a surface point from a hit.
 
-use glam::{Affine3A, Mat3A, Vec2, Vec3};
+use glam::{Mat3A, Vec2, Vec3};
 use lucent_accel::{Geometry, Hit, Instance, MeshBvh, MeshOptions, Ray, Shape, TwoLevel};
 use lucent_scene::{Geom, Light, LightKind, Scene, ShapeKind};
 use rayon::prelude::*;
@@ -115,8 +115,9 @@ impl World {
                 Geom::Mesh(m) => m,
                 Geom::Shape { kind, .. } => shape_base + kinds.iter().position(|&k| k == kind).unwrap_or(0) as u32,
             };
-            insts.push(Instance::new(g, i.world_from_object));
-            info.push(InstInfo { geom: i.geom, normal_to_world: normal_matrix(&i.world_from_object) });
+            let inst = Instance::new(g, i.world_from_object);
+            info.push(InstInfo { geom: i.geom, normal_to_world: normal_matrix(&inst) });
+            insts.push(inst);
         }
         let accel = TwoLevel::new(geoms, insts).map_err(WorldError::Top)?;
         let bounds = scene.bounds();
@@ -153,7 +154,7 @@ impl World {
         let mut insts = self.accel.instances().to_vec();
         for (i, m) in pose.instances.iter().enumerate().take(insts.len()) {
             insts[i] = Instance::new(insts[i].geometry, *m);
-            self.info[i].normal_to_world = normal_matrix(m);
+            self.info[i].normal_to_world = normal_matrix(&insts[i]);
             if let Some(si) = self.scene.instances.get_mut(i) {
                 si.world_from_object = *m;
             }
@@ -325,11 +326,13 @@ pub fn rays_traced_here() -> u64 {
 }
 
 /// The inverse transpose of the linear part (for normals).
-fn normal_matrix(m: &Affine3A) -> Mat3A {
-    let inv = m.matrix3.inverse();
+fn normal_matrix(inst: &Instance) -> Mat3A {
+    // The instance already holds the inverse (`Affine3A::inverse` inverts the linear part
+    // exactly as `Mat3A::inverse` does), so it is not computed a second time.
+    let inv = inst.object_from_world.matrix3;
     if inv.is_finite() {
         inv.transpose()
     } else {
-        m.matrix3
+        inst.world_from_object.matrix3
     }
 }
