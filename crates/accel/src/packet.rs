@@ -1304,7 +1304,7 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
                         continue;
                     }
                     // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
-                    let (bits, t, odd) = unsafe { avx::sphere8(p, g, &inst.object_from_world, &h.t[g]) };
+                    let (bits, t, odd) = unsafe { avx::sphere8(p, g, &inst.object_from_world, &h.t[g], m[g].bits()) };
                     let hit = M8::from_bits(bits).and(m[g]);
                     if hit.bits() != 0 {
                         h.t[g] = h.t[g].blend(hit, t);
@@ -1360,7 +1360,7 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
                         continue;
                     }
                     // SAFETY: as above.
-                    let (bits, _, odd) = unsafe { avx::sphere8(p, g, &inst.object_from_world, &h.t[g]) };
+                    let (bits, _, odd) = unsafe { avx::sphere8(p, g, &inst.object_from_world, &h.t[g], m[g].bits()) };
                     let mut hit = bits & m[g].bits();
                     let mut b = odd & m[g].bits();
                     while b != 0 {
@@ -1774,7 +1774,7 @@ mod avx {
     /// (`a = 0`: the caller tests those one by one).
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    pub(super) fn sphere8(p: &Packet, g: usize, m: &glam::Affine3A, hi: &F8) -> (u32, F8, u32) {
+    pub(super) fn sphere8(p: &Packet, g: usize, m: &glam::Affine3A, hi: &F8, active: u32) -> (u32, F8, u32) {
         let c = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
         let tr = m.translation;
         let (ox, oy, oz) = (ld(&p.o[g][0]), ld(&p.o[g][1]), ld(&p.o[g][2]));
@@ -1794,6 +1794,10 @@ mod avx {
         let mut odd = 0u32;
         let mut t = [_mm_setzero_ps(); 2];
         for half in 0..2 {
+            // PERF: a half with no active lane costs nothing.
+            if (active >> (4 * half)) & 15 == 0 {
+                continue;
+            }
             let wide = |v: __m256| _mm256_cvtps_pd(if half == 0 { _mm256_castps256_ps128(v) } else { _mm256_extractf128_ps::<1>(v) });
             let (ox, oy, oz) = (wide(lo[0]), wide(lo[1]), wide(lo[2]));
             let (dx, dy, dz) = (wide(ld_[0]), wide(ld_[1]), wide(ld_[2]));
@@ -1808,6 +1812,11 @@ mod avx {
             // A negative discriminant gives NaN roots, which no range test accepts (the
             // scalar code returns no roots: the same outcome).
             let disc = _mm256_sub_pd(_mm256_mul_pd(b, b), _mm256_mul_pd(a, cq));
+            // PERF: four misses (the common case at a sphere's box corners) skip the square
+            // root and the divisions. `disc < 0` is exactly the scalar code's "no roots".
+            if _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_LT_OQ>(disc, zero)) == 15 {
+                continue;
+            }
             let sign = _mm256_blendv_pd(_mm256_set1_pd(-1.0), _mm256_set1_pd(1.0), _mm256_cmp_pd::<_CMP_GE_OQ>(b, zero));
             let q = _mm256_xor_pd(_mm256_add_pd(b, _mm256_mul_pd(sign, _mm256_sqrt_pd(disc))), _mm256_set1_pd(-0.0));
             let qnz = _mm256_cmp_pd::<_CMP_NEQ_UQ>(q, zero);

@@ -206,7 +206,14 @@ fn light_term(l: &Light, h: &Local, s: &WhittedSettings) -> Option<(Vec3, Option
     let v = -h.d;
     let r = reflect(-ldir, h.ns);
     let mat = h.mat;
-    let spec = if mat.specular.max_element() > 0.0 { mat.specular * r.dot(v).max(0.0).powf(mat.shininess) } else { Vec3::ZERO };
+    // PERF: 0^shininess is 0 for a positive exponent; `powf` is skipped for the half of
+    // the lit points whose mirror direction faces away from the eye.
+    let rv = r.dot(v);
+    let spec = if mat.specular.max_element() > 0.0 && (rv > 0.0 || mat.shininess <= 0.0) {
+        mat.specular * rv.max(0.0).powf(mat.shininess)
+    } else {
+        Vec3::ZERO
+    };
     Some((rad * (h.kd * cos * h.opaque + spec), shadow))
 }
 
