@@ -318,8 +318,11 @@ impl Binner {
         self.bins(c2)[axis]
     }
     fn fill<const N: usize>(&self, prims: &[PrimRef]) -> Bins<N> {
-        let mut bins = Bins::<N>::new();
-        for p in prims {
+        // PERF: two sets of bins, alternate primitives: neighbours often fall into the same
+        // bin, and one set makes every update wait for the previous one's store (the binning
+        // loop was a chain of store-to-load forwards).
+        let mut bins = [Bins::<N>::new(), Bins::<N>::new()];
+        let add = |bins: &mut Bins<N>, p: &PrimRef| {
             let idx = self.bins(p.centroid2());
             for (k, &i) in idx.iter().enumerate() {
                 // `i < nb <= N`; the `min` lets the compiler drop the bounds check.
@@ -327,8 +330,17 @@ impl Binner {
                 bins.b[k][i].add(p);
                 bins.n[k][i] += 1;
             }
+        };
+        let mut pairs = prims.chunks_exact(2);
+        for pair in &mut pairs {
+            add(&mut bins[0], &pair[0]);
+            add(&mut bins[1], &pair[1]);
         }
-        bins
+        for p in pairs.remainder() {
+            add(&mut bins[0], p);
+        }
+        let [a, b] = bins;
+        a.merge(&b)
     }
 }
 

@@ -134,14 +134,17 @@ impl MeshBvh {
         let verts = |t: &[u32; 3]| [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
         // One indexed parallel pass (an unindexed `filter` would collect by concatenating
         // chunks), then a sequential `retain` of the triangles that can be hit.
-        let (units, mut prims): (Vec<Option<[f32; 12]>>, Vec<PrimRef>) = indices
+        // PERF: `unzip_into_vecs` writes both vectors in place (a plain `unzip` gathers
+        // chunk lists and copies them).
+        let (mut units, mut prims): (Vec<Option<[f32; 12]>>, Vec<PrimRef>) = (Vec::new(), Vec::new());
+        indices
             .par_iter()
             .enumerate()
             .map(|(i, t)| {
                 let v = verts(t);
                 (UnitTriangle::new(v[0], v[1], v[2]).map(|u| u.m), PrimRef::new(Aabb::from_points(&v), i as u32))
             })
-            .unzip();
+            .unzip_into_vecs(&mut units, &mut prims);
         if opts.refittable {
             prims.retain(|p| p.min().is_finite() && p.max().is_finite());
         } else {

@@ -1304,23 +1304,14 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
                         continue;
                     }
                     // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
-                    let (bits, t, odd) = unsafe { avx::sphere8(p, g, &inst.object_from_world, &h.t[g], m[g].bits()) };
-                    let hit = M8::from_bits(bits).and(m[g]);
+                    let (hit, t) = unsafe { sphere_group(p, g, inst, m[g], &h.t[g]) };
                     if hit.bits() != 0 {
+                        // A sphere has one part (0) and no surface parameters here.
                         h.t[g] = h.t[g].blend(hit, t);
                         h.u[g] = h.u[g].blend(hit, F8::splat(0.0));
                         h.v[g] = h.v[g].blend(hit, F8::splat(0.0));
                         h.prim[g] = M8::blend_u32(hit, h.prim[g], [0; LANES]);
                         h.inst[g] = M8::blend_u32(hit, h.inst[g], [id; LANES]);
-                    }
-                    let mut b = odd & m[g].bits();
-                    while b != 0 {
-                        let l = b.trailing_zeros() as usize;
-                        b &= b - 1;
-                        let r = p.ray(g, l, h.t[g].0[l]).transformed(&inst.object_from_world);
-                        if let Some(s) = shape.intersect_local(r.org, r.dir, r.tmin, r.tmax) {
-                            h.put(g, l, &Hit { t: s.t, u: 0.0, v: 0.0, prim: s.part, inst: id });
-                        }
                     }
                 }
                 return;
@@ -1360,18 +1351,8 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
                         continue;
                     }
                     // SAFETY: as above.
-                    let (bits, _, odd) = unsafe { avx::sphere8(p, g, &inst.object_from_world, &h.t[g], m[g].bits()) };
-                    let mut hit = bits & m[g].bits();
-                    let mut b = odd & m[g].bits();
-                    while b != 0 {
-                        let l = b.trailing_zeros() as usize;
-                        b &= b - 1;
-                        let r = p.ray(g, l, h.t[g].0[l]).transformed(&inst.object_from_world);
-                        if shape.intersect_local(r.org, r.dir, r.tmin, r.tmax).is_some() {
-                            hit |= 1 << l;
-                        }
-                    }
-                    h.t[g] = h.t[g].blend(M8::from_bits(hit), F8::splat(f32::NEG_INFINITY));
+                    let (hit, _) = unsafe { sphere_group(p, g, inst, m[g], &h.t[g]) };
+                    h.t[g] = h.t[g].blend(hit, F8::splat(f32::NEG_INFINITY));
                 }
                 return;
             }
@@ -1392,6 +1373,32 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
             }
         });
     }
+}
+
+/// The unit-sphere test of the lanes `m` of group `g` against instance `inst` within
+/// `[tmin, limit)`: the lanes that hit and their distances, the same as
+/// [`Shape::intersect_local`] ray by ray. Lanes whose object-space direction is zero (the
+/// SIMD code cannot divide by `a = 0`) are tested one by one.
+///
+/// # Safety
+/// AVX2 and FMA must be available.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn sphere_group(p: &Packet, g: usize, inst: &crate::tlas::Instance, m: M8, limit: &F8) -> (M8, F8) {
+    // SAFETY: the caller guarantees AVX2 and FMA.
+    let (bits, mut t, odd) = unsafe { avx::sphere8(p, g, &inst.object_from_world, limit, m.bits()) };
+    let mut hit = bits & m.bits();
+    let mut b = odd & m.bits();
+    while b != 0 {
+        let l = b.trailing_zeros() as usize;
+        b &= b - 1;
+        let r = p.ray(g, l, limit.0[l]).transformed(&inst.object_from_world);
+        if let Some(s) = Shape::Sphere.intersect_local(r.org, r.dir, r.tmin, r.tmax) {
+            hit |= 1 << l;
+            t.0[l] = s.t;
+        }
+    }
+    (M8::from_bits(hit), t)
 }
 
 impl<K: KernelSet> PacketLeaves for InstPacketLeaves<'_, K> {
