@@ -1,7 +1,7 @@
 //! The bottom-level index over one triangle mesh.
 
 use crate::build::{build_binary, BuildConfig, PrimRef};
-use crate::geom::{Aabb, Hit, Ray};
+use crate::geom::{Aabb, Hit, Ray, INVALID};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::traverse::{self, Counters, Leaves, RayPre, TraversalStats};
 use crate::triangle::{
@@ -397,7 +397,12 @@ impl MeshBvh {
     /// Closest-hit query with kernel set `K`; returns true when `hit` was narrowed.
     #[inline(always)]
     pub(crate) fn intersect_k<K: KernelSet, C: Counters>(&self, pre: &RayPre, hit: &mut Hit, c: &mut C) -> bool {
-        let before = hit.t;
+        // Whether this mesh replaced the hit is told by the primitive the leaves write, not
+        // by a smaller `t`: the scaled range test can accept a triangle whose divided-out `t`
+        // rounds to the current one (a tie), and the caller must then take the instance
+        // too, or the hit pairs one mesh's triangle with another instance.
+        let before = hit.prim;
+        hit.prim = INVALID;
         // SAFETY (all arms): the caller selected K for this CPU.
         match (self.test, &self.nodes) {
             (TriangleTest::UnitTriangle, Nodes::W8(n)) => unsafe {
@@ -409,7 +414,12 @@ impl MeshBvh {
             (TriangleTest::Watertight, Nodes::W8(n)) => unsafe { traverse::intersect::<8, K::B8, _, _>(n, &self.wt_leaves(), pre, hit, c) },
             (TriangleTest::Watertight, Nodes::W4(n)) => unsafe { traverse::intersect::<4, K::B4, _, _>(n, &self.wt_leaves(), pre, hit, c) },
         }
-        hit.t < before
+        if hit.prim == INVALID {
+            hit.prim = before;
+            false
+        } else {
+            true
+        }
     }
 
     #[inline(always)]

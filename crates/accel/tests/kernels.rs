@@ -428,3 +428,53 @@ fn sphere_packets_match_single_rays() {
         }
     }
 }
+
+/// A hit's instance and primitive always belong together. Two instances of different
+/// meshes that share one triangle at the same place give ties (equal `t` after the
+/// division), and a tie that replaced the primitive without the instance once paired one
+/// mesh's triangle index with another instance (the BART kitchen's coplanar parts panicked
+/// the shader). Every kernel, single rays and packets.
+#[test]
+fn ties_between_instances_keep_instance_and_primitive_together() {
+    // A triangle in general position (an axis-aligned one divides exactly and never ties).
+    let shared = [Vec3::new(0.31, -1.13, 0.27), Vec3::new(1.73, 0.41, -0.52), Vec3::new(-0.66, 1.29, 0.93)];
+    // Mesh 0: the shared triangle alone. Mesh 1: nine small far-away triangles, then the
+    // shared triangle as number 9.
+    let mut p1 = Vec::new();
+    let mut i1 = Vec::new();
+    for k in 0..9u32 {
+        let o = Vec3::new(10.0 + k as f32, 10.0, 10.0);
+        p1.extend([o, o + Vec3::X * 0.1, o + Vec3::Y * 0.1]);
+        i1.push([3 * k, 3 * k + 1, 3 * k + 2]);
+    }
+    p1.extend(shared);
+    i1.push([27, 28, 29]);
+    let counts = [1u32, 10];
+    let geoms = vec![
+        Geometry::Mesh(MeshBvh::build(&shared, &[[0, 1, 2]], MeshOptions::default()).expect("a")),
+        Geometry::Mesh(MeshBvh::build(&p1, &i1, MeshOptions::default()).expect("b")),
+    ];
+    let insts = vec![Instance::new(0, Affine3A::IDENTITY), Instance::new(1, Affine3A::IDENTITY), Instance::new(0, Affine3A::IDENTITY)];
+    let mut rng = Pcg64::seed_from_u64(8);
+    let rays: Vec<Ray> = (0..4096)
+        .map(|_| {
+            let o = Vec3::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), rng.random_range(3.0..9.0));
+            let (a, b) = (rng.random_range(0.05..0.45f32), rng.random_range(0.05..0.45f32));
+            let target = shared[0] + (shared[1] - shared[0]) * a + (shared[2] - shared[0]) * b;
+            Ray::new(o, target - o)
+        })
+        .collect();
+    for kernel in Kernel::available() {
+        let mut tl = TwoLevel::new(geoms.clone(), insts.clone()).expect("tlas");
+        tl.set_kernel(kernel);
+        let mut packed = vec![None; rays.len()];
+        tl.intersect_packet(&rays, &mut packed);
+        for (r, p) in rays.iter().zip(&packed) {
+            for h in [tl.intersect(r), *p] {
+                let h = h.expect("every ray meets the shared triangle");
+                let mesh = insts[h.inst as usize].geometry as usize;
+                assert!(h.prim < counts[mesh], "{kernel:?}: instance {} (mesh {mesh}) with triangle {}", h.inst, h.prim);
+            }
+        }
+    }
+}
