@@ -59,23 +59,7 @@ pub fn run(frames: usize, size: (u32, u32), spheres: &[usize], light_counts: &[u
                 if p.run_to_frame(u64::MAX) != Step::Frame {
                     anyhow::bail!("generated program did not reach nf");
                 }
-                let t1 = Instant::now();
-                let (sc, _) = lucent_engine::scene(&p.state, fs.sets);
-                let t2 = Instant::now();
-                let w = lucent_render::World::new(sc, Default::default()).expect("w");
-                let t3 = Instant::now();
-                drop(w);
-                let t4 = Instant::now();
                 let (_film, _) = render_frame(&p.state, &fs)?;
-                if std::env::var("SCRATCH").is_ok() {
-                    eprintln!(
-                        "proc {:.3} scene {:.3} world {:.3} total-frame {:.3}",
-                        (t1 - t).as_secs_f64() * 1e3,
-                        (t2 - t1).as_secs_f64() * 1e3,
-                        (t3 - t2).as_secs_f64() * 1e3,
-                        t4.elapsed().as_secs_f64() * 1e3
-                    );
-                }
                 times.push(t.elapsed().as_secs_f64());
             }
             let ms = crate::stats::median(&mut times) * 1e3;
