@@ -394,7 +394,8 @@ impl MeshBvh {
         }
     }
 
-    /// Closest-hit query with kernel set `K`; returns true when `hit` was narrowed.
+    /// Closest-hit query with kernel set `K`; returns true when this mesh wrote `hit` (the
+    /// caller then owns it and sets its instance).
     #[inline(always)]
     pub(crate) fn intersect_k<K: KernelSet, C: Counters>(&self, pre: &RayPre, hit: &mut Hit, c: &mut C) -> bool {
         // Whether this mesh replaced the hit is told by the primitive the leaves write, not

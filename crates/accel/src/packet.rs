@@ -1025,7 +1025,8 @@ macro_rules! coherent_parts {
             // those that are close enough get the full interval.
             let bounds = (depth > 0).then(|| p.origin_bounds(&set));
             let close = bounds.is_none_or(|b| b.widest().1 <= ext && lanes >= 3);
-            if close {
+            // Whether halving may still help: not for mixed direction signs (no interval).
+            let splittable = if close {
                 let whole = {
                     let ($m, $hh) = (&set, &*h);
                     $interval
@@ -1036,17 +1037,13 @@ macro_rules! coherent_parts {
                         $packet;
                         continue;
                     }
-                    Some(_) => {}
-                    // Mixed direction signs: no split helps.
-                    None => {
-                        for g in 0..GROUPS {
-                            rest[g] = rest[g].or(set[g]);
-                        }
-                        continue;
-                    }
+                    Some(_) => true,
+                    None => false,
                 }
-            }
-            if depth < max_depth && lanes >= 6 {
+            } else {
+                true
+            };
+            if splittable && depth < max_depth && lanes >= 6 {
                 let b = bounds.unwrap_or_else(|| p.origin_bounds(&set));
                 let (below, above) = p.split_at(&set, b);
                 work[n] = (below, depth + 1);

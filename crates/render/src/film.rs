@@ -44,7 +44,8 @@ impl Film {
     /// A black film.
     #[must_use]
     pub fn new(width: u32, height: u32) -> Self {
-        // PERF: a zeroed allocation comes from zero pages of the OS, not a write pass.
+        // PERF: a constant zero fill compiles to `memset` (`filled` stores the 12-byte
+        // pixel one by one).
         Self { width, height, pixels: vec![Vec3::ZERO; width as usize * height as usize] }
     }
 

@@ -66,22 +66,19 @@ pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u6
     let spp = s.spp.max(1);
     render_tiles(w, cam, s.width, s.height, progress, &|px, out| {
         let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); BLOCK];
+        let rays = &mut rays[..px.len()];
         let n = px.len();
         if spp == 1 {
-            for (r, &(x, y)) in rays.iter_mut().zip(px) {
-                *r = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
-            }
-            li_packet(w, &rays[..n], &s.whitted, out);
+            // One sample: straight into the block's output.
+            block_rays(cam, px, spp, 0, rays);
+            li_packet(w, rays, &s.whitted, out);
             return;
         }
         let mut c = [Vec3::ZERO; BLOCK];
         out.fill(Vec3::ZERO);
         for k in 0..spp {
-            for (r, &(x, y)) in rays.iter_mut().zip(px) {
-                let (jx, jy) = jitter(x, y, k);
-                *r = cam.ray(x as f32 + jx, y as f32 + jy);
-            }
-            li_packet(w, &rays[..n], &s.whitted, &mut c[..n]);
+            block_rays(cam, px, spp, k, rays);
+            li_packet(w, rays, &s.whitted, &mut c[..n]);
             for (o, v) in out.iter_mut().zip(&c) {
                 *o += *v;
             }
@@ -90,6 +87,15 @@ pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u6
             *o /= spp as f32;
         }
     })
+}
+
+/// Sample `k` of `spp` through each pixel of `px` (the centre when `spp` is 1).
+#[inline(always)]
+fn block_rays(cam: &Camera, px: &[(u32, u32)], spp: u32, k: u32, rays: &mut [Ray]) {
+    for (r, &(x, y)) in rays.iter_mut().zip(px) {
+        let (jx, jy) = if spp == 1 { (0.5, 0.5) } else { jitter(x, y, k) };
+        *r = cam.ray(x as f32 + jx, y as f32 + jy);
+    }
 }
 
 /// One sample per pixel: sample `index` of every pixel (0 = the pixel centre, then the
@@ -129,9 +135,9 @@ const BLOCK_CULL_BOXES: usize = 8;
 /// frustum; the pixels of the others are handed out in 8×8 blocks, `block(pixels, out)`.
 fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dyn Fn(u64) + Sync), block: &BlockFn) -> (Film, u64) {
     let (tw, th) = (width.div_ceil(TILE), height.div_ceil(TILE));
-    // PERF: a zeroed film (zero pages from the OS, no write pass; a one-thread fill of the
-    // background took an eighth of a sparse REND3R frame). Culled tiles and blocks write
-    // the background themselves unless it is black.
+    // PERF: a black film (a `memset`; storing the background pixel by pixel, one thread,
+    // took an eighth of a sparse REND3R frame). Culled tiles and blocks write the
+    // background themselves unless it is black.
     let mut film = Film::new(width, height);
     let out = FilmPtr(film.pixels.as_mut_ptr());
     let bg = w.scene.background;
