@@ -28,15 +28,22 @@ pub const MAX_DEPTH: u32 = MEDIAN_DEPTH + 33;
 pub struct BuildConfig {
     /// Most primitives in one leaf.
     pub max_leaf: usize,
-    /// Primitives intersected together (the leaf SIMD width); leaf cost is in blocks.
+    /// Primitives intersected together (the leaf SIMD width, a power of two); leaf cost is
+    /// in blocks.
     pub leaf_block: usize,
     /// SAH cost of one traversal step, relative to one block intersection.
     pub cost_traverse: f32,
+    /// Nodes of at most this many primitives are not binned: their primitives are sorted
+    /// along the widest centroid axis and halved down to leaves (0: never). For top
+    /// levels, whose leaves hold single instances: below the width of a wide node the
+    /// binary structure mostly disappears when the tree is collapsed, and binning these
+    /// many small nodes was a large part of the build.
+    pub median_max: usize,
 }
 
 impl Default for BuildConfig {
     fn default() -> Self {
-        Self { max_leaf: 8, leaf_block: 4, cost_traverse: 1.0 }
+        Self { max_leaf: 8, leaf_block: 4, cost_traverse: 1.0, median_max: 0 }
     }
 }
 
@@ -236,7 +243,8 @@ pub fn build_binary(mut prims: Vec<PrimRef>, cfg: &BuildConfig) -> BinaryBvh {
     }
     let (bounds, cbounds) = bounds_of(&prims);
     let mut nodes = Vec::with_capacity(prims.len() / 2 + 1);
-    build_rec(cfg, &mut prims, 0, bounds, cbounds, 0, &mut nodes);
+    let mut scratch = prims.clone();
+    build_rec(cfg, &mut prims, &mut scratch, 0, bounds, cbounds, 0, &mut nodes);
     BinaryBvh { nodes, prims }
 }
 
@@ -313,10 +321,6 @@ impl Binner {
             [f.x as usize, f.y as usize, f.z as usize]
         }
     }
-    #[inline(always)]
-    fn bin(&self, c2: Vec4, axis: usize) -> usize {
-        self.bins(c2)[axis]
-    }
     fn fill<const N: usize>(&self, prims: &[PrimRef]) -> Bins<N> {
         // PERF: two sets of bins, alternate primitives: neighbours often fall into the same
         // bin, and one set makes every update wait for the previous one's store (the binning
@@ -367,58 +371,87 @@ fn find_split_n<const N: usize>(prims: &[PrimRef], cb: &Box4, cfg: &BuildConfig)
     } else {
         binner.fill::<N>(prims)
     };
-    let mut best: Option<Split> = None;
+    // Block counts by shift and add, not by division, and no branches on the candidates.
+    let sh = block_shift(cfg.leaf_block);
+    let round = (1u32 << sh) - 1;
+    let mut best_cost = f32::INFINITY;
+    let mut best = (0usize, 0usize);
     for k in 0..3 {
         if binner.scale[k] == 0.0 {
             continue;
         }
-        let mut right_area = [0.0f32; N];
-        let mut right_n = [0usize; N];
+        let mut right_cost = [0.0f32; N];
         let mut acc = Box4::EMPTY;
-        let mut n = 0usize;
+        let mut n = 0u32;
         for i in (1..N).rev() {
             acc = acc.union(bins.b[k][i]);
-            n += bins.n[k][i] as usize;
-            right_area[i] = acc.half_area();
-            right_n[i] = n;
+            n += bins.n[k][i];
+            // An empty side makes the candidate invalid: infinite cost.
+            right_cost[i] = if n == 0 { f32::INFINITY } else { acc.half_area() * ((n + round) >> sh) as f32 };
         }
         let mut acc = Box4::EMPTY;
-        let mut n = 0usize;
-        for i in 1..N {
+        let mut n = 0u32;
+        for (i, &right) in right_cost.iter().enumerate().skip(1) {
             acc = acc.union(bins.b[k][i - 1]);
-            n += bins.n[k][i - 1] as usize;
-            if n == 0 || right_n[i] == 0 {
-                continue;
-            }
-            let cost = acc.half_area() * blocks(n, cfg.leaf_block) as f32 + right_area[i] * blocks(right_n[i], cfg.leaf_block) as f32;
-            if best.as_ref().is_none_or(|b| cost < b.cost) {
-                best = Some(Split { axis: k, bin: i, cost });
+            n += bins.n[k][i - 1];
+            let left = if n == 0 { f32::INFINITY } else { acc.half_area() * ((n + round) >> sh) as f32 };
+            let cost = left + right;
+            if cost < best_cost {
+                best_cost = cost;
+                best = (k, i);
             }
         }
     }
-    (best, binner)
+    let split = (best_cost < f32::INFINITY).then_some(Split { axis: best.0, bin: best.1, cost: best_cost });
+    (split, binner)
 }
 
-/// Partitions `prims` so that those `go_left` come first; returns the left count and the
-/// bounds and centroid bounds of both sides.
-fn partition(prims: &mut [PrimRef], go_left: impl Fn(&PrimRef) -> bool) -> (usize, [(Box4, Box4); 2]) {
+/// `log2` of the leaf block size (a power of two).
+#[inline(always)]
+fn block_shift(block: usize) -> u32 {
+    debug_assert!(block.max(1).is_power_of_two(), "leaf_block must be a power of two");
+    block.max(1).trailing_zeros()
+}
+
+/// Partitions `prims` by the split (bin below `split.bin` on `split.axis` goes left);
+/// returns the left count and the bounds and centroid bounds of both sides.
+///
+/// PERF: out of place and without branches: each primitive is written to the next free
+/// slot of its side in `scratch` (left from the front, right from the back) and the result
+/// copied back, and both sides' bounds grow by masked min/max. The in-place swapping
+/// partition it replaces mispredicted about every other primitive. The bin is computed
+/// in scalar with the operations of [`Binner::bins`], so it agrees with the binning.
+fn partition(prims: &mut [PrimRef], scratch: &mut [PrimRef], binner: &Binner, split: &Split) -> (usize, [(Box4, Box4); 2]) {
+    let n = prims.len();
+    let scratch = &mut scratch[..n];
+    let (o, sc, top) = (binner.origin[split.axis], binner.scale[split.axis], (binner.nb - 1) as f32);
+    let bin = split.bin as i32;
+    let (mut l, mut r) = (0usize, n);
     let mut side = [(Box4::EMPTY, Box4::EMPTY); 2];
-    let mut i = 0;
-    let mut j = prims.len();
-    while i < j {
-        let p = prims[i];
-        let s = if go_left(&p) {
-            i += 1;
-            0
-        } else {
-            j -= 1;
-            prims.swap(i, j);
-            1
-        };
-        side[s].0.add(&p);
-        side[s].1.grow(p.centroid2());
+    for p in prims.iter() {
+        let c = p.centroid2();
+        let f = ((c[split.axis] - o) * sc).max(0.0).min(top);
+        let left = (f as i32) < bin;
+        let dst = if left { l } else { r - 1 };
+        // `l <= dst < r <= n` always (each primitive takes one slot, n in all).
+        if let Some(d) = scratch.get_mut(dst) {
+            *d = *p;
+        }
+        l += usize::from(left);
+        r -= usize::from(!left);
+        let m = glam::BVec4A::splat(left);
+        let (ilo, ihi) = (Vec4::INFINITY, Vec4::NEG_INFINITY);
+        side[0].0.lo = side[0].0.lo.min(Vec4::select(m, p.lo, ilo));
+        side[0].0.hi = side[0].0.hi.max(Vec4::select(m, p.hi, ihi));
+        side[0].1.lo = side[0].1.lo.min(Vec4::select(m, c, ilo));
+        side[0].1.hi = side[0].1.hi.max(Vec4::select(m, c, ihi));
+        side[1].0.lo = side[1].0.lo.min(Vec4::select(m, ilo, p.lo));
+        side[1].0.hi = side[1].0.hi.max(Vec4::select(m, ihi, p.hi));
+        side[1].1.lo = side[1].1.lo.min(Vec4::select(m, ilo, c));
+        side[1].1.hi = side[1].1.hi.max(Vec4::select(m, ihi, c));
     }
-    (i, side)
+    prims.copy_from_slice(scratch);
+    (l, side)
 }
 
 fn make_leaf(nodes: &mut Vec<BinNode>, bounds: Box4, offset: usize, n: usize) -> u32 {
@@ -426,9 +459,11 @@ fn make_leaf(nodes: &mut Vec<BinNode>, bounds: Box4, offset: usize, n: usize) ->
     (nodes.len() - 1) as u32
 }
 
+#[allow(clippy::too_many_arguments)]
 fn build_rec(
     cfg: &BuildConfig,
     prims: &mut [PrimRef],
+    scratch: &mut [PrimRef],
     offset: usize,
     bounds: Box4,
     cbounds: Box4,
@@ -442,13 +477,14 @@ fn build_rec(
     if n <= 1 || (n <= cfg.leaf_block.min(max_leaf) && cfg.cost_traverse >= 1.0) {
         return make_leaf(nodes, bounds, offset, n);
     }
+    if n <= cfg.median_max {
+        return build_small(cfg, prims, offset, nodes).0;
+    }
     let (split, binner) = if depth >= MEDIAN_DEPTH { (None, Binner::new(&cbounds, 2)) } else { find_split(prims, &cbounds, cfg) };
     let area = bounds.half_area();
     let leaf_cost = blocks(n, cfg.leaf_block) as f32 * area;
     let (nl, sides) = match split {
-        Some(s) if n > max_leaf || cfg.cost_traverse * area + s.cost < leaf_cost => {
-            partition(prims, |p| binner.bin(p.centroid2(), s.axis) < s.bin)
-        }
+        Some(s) if n > max_leaf || cfg.cost_traverse * area + s.cost < leaf_cost => partition(prims, scratch, &binner, &s),
         _ if n <= max_leaf => return make_leaf(nodes, bounds, offset, n),
         _ => {
             // No useful split (equal centroids, or too deep): object median along the widest axis.
@@ -462,6 +498,7 @@ fn build_rec(
     let me = nodes.len();
     nodes.push(BinNode { bounds: bounds.aabb(), first: 0, right: 0, count: 0 });
     let (left, right) = prims.split_at_mut(nl);
+    let (sl, sr) = scratch.split_at_mut(nl.min(scratch.len()));
     let [(bl, cl), (br, cr)] = sides;
     let (li, ri) = if n > PARALLEL_MIN {
         // The left subtree goes straight into `nodes`; only the right one is built apart
@@ -469,18 +506,56 @@ fn build_rec(
         // 10k-instance top-level build). Sized for a typical tree so it does not regrow.
         let mut rn = Vec::with_capacity(n - nl);
         let (li, _) = rayon::join(
-            || build_rec(cfg, left, offset, bl, cl, depth + 1, nodes),
-            || build_rec(cfg, right, offset + nl, br, cr, depth + 1, &mut rn),
+            || build_rec(cfg, left, sl, offset, bl, cl, depth + 1, nodes),
+            || build_rec(cfg, right, sr, offset + nl, br, cr, depth + 1, &mut rn),
         );
         (li, append(nodes, rn))
     } else {
-        let li = build_rec(cfg, left, offset, bl, cl, depth + 1, nodes);
-        let ri = build_rec(cfg, right, offset + nl, br, cr, depth + 1, nodes);
+        let li = build_rec(cfg, left, sl, offset, bl, cl, depth + 1, nodes);
+        let ri = build_rec(cfg, right, sr, offset + nl, br, cr, depth + 1, nodes);
         (li, ri)
     };
     nodes[me].first = li;
     nodes[me].right = ri;
     me as u32
+}
+
+/// A small node ([`BuildConfig::median_max`]): its primitives sorted once along the widest
+/// centroid axis, then halved down to leaves of one block, bounds computed bottom-up.
+/// Returns the node index and its bounds.
+fn build_small(cfg: &BuildConfig, prims: &mut [PrimRef], offset: usize, nodes: &mut Vec<BinNode>) -> (u32, Box4) {
+    let mut cb = Box4::EMPTY;
+    for p in prims.iter() {
+        cb.grow(p.centroid2());
+    }
+    let axis = cb.aabb().extent().max_position();
+    // Insertion sort: n is a handful.
+    for i in 1..prims.len() {
+        let mut j = i;
+        while j > 0 && prims[j - 1].centroid2()[axis] > prims[j].centroid2()[axis] {
+            prims.swap(j - 1, j);
+            j -= 1;
+        }
+    }
+    fn rec(leaf: usize, prims: &[PrimRef], offset: usize, nodes: &mut Vec<BinNode>) -> (u32, Box4) {
+        let n = prims.len();
+        if n <= leaf {
+            let mut b = Box4::EMPTY;
+            for p in prims {
+                b.add(p);
+            }
+            return (make_leaf(nodes, b, offset, n), b);
+        }
+        let me = nodes.len();
+        nodes.push(BinNode { bounds: Aabb::EMPTY, first: 0, right: 0, count: 0 });
+        let mid = n / 2;
+        let (l, bl) = rec(leaf, &prims[..mid], offset, nodes);
+        let (r, br) = rec(leaf, &prims[mid..], offset + mid, nodes);
+        let b = bl.union(br);
+        nodes[me] = BinNode { bounds: b.aabb(), first: l, right: r, count: 0 };
+        (me as u32, b)
+    }
+    rec(cfg.leaf_block.min(cfg.max_leaf).max(1), prims, offset, nodes)
 }
 
 /// Appends a subtree built into its own vector (its root at index 0), relocating child
@@ -506,6 +581,145 @@ fn spread3(v: u32) -> u32 {
     (x | (x << 2)) & 0x0924_9249
 }
 
+/// Buffers of the Morton-order builders ([`build_clustered_into`], [`build_lbvh_into`]),
+/// kept by a caller that rebuilds every frame so that no rebuild allocates. (PERF: at 10k
+/// instances the buffers are a few hundred kilobytes: above glibc's threshold they are
+/// fresh mappings, and their page faults cost as much as the build.)
+#[derive(Clone, Debug, Default)]
+pub struct MortonScratch {
+    /// `(code, index)` in Morton order.
+    keys: Vec<(u32, u32)>,
+    tmp: Vec<(u32, u32)>,
+    codes: Vec<u32>,
+    runs: Vec<(u32, u32)>,
+    refs: Vec<PrimRef>,
+    /// The tree the last build made.
+    pub bvh: BinaryBvh,
+}
+
+/// The primitives' Morton order into `s.keys`: `(code, index)` pairs sorted by code (30-bit
+/// codes of the centroids in their bounds, an LSD radix sort in three passes of 10 bits;
+/// stable, so equal codes keep index order), and the codes alone into `s.codes`.
+fn morton_order(prims: &[PrimRef], s: &mut MortonScratch) {
+    let (_, cbounds) = bounds_of(prims);
+    let lo = cbounds.lo;
+    let ext = cbounds.hi - cbounds.lo;
+    let inv = |e: f32| if e > 0.0 { 1023.0 / e } else { 0.0 };
+    let scale = Vec4::new(inv(ext.x), inv(ext.y), inv(ext.z), 0.0);
+    let code = |p: &PrimRef| {
+        let q = ((p.centroid2() - lo) * scale).clamp(Vec4::ZERO, Vec4::splat(1023.0)).as_uvec4();
+        spread3(q.x) << 2 | spread3(q.y) << 1 | spread3(q.z)
+    };
+    s.keys.clear();
+    s.keys.extend(prims.iter().enumerate().map(|(i, p)| (code(p), i as u32)));
+    s.tmp.clear();
+    s.tmp.resize(prims.len(), (0, 0));
+    for pass in 0..3 {
+        let shift = 10 * pass;
+        let mut count = [0usize; 1025];
+        for k in &s.keys {
+            count[((k.0 >> shift) & 1023) as usize + 1] += 1;
+        }
+        for i in 0..1024 {
+            count[i + 1] += count[i];
+        }
+        for k in &s.keys {
+            let d = &mut count[((k.0 >> shift) & 1023) as usize];
+            // `*d < keys.len()`: the prefix sums count every key once.
+            if let Some(t) = s.tmp.get_mut(*d) {
+                *t = *k;
+            }
+            *d += 1;
+        }
+        std::mem::swap(&mut s.keys, &mut s.tmp);
+    }
+    s.codes.clear();
+    s.codes.extend(s.keys.iter().map(|k| k.0));
+}
+
+/// Where the Morton-sorted range `lo..hi` splits: at the first code with the highest
+/// differing bit set (the middle when all codes are equal), never at an end.
+fn morton_mid(codes: &[u32], lo: usize, hi: usize) -> usize {
+    let (a, z) = (codes[lo], codes[hi - 1]);
+    let mid = if a == z {
+        (lo + hi) / 2
+    } else {
+        let bit = 31 - (a ^ z).leading_zeros();
+        let mask = !((1u32 << bit) - 1) & !(1u32 << bit);
+        let prefix = a & mask;
+        lo + codes[lo..hi].partition_point(|&c| c & (mask | 1 << bit) == prefix)
+    };
+    mid.clamp(lo + 1, hi - 1)
+}
+
+/// A top level by binned SAH over clusters (after Garanzha, Pantaleoni and McAllister,
+/// "Simpler and Faster HLBVH with Work Queues", HPG 2011): primitives are sorted along a
+/// Morton curve and cut, at the highest differing code bit, into runs of at most
+/// `cluster`; the SAH tree is built over the runs' boxes, and each run becomes one leaf.
+/// The SAH then sees `cluster`-times fewer items, which is most of the build time, while
+/// the tree above the runs keeps its quality. Leaves hold up to `cluster` primitives (more
+/// than `cfg.max_leaf`): [`crate::wide::collapse_spread`] gives each its own child slot.
+#[must_use]
+pub fn build_clustered(prims: Vec<PrimRef>, cfg: &BuildConfig, cluster: usize) -> BinaryBvh {
+    let mut s = MortonScratch::default();
+    build_clustered_into(&prims, cfg, cluster, &mut s);
+    s.bvh
+}
+
+/// [`build_clustered`] with reused buffers; the tree is left in `s.bvh`.
+pub fn build_clustered_into(prims: &[PrimRef], cfg: &BuildConfig, cluster: usize, s: &mut MortonScratch) {
+    let cluster = cluster.max(1);
+    if prims.len() <= 4 * cluster {
+        s.bvh = build_binary(prims.to_vec(), cfg);
+        return;
+    }
+    morton_order(prims, s);
+    s.runs.clear();
+    fn cut(codes: &[u32], lo: usize, hi: usize, cluster: usize, runs: &mut Vec<(u32, u32)>) {
+        if hi - lo <= cluster {
+            runs.push((lo as u32, hi as u32));
+            return;
+        }
+        let mid = morton_mid(codes, lo, hi);
+        cut(codes, lo, mid, cluster, runs);
+        cut(codes, mid, hi, cluster, runs);
+    }
+    cut(&s.codes, 0, prims.len(), cluster, &mut s.runs);
+    s.refs.clear();
+    s.refs.extend(s.runs.iter().enumerate().map(|(i, &(lo, hi))| {
+        let mut b = Box4::EMPTY;
+        for k in &s.keys[lo as usize..hi as usize] {
+            b.add(&prims[k.1 as usize]);
+        }
+        PrimRef::new(b.aabb(), i as u32)
+    }));
+    let top_cfg = BuildConfig { max_leaf: 1, leaf_block: 1, median_max: 8, ..*cfg };
+    let top = build_binary(std::mem::take(&mut s.refs), &top_cfg);
+    // The runs' primitives in the top tree's leaf order; each leaf then covers its run.
+    let out = &mut s.bvh;
+    out.prims.clear();
+    s.codes.clear(); // reused: where each run starts in `out.prims`
+    s.codes.resize(s.runs.len(), 0);
+    for r in &top.prims {
+        let run = r.id() as usize;
+        let (lo, hi) = s.runs[run];
+        s.codes[run] = out.prims.len() as u32;
+        out.prims.extend(s.keys[lo as usize..hi as usize].iter().map(|k| prims[k.1 as usize]));
+    }
+    out.nodes.clear();
+    out.nodes.extend(top.nodes.iter().map(|n| {
+        if n.is_leaf() {
+            // One run per leaf (max_leaf 1).
+            let run = top.prims[n.first as usize].id() as usize;
+            let (lo, hi) = s.runs[run];
+            BinNode { bounds: n.bounds, first: s.codes[run], right: 0, count: hi - lo }
+        } else {
+            *n
+        }
+    }));
+    s.refs = top.prims;
+}
+
 /// A linear BVH (Lauterbach, Garland, Sengupta, Luebke, Manocha, "Fast BVH Construction
 /// on GPUs", Eurographics 2009): primitives sorted along a Morton curve of their
 /// centroids, split top-down at the highest differing code bit. Much faster to build than
@@ -513,25 +727,22 @@ fn spread3(v: u32) -> u32 {
 /// rebuilt every frame.
 #[must_use]
 pub fn build_lbvh(prims: Vec<PrimRef>, max_leaf: usize) -> BinaryBvh {
+    let mut s = MortonScratch::default();
+    build_lbvh_into(&prims, max_leaf, &mut s);
+    s.bvh
+}
+
+/// [`build_lbvh`] with reused buffers; the tree is left in `s.bvh`.
+pub fn build_lbvh_into(prims: &[PrimRef], max_leaf: usize, s: &mut MortonScratch) {
+    s.bvh.nodes.clear();
+    s.bvh.prims.clear();
     if prims.is_empty() {
-        return BinaryBvh::default();
+        return;
     }
-    let (_, cbounds) = bounds_of(&prims);
-    let lo = cbounds.lo;
-    let ext = (cbounds.hi - cbounds.lo).max(Vec4::splat(1e-30));
-    let mut keyed: Vec<u64> = prims
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let q = ((p.centroid2() - lo) / ext * 1023.0).clamp(Vec4::ZERO, Vec4::splat(1023.0));
-            let code = spread3(q.x as u32) << 2 | spread3(q.y as u32) << 1 | spread3(q.z as u32);
-            u64::from(code) << 32 | i as u64
-        })
-        .collect();
-    keyed.sort_unstable();
-    let sorted: Vec<PrimRef> = keyed.iter().map(|k| prims[(k & 0xffff_ffff) as usize]).collect();
-    let codes: Vec<u32> = keyed.iter().map(|k| (k >> 32) as u32).collect();
-    let mut nodes = Vec::with_capacity(2 * sorted.len() / max_leaf.max(1) + 1);
+    morton_order(prims, s);
+    let max_leaf = max_leaf.max(1);
+    s.bvh.prims.extend(s.keys.iter().map(|k| prims[k.1 as usize]));
+    s.bvh.nodes.reserve(2 * prims.len() / max_leaf + 1);
     fn rec(codes: &[u32], prims: &[PrimRef], lo: usize, hi: usize, max_leaf: usize, nodes: &mut Vec<BinNode>) -> Aabb {
         let me = nodes.len();
         nodes.push(BinNode { bounds: Aabb::EMPTY, first: lo as u32, right: 0, count: (hi - lo) as u32 });
@@ -543,17 +754,7 @@ pub fn build_lbvh(prims: Vec<PrimRef>, max_leaf: usize) -> BinaryBvh {
             nodes[me].bounds = b.aabb();
             return nodes[me].bounds;
         }
-        let (a, z) = (codes[lo], codes[hi - 1]);
-        let mid = if a == z {
-            (lo + hi) / 2
-        } else {
-            // First index whose code has the highest differing bit set.
-            let bit = 31 - (a ^ z).leading_zeros();
-            let mask = !((1u32 << bit) - 1) & !(1u32 << bit);
-            let prefix = a & mask;
-            lo + codes[lo..hi].partition_point(|&c| c & (mask | 1 << bit) == prefix)
-        };
-        let mid = mid.clamp(lo + 1, hi - 1);
+        let mid = morton_mid(codes, lo, hi);
         let left = nodes.len() as u32;
         let bl = rec(codes, prims, lo, mid, max_leaf, nodes);
         let right = nodes.len() as u32;
@@ -562,6 +763,5 @@ pub fn build_lbvh(prims: Vec<PrimRef>, max_leaf: usize) -> BinaryBvh {
         nodes[me] = BinNode { bounds: b, first: left, right, count: 0 };
         b
     }
-    rec(&codes, &sorted, 0, sorted.len(), max_leaf.max(1), &mut nodes);
-    BinaryBvh { nodes, prims: sorted }
+    rec(&s.codes, &s.bvh.prims, 0, prims.len(), max_leaf, &mut s.bvh.nodes);
 }

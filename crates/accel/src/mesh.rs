@@ -150,7 +150,12 @@ impl MeshBvh {
         } else {
             prims.retain(|p| units[p.id() as usize].is_some());
         }
-        let cfg = BuildConfig { max_leaf: 8, leaf_block: if opts.test == TriangleTest::UnitTriangle { 4 } else { 1 }, cost_traverse: 1.0 };
+        let cfg = BuildConfig {
+            max_leaf: 8,
+            leaf_block: if opts.test == TriangleTest::UnitTriangle { 4 } else { 1 },
+            cost_traverse: 1.0,
+            median_max: 0,
+        };
         let mut bin = build_binary(prims, &cfg);
         if opts.quality == Quality::High {
             crate::reinsert::optimize(&mut bin, &cfg);

@@ -4,15 +4,14 @@
 //! (their direction is not renormalized, so `t` is shared by both levels). The top level is
 //! cheap to rebuild, which is what dynamic scenes do every frame.
 
-use crate::build::{build_binary, BuildConfig, PrimRef};
+use crate::build::{build_binary, build_clustered_into, build_lbvh_into, BuildConfig, MortonScratch, PrimRef};
 use crate::geom::{Aabb, Hit, Ray};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::mesh::{BuildError, BvhStats, MeshBvh};
 use crate::shape::Shape;
 use crate::traverse::{self, Leaves, RayPre};
-use crate::wide::{collapse, leaf_code, WideNode};
+use crate::wide::{collapse_spread, WideNode};
 use glam::Affine3A;
-use rayon::prelude::*;
 
 /// What an instance draws.
 #[derive(Clone, Debug)]
@@ -53,10 +52,20 @@ impl Instance {
     }
 }
 
+/// Most instances in one Morton run of the clustered SAH top level
+/// ([`crate::build::build_clustered`]). At 10,000 instances, runs of 8 made the build 3.5
+/// times faster than binning every instance (0.81 against 2.87 ms on one thread), for a
+/// wide tree whose node boxes have about 15% more surface area.
+const TOP_CLUSTER: usize = 8;
+/// From this many instances on, the top level is built over Morton runs; below, every
+/// instance is binned. (The BART kitchen's 393 instances of very different sizes traced
+/// 10% slower over runs, and build in well under a millisecond either way.)
+const CLUSTER_MIN: usize = 2048;
+
 /// How the top level is built.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum TopBuilder {
-    /// Binned SAH (the default: the better tree).
+    /// Binned SAH over Morton runs of a few instances (the default: the better tree).
     #[default]
     Sah,
     /// Linear BVH in Morton order: about 4× faster to build, about 20% slower to trace
@@ -77,6 +86,10 @@ pub struct TwoLevel {
     bounds: Aabb,
     pub(crate) kernel: Kernel,
     builder: TopBuilder,
+    /// Build buffers kept between rebuilds.
+    boxes: Vec<Aabb>,
+    prims: Vec<PrimRef>,
+    scratch: MortonScratch,
 }
 
 impl TwoLevel {
@@ -91,6 +104,9 @@ impl TwoLevel {
             bounds: Aabb::EMPTY,
             kernel: Kernel::detect(),
             builder: TopBuilder::Sah,
+            boxes: Vec::new(),
+            prims: Vec::new(),
+            scratch: MortonScratch::default(),
         };
         s.rebuild()?;
         Ok(s)
@@ -130,6 +146,15 @@ impl TwoLevel {
     /// Replaces the instance list (e.g. new transforms for a frame) and rebuilds the top level.
     pub fn set_instances(&mut self, instances: Vec<Instance>) -> Result<(), BuildError> {
         self.instances = instances;
+        self.rebuild()
+    }
+
+    /// Lets `f` change the instances in place (new transforms for a frame: keep
+    /// `object_from_world` the inverse, e.g. through [`Instance::new`]), then rebuilds the top
+    /// level. Unlike [`TwoLevel::set_instances`] this moves no instance list in or out, which
+    /// matters for per-frame rebuilds of many instances.
+    pub fn update_instances(&mut self, f: impl FnOnce(&mut [Instance])) -> Result<(), BuildError> {
+        f(&mut self.instances);
         self.rebuild()
     }
 
@@ -183,11 +208,27 @@ impl TwoLevel {
         if let Some((inst, i)) = self.instances.iter().enumerate().find(|(_, i)| i.geometry as usize >= ng) {
             return Err(BuildError::NoSuchGeometry { inst, geom: i.geometry, count: ng });
         }
-        let boxes: Vec<Aabb> =
-            self.instances.par_iter().map(|i| self.geometries[i.geometry as usize].bounds().transformed(&i.world_from_object)).collect();
+        // World boxes (in parallel for many instances), then the build's references.
+        let geoms = &self.geometries;
+        let world_box = |inst: &Instance| geoms[inst.geometry as usize].bounds().transformed(&inst.world_from_object);
+        self.boxes.clear();
+        self.boxes.resize(self.instances.len(), Aabb::EMPTY);
+        if self.instances.len() >= 4096 {
+            use rayon::prelude::*;
+            self.boxes.par_chunks_mut(1024).zip(self.instances.par_chunks(1024)).for_each(|(b, i)| {
+                for (b, i) in b.iter_mut().zip(i) {
+                    *b = world_box(i);
+                }
+            });
+        } else {
+            for (b, i) in self.boxes.iter_mut().zip(&self.instances) {
+                *b = world_box(i);
+            }
+        }
         self.unbounded.clear();
-        let mut prims = Vec::with_capacity(boxes.len());
-        for (i, b) in boxes.iter().enumerate() {
+        let prims = &mut self.prims;
+        prims.clear();
+        for (i, b) in self.boxes.iter().enumerate() {
             if b.is_empty() {
                 continue;
             }
@@ -197,15 +238,18 @@ impl TwoLevel {
                 self.unbounded.push(i as u32);
             }
         }
-        let cfg = BuildConfig { max_leaf: 2, leaf_block: 1, cost_traverse: 1.0 };
-        let bin = match self.builder {
-            TopBuilder::Linear => crate::build::build_lbvh(prims, 2),
-            TopBuilder::Sah => build_binary(prims, &cfg),
-        };
+        let cfg = BuildConfig { max_leaf: 2, leaf_block: 1, cost_traverse: 1.0, median_max: 8 };
+        match self.builder {
+            TopBuilder::Linear => build_lbvh_into(prims, 2, &mut self.scratch),
+            TopBuilder::Sah if prims.len() >= CLUSTER_MIN => build_clustered_into(prims, &cfg, TOP_CLUSTER, &mut self.scratch),
+            TopBuilder::Sah => self.scratch.bvh = build_binary(prims.clone(), &cfg),
+        }
+        let bin = &self.scratch.bvh;
         self.bounds = bin.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds);
-        self.order = bin.prims.iter().map(|p| p.id()).collect();
-        self.nodes =
-            collapse::<8, BuildError>(&bin, &mut |first, count| leaf_code(first, count).ok_or(BuildError::TooLarge(self.instances.len())))?;
+        self.order.clear();
+        self.order.extend(bin.prims.iter().map(PrimRef::id));
+        let n = self.instances.len();
+        collapse_spread::<8>(bin, &mut self.nodes).map_err(|_| BuildError::TooLarge(n))?;
         Ok(())
     }
 

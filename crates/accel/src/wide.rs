@@ -83,19 +83,71 @@ impl<const W: usize> WideNode<W> {
 /// Collapses a binary BVH into `W`-wide nodes (root at index 0). `make_leaf(first, count)`
 /// receives each binary leaf's primitive range and returns its leaf code.
 pub fn collapse<const W: usize, E>(bin: &BinaryBvh, make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, E>) -> Result<Vec<WideNode<W>>, E> {
-    let mut out = Vec::with_capacity(bin.nodes.len() / (W / 2).max(1) + 1);
+    let mut out = Vec::new();
+    collapse_into(bin, &mut out, make_leaf)?;
+    Ok(out)
+}
+
+/// [`collapse`] into `out` (cleared first; its memory is kept, for trees rebuilt every frame).
+pub fn collapse_into<const W: usize, E>(
+    bin: &BinaryBvh,
+    out: &mut Vec<WideNode<W>>,
+    make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, E>,
+) -> Result<(), E> {
+    out.clear();
+    out.reserve(bin.nodes.len() / (W / 2).max(1) + 1);
     let Some(root) = bin.nodes.first() else {
         out.push(WideNode::EMPTY);
-        return Ok(out);
+        return Ok(());
     };
     if root.is_leaf() {
         let mut n = WideNode::EMPTY;
         n.set(0, &root.bounds, make_leaf(root.first, root.count)?);
         out.push(n);
-        return Ok(out);
+        return Ok(());
     }
-    emit(bin, 0, &mut out, make_leaf)?;
-    Ok(out)
+    emit(bin, 0, out, make_leaf)?;
+    Ok(())
+}
+
+/// The up-to-`W` descendants of binary node `idx` that become the children of its wide
+/// node: inner children are opened, largest surface area first, until there are `W`.
+fn open<const W: usize>(bin: &BinaryBvh, idx: usize) -> ([usize; W], usize) {
+    let n = &bin.nodes[idx];
+    let mut kids = [0usize; W];
+    // Half areas of the inner kids (-1 for leaves), computed once per kid.
+    let mut area = [-1.0f32; W];
+    let inner_area = |k: usize| {
+        let c = &bin.nodes[k];
+        if c.is_leaf() {
+            -1.0
+        } else {
+            c.bounds.half_area()
+        }
+    };
+    kids[0] = n.first as usize;
+    kids[1] = n.right as usize;
+    area[0] = inner_area(kids[0]);
+    area[1] = inner_area(kids[1]);
+    let mut nk = 2;
+    while nk < W {
+        let mut best = 0;
+        for i in 1..nk {
+            if area[i] > area[best] {
+                best = i;
+            }
+        }
+        if area[best] < 0.0 {
+            break;
+        }
+        let c = bin.nodes[kids[best]];
+        kids[best] = c.first as usize;
+        kids[nk] = c.right as usize;
+        area[best] = inner_area(kids[best]);
+        area[nk] = inner_area(kids[nk]);
+        nk += 1;
+    }
+    (kids, nk)
 }
 
 fn emit<const W: usize, E>(
@@ -106,33 +158,122 @@ fn emit<const W: usize, E>(
 ) -> Result<u32, E> {
     let slot = out.len();
     out.push(WideNode::EMPTY);
-    let n = &bin.nodes[idx];
-    let mut kids = [0usize; W];
-    kids[0] = n.first as usize;
-    kids[1] = n.right as usize;
-    let mut nk = 2;
-    while nk < W {
-        // Open the inner child with the largest surface area.
-        let mut best = None;
-        let mut best_area = -1.0f32;
-        for (i, &k) in kids[..nk].iter().enumerate() {
-            let c = &bin.nodes[k];
-            if !c.is_leaf() && c.bounds.half_area() > best_area {
-                best_area = c.bounds.half_area();
-                best = Some(i);
-            }
-        }
-        let Some(i) = best else { break };
-        let c = bin.nodes[kids[i]];
-        kids[i] = c.first as usize;
-        kids[nk] = c.right as usize;
-        nk += 1;
-    }
+    let (kids, nk) = open::<W>(bin, idx);
     let mut node = WideNode::EMPTY;
     for (i, &k) in kids[..nk].iter().enumerate() {
         let c = bin.nodes[k];
         let code = if c.is_leaf() { make_leaf(c.first, c.count)? } else { emit(bin, k, out, make_leaf)? };
         node.set(i, &c.bounds, code);
+    }
+    out[slot] = node;
+    Ok(slot as u32)
+}
+
+/// Collapses a binary BVH whose leaves hold at most `W` items each into `W`-wide nodes
+/// where every item has a child slot of its own (a leaf of one item, `leaf_code(i, 1)`):
+/// for top levels, whose items are instances, each with its own box test. Inner nodes
+/// and multi-item leaves are opened largest surface area first while they fit; a leaf
+/// that does not fit becomes a wide node of its items. `out` is cleared first and keeps its
+/// memory.
+pub fn collapse_spread<const W: usize>(bin: &BinaryBvh, out: &mut Vec<WideNode<W>>) -> Result<(), u32> {
+    out.clear();
+    let Some(root) = bin.nodes.first() else {
+        out.push(WideNode::EMPTY);
+        return Ok(());
+    };
+    if root.count as usize > W {
+        return Err(root.count);
+    }
+    spread(bin, 0, out)?;
+    Ok(())
+}
+
+fn spread<const W: usize>(bin: &BinaryBvh, idx: usize, out: &mut Vec<WideNode<W>>) -> Result<u32, u32> {
+    /// A child slot: a binary node (inner, or a leaf not yet spread) or one item.
+    #[derive(Clone, Copy)]
+    enum Kid {
+        Node(u32),
+        Item(u32),
+    }
+    let slot = out.len();
+    out.push(WideNode::EMPTY);
+    let mut kids = [Kid::Item(0); W];
+    // Surface areas of openable kids, and the slots opening them adds (0: not openable).
+    let mut area = [0.0f32; W];
+    let mut adds = [0usize; W];
+    let classify = |k: u32| -> (Kid, f32, usize) {
+        let c = &bin.nodes[k as usize];
+        match c.count {
+            0 => (Kid::Node(k), c.bounds.half_area(), 1),
+            1 => (Kid::Item(c.first), 0.0, 0),
+            n => (Kid::Node(k), c.bounds.half_area(), n as usize - 1),
+        }
+    };
+    let n = bin.nodes[idx];
+    let mut nk;
+    if n.is_leaf() {
+        // A leaf that did not fit in its parent: its items, one slot each.
+        nk = (n.count as usize).min(W);
+        for (i, kid) in kids[..nk].iter_mut().enumerate() {
+            *kid = Kid::Item(n.first + i as u32);
+        }
+    } else {
+        nk = 0;
+        for c in [n.first, n.right] {
+            let (k, a, d) = classify(c);
+            kids[nk] = k;
+            area[nk] = a;
+            adds[nk] = d;
+            nk += 1;
+        }
+        loop {
+            let mut best = usize::MAX;
+            for i in 0..nk {
+                if adds[i] > 0 && nk + adds[i] <= W && (best == usize::MAX || area[i] > area[best]) {
+                    best = i;
+                }
+            }
+            if best == usize::MAX {
+                break;
+            }
+            let Kid::Node(k) = kids[best] else { break };
+            let c = bin.nodes[k as usize];
+            if c.is_leaf() {
+                kids[best] = Kid::Item(c.first);
+                adds[best] = 0;
+                for j in 1..c.count {
+                    kids[nk] = Kid::Item(c.first + j);
+                    adds[nk] = 0;
+                    nk += 1;
+                }
+            } else {
+                for (s, ch) in [(best, c.first), (nk, c.right)] {
+                    let (kk, a, d) = classify(ch);
+                    kids[s] = kk;
+                    area[s] = a;
+                    adds[s] = d;
+                }
+                nk += 1;
+            }
+        }
+    }
+    let mut node = WideNode::EMPTY;
+    for (i, kid) in kids[..nk].iter().enumerate() {
+        match *kid {
+            Kid::Item(p) => {
+                let r = &bin.prims[p as usize];
+                let code = leaf_code(p, 1).ok_or(p)?;
+                node.set(i, &Aabb { min: r.min(), max: r.max() }, code);
+            }
+            Kid::Node(k) => {
+                let c = &bin.nodes[k as usize];
+                if c.count as usize > W {
+                    return Err(c.count);
+                }
+                let code = spread(bin, k as usize, out)?;
+                node.set(i, &c.bounds, code);
+            }
+        }
     }
     out[slot] = node;
     Ok(slot as u32)

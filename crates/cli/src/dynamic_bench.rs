@@ -82,7 +82,7 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
             tl.set_top_builder(builder);
             let ms = time_ms(15, || {
                 // What a frame of rigid motion costs: new transforms in, top level rebuilt.
-                let _ = tl.set_instances(insts.clone());
+                let _ = tl.update_instances(|i| i.copy_from_slice(&insts));
             });
             line("tlas_build", serde_json::json!({"instances": n, "builder": name, "median_ms": ms}));
             rows.push(format!("TLAS rebuild ({name}), {n} instances: {ms:.3} ms"));

@@ -151,15 +151,16 @@ impl World {
                 self.accel.set_geometry(m as usize, Geometry::Mesh(bvh)).map_err(WorldError::Top)?;
             }
         }
-        let mut insts = self.accel.instances().to_vec();
-        for (i, m) in pose.instances.iter().enumerate().take(insts.len()) {
-            insts[i] = Instance::new(insts[i].geometry, *m);
-            self.info[i].normal_to_world = normal_matrix(&insts[i]);
-            if let Some(si) = self.scene.instances.get_mut(i) {
-                si.world_from_object = *m;
-            }
-        }
-        self.accel.set_instances(insts).map_err(WorldError::Top)?;
+        let (info, scene) = (&mut self.info, &mut self.scene);
+        self.accel
+            .update_instances(|insts| {
+                for ((inst, m), (info, si)) in insts.iter_mut().zip(&pose.instances).zip(info.iter_mut().zip(scene.instances.iter_mut())) {
+                    *inst = Instance::new(inst.geometry, *m);
+                    info.normal_to_world = normal_matrix(inst);
+                    si.world_from_object = *m;
+                }
+            })
+            .map_err(WorldError::Top)?;
         if self.lights.len() == self.scene.lights.len() {
             for (li, m) in pose.lights {
                 let Some(l) = self.lights.get_mut(li) else { continue };
