@@ -19,6 +19,7 @@ pub struct AnimateArgs {
     pub size: (u32, u32),
     pub camera: Option<Vec<f32>>,
     pub spp: u32,
+    pub max_depth: u32,
     pub no_shadows: bool,
     pub output: PathBuf,
 }
@@ -57,7 +58,7 @@ pub fn run(a: AnimateArgs) -> Result<()> {
         width: a.size.0,
         height: a.size.1,
         spp: a.spp.max(1),
-        whitted: WhittedSettings { shadows: !a.no_shadows, ..WhittedSettings::default() },
+        whitted: WhittedSettings { shadows: !a.no_shadows, max_depth: a.max_depth, ..WhittedSettings::default() },
     };
     let bar = if std::io::stderr().is_terminal() { ProgressBar::new(frames) } else { ProgressBar::hidden() };
     bar.set_style(

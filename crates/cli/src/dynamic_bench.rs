@@ -163,10 +163,13 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
             mesh.indices.len()
         ));
     }
-    // 3. Whole animated frames (update + render, shadows on): full Whitted (reflections and
-    // refractions up to depth 6), then primary rays with shadows and shading only.
+    // 3. Whole animated frames (update + render): full Whitted with shadows (reflections and
+    // refractions up to depth 6), then primary rays with shadows and shading only, and the
+    // sunflowers with primary rays and shading alone.
     let full = WhittedSettings::default();
     let direct = WhittedSettings { max_depth: 0, ..full };
+    // The sunflower goal's "primary rays and shading" (SaarCOR's SunCOR figure): no shadow rays.
+    let primary = WhittedSettings { shadows: false, ..direct };
     for (name, path, builder, whitted) in [
         ("kitchen", Some(&kitchen), TopBuilder::Sah, full),
         ("museum", Some(&museum), TopBuilder::Sah, full),
@@ -174,6 +177,7 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
         ("sunflowers, linear TLAS", None, TopBuilder::Linear, full),
         ("kitchen, no reflections", Some(&kitchen), TopBuilder::Sah, direct),
         ("museum, no reflections", Some(&museum), TopBuilder::Sah, direct),
+        ("sunflowers, primary rays and shading", None, TopBuilder::Sah, primary),
     ] {
         let scene = match path {
             Some(p) if !p.exists() => continue,

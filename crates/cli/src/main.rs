@@ -171,6 +171,9 @@ enum Cmd {
         /// Samples per pixel.
         #[arg(long, default_value_t = 1)]
         spp: u32,
+        /// Most reflection/refraction generations (0: primary rays, shadows and shading only).
+        #[arg(long, default_value_t = 6)]
+        max_depth: u32,
         /// Turn shadow rays off.
         #[arg(long)]
         no_shadows: bool,
@@ -486,8 +489,8 @@ fn run() -> Result<()> {
             })
         }
         Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo.as_deref()),
-        Cmd::Animate { scene, demo, from, to, fps, size, camera, spp, no_shadows, output } => {
-            animate_cmd::run(animate_cmd::AnimateArgs { scene, demo, from, to, fps, size, camera, spp, no_shadows, output })
+        Cmd::Animate { scene, demo, from, to, fps, size, camera, spp, max_depth, no_shadows, output } => {
+            animate_cmd::run(animate_cmd::AnimateArgs { scene, demo, from, to, fps, size, camera, spp, max_depth, no_shadows, output })
         }
         Cmd::View { input, demo, camera, size, target_fps, samples, moving_scale, mode, screenshots, report, quit_after } => {
             view_cmd::run(view_cmd::ViewArgs {

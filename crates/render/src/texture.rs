@@ -19,6 +19,19 @@ fn wrap(i: i64, n: u32, w: Wrap) -> usize {
     }) as usize
 }
 
+/// The two texel indices a bilinear lookup blends along one axis, wrapped.
+///
+/// PERF: the common case, both inside the image, takes no division (`rem_euclid` on i64,
+/// eight per lookup, made texturing a fifth of a BART kitchen frame).
+#[inline(always)]
+fn pair(i: i64, n: u32, w: Wrap) -> (usize, usize) {
+    if i >= 0 && i + 1 < i64::from(n) {
+        (i as usize, i as usize + 1)
+    } else {
+        (wrap(i, n, w), wrap(i + 1, n, w))
+    }
+}
+
 /// Bilinearly filtered RGBA at `uv` (v = 0 at the bottom of the image).
 #[must_use]
 pub fn sample(t: &Texture, uv: Vec2) -> Vec4 {
@@ -29,12 +42,56 @@ pub fn sample(t: &Texture, uv: Vec2) -> Vec4 {
     let y = (1.0 - uv.y) * t.height as f32 - 0.5;
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
-    let texel = |xi: i64, yi: i64| {
-        let c = t.texels[wrap(yi, t.height, t.wrap_v) * t.width as usize + wrap(xi, t.width, t.wrap_u)];
-        Vec4::from(c)
-    };
+    let (xa, xb) = pair(x0 as i64, t.width, t.wrap_u);
+    let (ya, yb) = pair(y0 as i64, t.height, t.wrap_v);
+    let w = t.width as usize;
+    let texel = |xi: usize, yi: usize| t.texel(yi * w + xi);
+    let top = texel(xa, ya).lerp(texel(xb, ya), fx);
+    let bottom = texel(xa, yb).lerp(texel(xb, yb), fx);
+    top.lerp(bottom, fy)
+}
+
+/// The plain form of [`sample`] (every texel wrapped on its own): the reference it is
+/// tested against.
+#[must_use]
+pub fn sample_reference(t: &Texture, uv: Vec2) -> Vec4 {
+    if t.width == 0 || t.height == 0 || !uv.is_finite() {
+        return Vec4::ONE;
+    }
+    let x = uv.x * t.width as f32 - 0.5;
+    let y = (1.0 - uv.y) * t.height as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let texel = |xi: i64, yi: i64| t.texel(wrap(yi, t.height, t.wrap_v) * t.width as usize + wrap(xi, t.width, t.wrap_u));
     let (xi, yi) = (x0 as i64, y0 as i64);
     let top = texel(xi, yi).lerp(texel(xi + 1, yi), fx);
     let bottom = texel(xi, yi + 1).lerp(texel(xi + 1, yi + 1), fx);
     top.lerp(bottom, fy)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sample_matches_the_reference_in_every_wrap_mode() {
+        let mut h = 12345u32;
+        let mut rnd = || {
+            h ^= h << 13;
+            h ^= h >> 17;
+            h ^= h << 5;
+            h as f32 / u32::MAX as f32
+        };
+        for (wu, wv) in [(Wrap::Repeat, Wrap::Repeat), (Wrap::Clamp, Wrap::Mirror), (Wrap::Mirror, Wrap::Clamp)] {
+            for (width, height) in [(1u32, 1u32), (2, 3), (7, 5), (64, 33)] {
+                let texels = (0..width * height).map(|i| [i as u8, (i * 7 % 11) as u8, (rnd() * 255.0) as u8, 200]).collect();
+                let t = Texture::new(String::new(), width, height, texels, true, wu, wv);
+                for _ in 0..2000 {
+                    // Inside, near the edges, and far outside the unit square.
+                    let uv = Vec2::new(rnd() * 6.0 - 3.0, rnd() * 6.0 - 3.0) * if rnd() < 0.2 { 1000.0 } else { 1.0 };
+                    assert_eq!(sample(&t, uv), sample_reference(&t, uv), "{wu:?}/{wv:?} {width}x{height} at {uv}");
+                }
+            }
+        }
+    }
 }

@@ -1,4 +1,4 @@
-//! Texture loading: decoded once, sRGB colours converted to linear floats.
+//! Texture loading: decoded once into 8-bit texels (sRGB colours are linearized when sampled).
 
 use crate::model::{Texture, Wrap};
 use std::collections::HashMap;
@@ -17,9 +17,9 @@ pub fn srgb_to_linear(c: f32) -> f32 {
 /// Decodes an image into a texture (`srgb`: colour data to linearize).
 pub fn texture_from_image(name: String, img: image::DynamicImage, wrap_u: Wrap, wrap_v: Wrap, srgb: bool) -> Texture {
     let rgba = img.to_rgba8();
-    let lut: Vec<f32> = (0..256).map(|i| if srgb { srgb_to_linear(i as f32 / 255.0) } else { i as f32 / 255.0 }).collect();
-    let texels = rgba.pixels().map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize], p[3] as f32 / 255.0]).collect();
-    Texture { name, width: rgba.width(), height: rgba.height(), texels, wrap_u, wrap_v }
+    let (width, height) = (rgba.width(), rgba.height());
+    let texels = rgba.pixels().map(|p| p.0).collect();
+    Texture::new(name, width, height, texels, srgb, wrap_u, wrap_v)
 }
 
 /// Loads each texture file once; missing or broken files give a warning and no texture.
