@@ -52,15 +52,27 @@ pub fn run(frames: usize, size: (u32, u32), spheres: &[usize], light_counts: &[u
             let src = spheres_program(n, lights);
             let words = assemble_words(&src, AsmOptions::default()).map_err(|e| anyhow::anyhow!("generated program: {e}"))?;
             let fs = FrameSettings { width: size.0, height: size.1, mode: Mode::Raytrace, sets: SetKind::Shapes, painter: false, spp: 1 };
-            let mut times = Vec::new();
-            for _ in 0..frames.max(1) {
+            let frame = || -> Result<f64> {
                 let t = Instant::now();
                 let mut p = Processor::new(words.clone(), CameraTable::Final)?;
                 if p.run_to_frame(u64::MAX) != Step::Frame {
                     anyhow::bail!("generated program did not reach nf");
                 }
                 let (_film, _) = render_frame(&p.state, &fs)?;
-                times.push(t.elapsed().as_secs_f64());
+                Ok(t.elapsed().as_secs_f64())
+            };
+            // Warm-up, untimed: at least 5 frames and 50 ms. (The first rows of a run, a few
+            // milliseconds of frames each, read up to twice as slow as the same rows later:
+            // the worker threads and the allocator settle first.)
+            let warm = Instant::now();
+            let mut n_warm = 0;
+            while n_warm < 5 || warm.elapsed().as_secs_f64() < 0.05 {
+                frame()?;
+                n_warm += 1;
+            }
+            let mut times = Vec::new();
+            for _ in 0..frames.max(1) {
+                times.push(frame()?);
             }
             let ms = crate::stats::median(&mut times) * 1e3;
             println!("| {n} | {lights} | {ms:.2} | {:.0} | {:.0} |", 405.0 / ms, 16900.0 / ms);
