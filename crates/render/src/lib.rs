@@ -16,4 +16,4 @@ pub use camera::{framing_camera, Camera};
 pub use film::{Film, OutputError};
 pub use integrator::{Integrator, WhittedSettings};
 pub use render::{jitter, pcg_hash, render, render_pass, render_pixel, RenderSettings, TILE};
-pub use world::{shape_of, Surface, World, WorldError};
+pub use world::{shape_of, vertex_normals, Surface, World, WorldError};

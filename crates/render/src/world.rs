@@ -128,16 +128,24 @@ impl World {
     }
 
     /// Poses an animated scene at time `t` (glTF seconds): instance transforms from the
-    /// node hierarchy (the top level is rebuilt), morphing meshes (their bottom level is
-    /// rebuilt; shading falls back to face normals on them), and lights on animated
-    /// nodes. Returns the scene's camera at `t`. A static scene is left as it is.
+    /// node hierarchy (the top level is rebuilt), deforming meshes (their bottom level is
+    /// refitted or rebuilt; a mesh that had normals gets smooth ones from its posed
+    /// triangles, [`vertex_normals`]), and lights on animated nodes. Returns the scene's
+    /// camera at `t`. A static scene is left as it is.
     pub fn set_time(&mut self, t: f32) -> Result<Option<lucent_scene::CameraDesc>, WorldError> {
         let Some(anim) = self.scene.animation.clone() else { return Ok(self.scene.camera) };
-        let pose = anim.pose(t);
+        let mut pose = anim.pose(t);
         for (m, positions) in pose.meshes {
             let Some(mesh) = self.scene.meshes.get_mut(m as usize) else { continue };
             mesh.positions = positions;
-            mesh.normals = lucent_scene::Attr::default();
+            // Shading normals follow the deformation: a skinned mesh's own normals are skinned
+            // with it; a morphing mesh that came with normals gets smooth ones from its posed
+            // triangles (vertices split at hard edges stay split); one without stays faceted.
+            if let Some(k) = pose.normals.iter().position(|(nm, _)| *nm == m) {
+                mesh.normals = lucent_scene::Attr { values: pose.normals.swap_remove(k).1, indices: None };
+            } else if !mesh.normals.values.is_empty() {
+                mesh.normals = lucent_scene::Attr { values: vertex_normals(&mesh.positions, &mesh.indices), indices: None };
+            }
             let name = mesh.name.clone();
             let err = |source| WorldError::Build { mesh: name.clone(), source };
             // Refit; rebuild once the refitted tree costs REBUILD_RATIO times a fresh one.
@@ -336,4 +344,28 @@ fn normal_matrix(inst: &Instance) -> Mat3A {
     } else {
         inst.world_from_object.matrix3
     }
+}
+
+/// Smooth vertex normals of a triangle mesh: each vertex gets the sum of its triangles'
+/// area-weighted normals, normalized (zero where that sum is zero, e.g. a vertex of
+/// degenerate triangles only; the shader then uses the face normal). Triangles with
+/// indices out of range or non-finite corners are skipped.
+#[must_use]
+pub fn vertex_normals(positions: &[Vec3], indices: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut n = vec![Vec3::ZERO; positions.len()];
+    for idx in indices {
+        let at = |k: usize| positions.get(idx[k] as usize).copied();
+        let (Some(a), Some(b), Some(c)) = (at(0), at(1), at(2)) else { continue };
+        let f = (b - a).cross(c - a);
+        if !f.is_finite() {
+            continue;
+        }
+        for &i in idx {
+            n[i as usize] += f;
+        }
+    }
+    for v in &mut n {
+        *v = v.normalize_or_zero();
+    }
+    n
 }

@@ -91,6 +91,9 @@ pub struct Skin {
     pub inverse_bind: Vec<Mat4>,
     /// Bind-pose positions.
     pub base: Vec<Vec3>,
+    /// Bind-pose normals, one per position (empty when the mesh has none or they are
+    /// indexed apart from the positions).
+    pub base_normals: Vec<Vec3>,
     /// Four joint indices (into `joints`) per vertex.
     pub vertex_joints: Vec<[u16; 4]>,
     /// Four weights per vertex.
@@ -128,6 +131,8 @@ pub struct Pose {
     pub camera: Option<CameraDesc>,
     /// (light index, world transform of its node).
     pub lights: Vec<(usize, Affine3A)>,
+    /// (mesh index, posed normals) of skinned meshes with bind-pose normals.
+    pub normals: Vec<(u32, Vec<Vec3>)>,
     /// (mesh index, new positions) of morphing meshes.
     pub meshes: Vec<(u32, Vec<Vec3>)>,
 }
@@ -235,6 +240,7 @@ impl SceneAnimation {
             })
             .collect();
         let mut instances: Vec<Affine3A> = self.instance_nodes.iter().map(|&n| at(n)).collect();
+        let mut normals = Vec::new();
         for sk in &self.skins {
             let joint: Vec<Mat4> = sk
                 .joints
@@ -242,17 +248,22 @@ impl SceneAnimation {
                 .zip(&sk.inverse_bind)
                 .map(|(&j, ibm)| world.get(j as usize).copied().unwrap_or(Mat4::IDENTITY) * *ibm)
                 .collect();
+            // Each vertex's blended joint matrix (linear blend skinning).
+            let blend = |js: &[u16; 4], ws: &[f32; 4]| {
+                let mut m = Mat4::ZERO;
+                for k in 0..4 {
+                    if ws[k] != 0.0 {
+                        m += joint.get(usize::from(js[k])).copied().unwrap_or(Mat4::IDENTITY) * ws[k];
+                    }
+                }
+                m
+            };
             let p = sk
                 .base
                 .iter()
                 .zip(sk.vertex_joints.iter().zip(&sk.vertex_weights))
                 .map(|(v, (js, ws))| {
-                    let mut m = Mat4::ZERO;
-                    for k in 0..4 {
-                        if ws[k] != 0.0 {
-                            m += joint.get(usize::from(js[k])).copied().unwrap_or(Mat4::IDENTITY) * ws[k];
-                        }
-                    }
+                    let m = blend(js, ws);
                     if m == Mat4::ZERO {
                         *v
                     } else {
@@ -261,11 +272,34 @@ impl SceneAnimation {
                 })
                 .collect();
             meshes.push((sk.mesh, p));
+            if sk.base_normals.len() == sk.base.len() && !sk.base_normals.is_empty() {
+                // Normals by the inverse transpose of the blended matrix.
+                let n = sk
+                    .base_normals
+                    .iter()
+                    .zip(sk.vertex_joints.iter().zip(&sk.vertex_weights))
+                    .map(|(n, (js, ws))| {
+                        let m = blend(js, ws);
+                        if m == Mat4::ZERO {
+                            *n
+                        } else {
+                            let nm = glam::Mat3::from_mat4(m).inverse().transpose();
+                            let v = (nm * *n).normalize_or_zero();
+                            if v.is_finite() {
+                                v
+                            } else {
+                                Vec3::ZERO
+                            }
+                        }
+                    })
+                    .collect();
+                normals.push((sk.mesh, n));
+            }
             if let Some(slot) = instances.get_mut(sk.instance as usize) {
                 *slot = Affine3A::IDENTITY;
             }
         }
-        Pose { instances, camera, lights: self.light_nodes.iter().map(|&(l, n)| (l, at(n))).collect(), meshes }
+        Pose { instances, camera, lights: self.light_nodes.iter().map(|&(l, n)| (l, at(n))).collect(), meshes, normals }
     }
 }
 

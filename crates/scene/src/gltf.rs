@@ -263,6 +263,14 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
                             joints,
                             inverse_bind,
                             base: scene.meshes[*id as usize].positions.clone(),
+                            base_normals: {
+                                let m = &scene.meshes[*id as usize];
+                                if m.normals.indices.is_none() && m.normals.values.len() == m.positions.len() {
+                                    m.normals.values.clone()
+                                } else {
+                                    Vec::new()
+                                }
+                            },
                             vertex_joints: vj.clone(),
                             vertex_weights: vw.clone(),
                         });
