@@ -258,41 +258,22 @@ impl SceneAnimation {
                 }
                 m
             };
-            let p = sk
-                .base
-                .iter()
-                .zip(sk.vertex_joints.iter().zip(&sk.vertex_weights))
-                .map(|(v, (js, ws))| {
-                    let m = blend(js, ws);
-                    if m == Mat4::ZERO {
-                        *v
-                    } else {
-                        m.transform_point3(*v)
-                    }
-                })
-                .collect();
+            // Positions, and normals by the inverse transpose of the same blended matrix
+            // (when the mesh has them), in one pass.
+            let with_normals = sk.base_normals.len() == sk.base.len() && !sk.base_normals.is_empty();
+            let mut p = Vec::with_capacity(sk.base.len());
+            let mut n = Vec::with_capacity(if with_normals { sk.base.len() } else { 0 });
+            for (i, (v, (js, ws))) in sk.base.iter().zip(sk.vertex_joints.iter().zip(&sk.vertex_weights)).enumerate() {
+                let m = blend(js, ws);
+                let unskinned = m == Mat4::ZERO;
+                p.push(if unskinned { *v } else { m.transform_point3(*v) });
+                if let Some(bn) = sk.base_normals.get(i).filter(|_| with_normals) {
+                    let v = if unskinned { *bn } else { (glam::Mat3::from_mat4(m).inverse().transpose() * *bn).normalize_or_zero() };
+                    n.push(if v.is_finite() { v } else { Vec3::ZERO });
+                }
+            }
             meshes.push((sk.mesh, p));
-            if sk.base_normals.len() == sk.base.len() && !sk.base_normals.is_empty() {
-                // Normals by the inverse transpose of the blended matrix.
-                let n = sk
-                    .base_normals
-                    .iter()
-                    .zip(sk.vertex_joints.iter().zip(&sk.vertex_weights))
-                    .map(|(n, (js, ws))| {
-                        let m = blend(js, ws);
-                        if m == Mat4::ZERO {
-                            *n
-                        } else {
-                            let nm = glam::Mat3::from_mat4(m).inverse().transpose();
-                            let v = (nm * *n).normalize_or_zero();
-                            if v.is_finite() {
-                                v
-                            } else {
-                                Vec3::ZERO
-                            }
-                        }
-                    })
-                    .collect();
+            if with_normals {
                 normals.push((sk.mesh, n));
             }
             if let Some(slot) = instances.get_mut(sk.instance as usize) {
