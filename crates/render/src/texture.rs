@@ -44,8 +44,7 @@ pub fn sample(t: &Texture, uv: Vec2) -> Vec4 {
     let (fx, fy) = (x - x0, y - y0);
     let (xa, xb) = pair(x0 as i64, t.width, t.wrap_u);
     let (ya, yb) = pair(y0 as i64, t.height, t.wrap_v);
-    let w = t.width as usize;
-    let texel = |xi: usize, yi: usize| t.texel(yi * w + xi);
+    let texel = |xi: usize, yi: usize| t.texel_at(xi, yi);
     let top = texel(xa, ya).lerp(texel(xb, ya), fx);
     let bottom = texel(xa, yb).lerp(texel(xb, yb), fx);
     top.lerp(bottom, fy)
@@ -62,7 +61,7 @@ pub fn sample_reference(t: &Texture, uv: Vec2) -> Vec4 {
     let y = (1.0 - uv.y) * t.height as f32 - 0.5;
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
-    let texel = |xi: i64, yi: i64| t.texel(wrap(yi, t.height, t.wrap_v) * t.width as usize + wrap(xi, t.width, t.wrap_u));
+    let texel = |xi: i64, yi: i64| t.texel_at(wrap(xi, t.width, t.wrap_u), wrap(yi, t.height, t.wrap_v));
     let (xi, yi) = (x0 as i64, y0 as i64);
     let top = texel(xi, yi).lerp(texel(xi + 1, yi), fx);
     let bottom = texel(xi, yi + 1).lerp(texel(xi + 1, yi + 1), fx);
@@ -72,6 +71,25 @@ pub fn sample_reference(t: &Texture, uv: Vec2) -> Vec4 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn texels_read_back_where_the_image_put_them() {
+        // Sizes that do and do not fill whole 4×4 blocks.
+        for (w, h) in [(1u32, 1u32), (4, 4), (5, 3), (9, 6), (17, 33)] {
+            let texels: Vec<[u8; 4]> =
+                (0..w * h).map(|i| [(i % 251) as u8, (i / 251) as u8, (i * 7 % 256) as u8, (255 - i % 200) as u8]).collect();
+            let t = Texture::new(String::new(), w, h, texels.clone(), false, Wrap::Repeat, Wrap::Repeat);
+            for y in 0..h as usize {
+                for x in 0..w as usize {
+                    let c = texels[y * w as usize + x];
+                    let want = Vec4::new(f32::from(c[0]), f32::from(c[1]), f32::from(c[2]), f32::from(c[3])) / 255.0;
+                    assert_eq!(t.texel_at(x, y), want, "{w}x{h} at ({x}, {y})");
+                }
+            }
+            assert_eq!(t.texel_at(w as usize, 0), Vec4::ONE);
+            assert_eq!(t.texel_at(0, h as usize), Vec4::ONE);
+        }
+    }
 
     #[test]
     fn sample_matches_the_reference_in_every_wrap_mode() {
