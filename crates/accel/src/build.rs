@@ -584,6 +584,8 @@ pub struct MortonScratch {
     tmp: Vec<(u32, u32)>,
     codes: Vec<u32>,
     runs: Vec<(u32, u32)>,
+    /// Where each run starts in the output's primitives.
+    starts: Vec<u32>,
     refs: Vec<PrimRef>,
     /// The tree the last build made.
     pub bvh: BinaryBvh,
@@ -690,12 +692,12 @@ pub fn build_clustered_into(prims: &[PrimRef], cfg: &BuildConfig, cluster: usize
     // The runs' primitives in the top tree's leaf order; each leaf then covers its run.
     let out = &mut s.bvh;
     out.prims.clear();
-    s.codes.clear(); // reused: where each run starts in `out.prims`
-    s.codes.resize(s.runs.len(), 0);
+    s.starts.clear();
+    s.starts.resize(s.runs.len(), 0);
     for r in &top.prims {
         let run = r.id() as usize;
         let (lo, hi) = s.runs[run];
-        s.codes[run] = out.prims.len() as u32;
+        s.starts[run] = out.prims.len() as u32;
         out.prims.extend(s.keys[lo as usize..hi as usize].iter().map(|k| prims[k.1 as usize]));
     }
     out.nodes.clear();
@@ -704,7 +706,7 @@ pub fn build_clustered_into(prims: &[PrimRef], cfg: &BuildConfig, cluster: usize
             // One run per leaf (max_leaf 1).
             let run = top.prims[n.first as usize].id() as usize;
             let (lo, hi) = s.runs[run];
-            BinNode { bounds: n.bounds, first: s.codes[run], right: 0, count: hi - lo }
+            BinNode { bounds: n.bounds, first: s.starts[run], right: 0, count: hi - lo }
         } else {
             *n
         }

@@ -83,31 +83,19 @@ impl<const W: usize> WideNode<W> {
 /// Collapses a binary BVH into `W`-wide nodes (root at index 0). `make_leaf(first, count)`
 /// receives each binary leaf's primitive range and returns its leaf code.
 pub fn collapse<const W: usize, E>(bin: &BinaryBvh, make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, E>) -> Result<Vec<WideNode<W>>, E> {
-    let mut out = Vec::new();
-    collapse_into(bin, &mut out, make_leaf)?;
-    Ok(out)
-}
-
-/// [`collapse`] into `out` (cleared first; its memory is kept, for trees rebuilt every frame).
-pub fn collapse_into<const W: usize, E>(
-    bin: &BinaryBvh,
-    out: &mut Vec<WideNode<W>>,
-    make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, E>,
-) -> Result<(), E> {
-    out.clear();
-    out.reserve(bin.nodes.len() / (W / 2).max(1) + 1);
+    let mut out = Vec::with_capacity(bin.nodes.len() / (W / 2).max(1) + 1);
     let Some(root) = bin.nodes.first() else {
         out.push(WideNode::EMPTY);
-        return Ok(());
+        return Ok(out);
     };
     if root.is_leaf() {
         let mut n = WideNode::EMPTY;
         n.set(0, &root.bounds, make_leaf(root.first, root.count)?);
         out.push(n);
-        return Ok(());
+        return Ok(out);
     }
-    emit(bin, 0, out, make_leaf)?;
-    Ok(())
+    emit(bin, 0, &mut out, make_leaf)?;
+    Ok(out)
 }
 
 /// The up-to-`W` descendants of binary node `idx` that become the children of its wide

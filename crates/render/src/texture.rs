@@ -32,18 +32,25 @@ fn pair(i: i64, n: u32, w: Wrap) -> (usize, usize) {
     }
 }
 
-/// Bilinearly filtered RGBA at `uv` (v = 0 at the bottom of the image).
-#[must_use]
-pub fn sample(t: &Texture, uv: Vec2) -> Vec4 {
+/// Where `uv` falls among the texels: the upper-left texel of the bilinear footprint
+/// (unwrapped, row 0 at the top) and the blend weights toward its right and lower
+/// neighbours. `None` for an empty texture or a non-finite `uv` (the lookup is white).
+fn footprint(t: &Texture, uv: Vec2) -> Option<(i64, i64, f32, f32)> {
     if t.width == 0 || t.height == 0 || !uv.is_finite() {
-        return Vec4::ONE;
+        return None;
     }
     let x = uv.x * t.width as f32 - 0.5;
     let y = (1.0 - uv.y) * t.height as f32 - 0.5;
     let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let (xa, xb) = pair(x0 as i64, t.width, t.wrap_u);
-    let (ya, yb) = pair(y0 as i64, t.height, t.wrap_v);
+    Some((x0 as i64, y0 as i64, x - x0, y - y0))
+}
+
+/// Bilinearly filtered RGBA at `uv` (v = 0 at the bottom of the image).
+#[must_use]
+pub fn sample(t: &Texture, uv: Vec2) -> Vec4 {
+    let Some((x0, y0, fx, fy)) = footprint(t, uv) else { return Vec4::ONE };
+    let (xa, xb) = pair(x0, t.width, t.wrap_u);
+    let (ya, yb) = pair(y0, t.height, t.wrap_v);
     let texel = |xi: usize, yi: usize| t.texel_at(xi, yi);
     let top = texel(xa, ya).lerp(texel(xb, ya), fx);
     let bottom = texel(xa, yb).lerp(texel(xb, yb), fx);
@@ -54,15 +61,8 @@ pub fn sample(t: &Texture, uv: Vec2) -> Vec4 {
 /// tested against.
 #[must_use]
 pub fn sample_reference(t: &Texture, uv: Vec2) -> Vec4 {
-    if t.width == 0 || t.height == 0 || !uv.is_finite() {
-        return Vec4::ONE;
-    }
-    let x = uv.x * t.width as f32 - 0.5;
-    let y = (1.0 - uv.y) * t.height as f32 - 0.5;
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
+    let Some((xi, yi, fx, fy)) = footprint(t, uv) else { return Vec4::ONE };
     let texel = |xi: i64, yi: i64| t.texel_at(wrap(xi, t.width, t.wrap_u), wrap(yi, t.height, t.wrap_v));
-    let (xi, yi) = (x0 as i64, y0 as i64);
     let top = texel(xi, yi).lerp(texel(xi + 1, yi), fx);
     let bottom = texel(xi, yi + 1).lerp(texel(xi + 1, yi + 1), fx);
     top.lerp(bottom, fy)

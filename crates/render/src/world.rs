@@ -129,9 +129,10 @@ impl World {
 
     /// Poses an animated scene at time `t` (glTF seconds): instance transforms from the
     /// node hierarchy (the top level is rebuilt), deforming meshes (their bottom level is
-    /// refitted or rebuilt; a mesh that had normals gets smooth ones from its posed
-    /// triangles, [`vertex_normals`]), and lights on animated nodes. Returns the scene's
-    /// camera at `t`. A static scene is left as it is.
+    /// refitted or rebuilt; skinned normals are skinned with the positions, and a morphing
+    /// mesh that had normals gets smooth ones from its posed triangles, [`vertex_normals`]),
+    /// and lights on animated nodes. Returns the scene's camera at `t`. A static scene is
+    /// left as it is.
     pub fn set_time(&mut self, t: f32) -> Result<Option<lucent_scene::CameraDesc>, WorldError> {
         let Some(anim) = self.scene.animation.clone() else { return Ok(self.scene.camera) };
         let mut pose = anim.pose(t);

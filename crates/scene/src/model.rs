@@ -174,10 +174,10 @@ pub struct Texture {
 impl Texture {
     /// A texture over 8-bit texels; `srgb`: the colour codes are sRGB-encoded (colour
     /// images), else linear (data such as roughness, or made-up textures).
-    #[must_use]
     ///
     /// `texels` are row-major, row 0 at the top; missing ones (fewer than `width ×
     /// height`) are white.
+    #[must_use]
     pub fn new(name: String, width: u32, height: u32, texels: Vec<[u8; 4]>, srgb: bool, wrap_u: Wrap, wrap_v: Wrap) -> Self {
         let mut lut = [0.0f32; 256];
         for (i, v) in lut.iter_mut().enumerate() {
