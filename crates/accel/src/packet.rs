@@ -344,22 +344,22 @@ impl Packet {
     }
 
     /// The origin every valid ray shares, bit for bit, if there is one.
+    #[inline(always)]
     fn find_common_origin(&self) -> Option<[f32; 3]> {
-        let mut first: Option<[u32; 3]> = None;
-        for g in 0..self.groups {
-            let mut b = self.valid[g].bits();
-            while b != 0 {
-                let l = b.trailing_zeros() as usize;
-                b &= b - 1;
-                let o = [self.o[g][0].0[l].to_bits(), self.o[g][1].0[l].to_bits(), self.o[g][2].0[l].to_bits()];
-                match first {
-                    None => first = Some(o),
-                    Some(f) if f != o => return None,
-                    _ => {}
-                }
+        let g0 = (0..self.groups).find(|&g| self.valid[g].bits() != 0)?;
+        let l0 = self.valid[g0].bits().trailing_zeros() as usize;
+        let first: [u32; 3] = std::array::from_fn(|k| self.o[g0][k].0[l0].to_bits());
+        let mut differ = 0u32;
+        for g in g0..self.groups {
+            // Lane by lane on the bits (a loop the compiler turns into vector compares).
+            let mut d = [0i32; LANES];
+            for (l, dl) in d.iter_mut().enumerate() {
+                let same = (0..3).all(|k| self.o[g][k].0[l].to_bits() == first[k]);
+                *dl = -(!same as i32);
             }
+            differ |= M8(d).and(self.valid[g]).bits();
         }
-        first.map(|o| o.map(f32::from_bits))
+        (differ == 0).then(|| first.map(f32::from_bits))
     }
 
     /// The ray in lane `l` of group `g`, its range ending at `tmax`.
@@ -768,6 +768,7 @@ fn traverse<const ANY: bool, K: KernelSet, L: PacketLeaves, C: Counters>(
     if nodes.is_empty() {
         return;
     }
+
     // PERF: left uninitialised (zeroing 6 KB per packet showed in profiles); entries below
     // `sp` are always written before they are read.
     let mut st = [std::mem::MaybeUninit::<Entry>::uninit(); STACK];
@@ -798,6 +799,7 @@ fn traverse<const ANY: bool, K: KernelSet, L: PacketLeaves, C: Counters>(
             }
         } else if cur.code != EMPTY {
             let (m, any) = leaf_masks::<K>(nodes, cur.at, p, iv, h, active);
+
             if any != 0 {
                 let (first, count) = leaf_range(cur.code);
                 c.items(count);
@@ -1167,19 +1169,13 @@ impl MeshBvh {
     /// [`MeshBvh::intersect`] ray by ray, except which of two triangles at exactly the same
     /// distance is reported. `out` must be as long as `rays`.
     pub fn intersect_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        chunks(rays, |base, p, h| {
-            self.trace_intersect(p, h);
-            write_hits(base, p, h, out);
-        });
+        self.trace_intersect(Rays::Aos(rays), out);
     }
 
     /// Occlusion of coherent rays within `[tmin, tmax)`, traced in packets (for example the
     /// shadow rays of a tile toward one light): the same answers as [`MeshBvh::occluded`].
     pub fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
-        chunks(rays, |base, p, h| {
-            self.trace_occluded(p, h);
-            write_occluded(base, p, h, out);
-        });
+        self.trace_occluded(Rays::Aos(rays), out);
     }
 
     /// [`MeshBvh::intersect_packet`] counting the work into `stats` (scalar kernel: the
@@ -1205,55 +1201,82 @@ impl MeshBvh {
     /// [`MeshBvh::intersect_packet`] on rays already in SoA blocks (eight blocks make one
     /// packet); `out` holds eight entries per block.
     pub fn intersect_blocks(&self, blocks: &[RayBlock], out: &mut [Option<Hit>]) {
-        block_chunks(blocks, |base, p, h| {
-            self.trace_intersect(p, h);
-            write_hits(base, p, h, out);
-        });
+        self.trace_intersect(Rays::Soa(blocks), out);
     }
 
     /// [`MeshBvh::occluded_packet`] on rays in SoA blocks; `out` holds eight entries per block.
     pub fn occluded_blocks(&self, blocks: &[RayBlock], out: &mut [bool]) {
-        block_chunks(blocks, |base, p, h| {
-            self.trace_occluded(p, h);
-            write_occluded(base, p, h, out);
-        });
+        self.trace_occluded(Rays::Soa(blocks), out);
     }
 
     #[inline(always)]
-    fn trace_intersect(&self, p: &Packet, h: &mut PacketHits) {
-        let active = p.valid;
+    fn trace_intersect(&self, rays: Rays, out: &mut [Option<Hit>]) {
         match self.kernel() {
             // SAFETY: the kernel is only Simd/Avx512 when AVX2 and FMA were detected.
             #[cfg(target_arch = "x86_64")]
-            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_intersect(self, p, &active, h) },
-            _ => self.packet_intersect_k::<ScalarSet, _>(p, &active, h, INVALID, true, &mut ()),
+            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_intersect(self, rays, out) },
+            _ => rays.each(|base, p, h| {
+                self.packet_intersect_k::<ScalarSet, _>(p, &p.valid, h, INVALID, true, &mut ());
+                write_hits(base, p, h, out);
+            }),
         }
     }
 
     #[inline(always)]
-    fn trace_occluded(&self, p: &Packet, h: &mut PacketHits) {
-        let active = p.valid;
+    fn trace_occluded(&self, rays: Rays, out: &mut [bool]) {
         match self.kernel() {
             // SAFETY: as above.
             #[cfg(target_arch = "x86_64")]
-            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_occluded(self, p, &active, h) },
-            _ => self.packet_occluded_k::<ScalarSet, _>(p, &active, h, true, &mut ()),
+            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_mesh_occluded(self, rays, out) },
+            _ => rays.each(|base, p, h| {
+                self.packet_occluded_k::<ScalarSet, _>(p, &p.valid, h, true, &mut ());
+                write_occluded(base, p, h, out);
+            }),
         }
     }
 }
 
+/// Rays handed to a packet entry point, one by one or already in SoA blocks.
+#[derive(Clone, Copy)]
+enum Rays<'a> {
+    Aos(&'a [Ray]),
+    Soa(&'a [RayBlock]),
+}
+
+impl Rays<'_> {
+    /// Runs `body` on every packet of at most [`MAX_PACKET`] rays, loaded, with the index of
+    /// its first ray. Inlined into the callers (and their target features): loading a packet
+    /// is a good part of the cost of a short shadow packet.
+    #[inline(always)]
+    fn each(self, body: impl FnMut(usize, &Packet, &mut PacketHits)) {
+        match self {
+            Rays::Aos(r) => chunks(r, body),
+            Rays::Soa(b) => block_chunks(b, body),
+        }
+    }
+}
+
+// The closures below are defined inside the `target_feature` functions, so they are
+// compiled with AVX2 and FMA too.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn avx2_mesh_intersect(m: &MeshBvh, p: &Packet, active: &Masks, h: &mut PacketHits) {
-    m.packet_intersect_k::<crate::kernel::SimdSet, _>(p, active, h, INVALID, true, &mut ());
+fn avx2_mesh_intersect(m: &MeshBvh, rays: Rays, out: &mut [Option<Hit>]) {
+    rays.each(|base, p, h| {
+        m.packet_intersect_k::<crate::kernel::SimdSet, _>(p, &p.valid, h, INVALID, true, &mut ());
+        write_hits(base, p, h, out);
+    });
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn avx2_mesh_occluded(m: &MeshBvh, p: &Packet, active: &Masks, h: &mut PacketHits) {
-    m.packet_occluded_k::<crate::kernel::SimdSet, _>(p, active, h, true, &mut ());
+fn avx2_mesh_occluded(m: &MeshBvh, rays: Rays, out: &mut [bool]) {
+    rays.each(|base, p, h| {
+        m.packet_occluded_k::<crate::kernel::SimdSet, _>(p, &p.valid, h, true, &mut ());
+        write_occluded(base, p, h, out);
+    });
 }
 
+#[inline(always)]
 fn write_hits(base: usize, p: &Packet, h: &PacketHits, out: &mut [Option<Hit>]) {
     let out = out.get_mut(base..).unwrap_or_default();
     for (g, chunk) in out.chunks_mut(LANES).take(p.groups).enumerate() {
@@ -1263,6 +1286,7 @@ fn write_hits(base: usize, p: &Packet, h: &PacketHits, out: &mut [Option<Hit>]) 
     }
 }
 
+#[inline(always)]
 fn write_occluded(base: usize, p: &Packet, h: &PacketHits, out: &mut [bool]) {
     let out = out.get_mut(base..).unwrap_or_default();
     for (g, chunk) in out.chunks_mut(LANES).take(p.groups).enumerate() {
@@ -1477,54 +1501,48 @@ impl TwoLevel {
     /// answers as [`TwoLevel::intersect`] ray by ray, except which of two surfaces at exactly
     /// the same distance is reported. `out` must be as long as `rays`.
     pub fn intersect_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        chunks(rays, |base, p, h| {
-            self.trace_intersect(p, h);
-            write_hits(base, p, h, out);
-        });
+        self.trace_intersect(Rays::Aos(rays), out);
     }
 
     /// Occlusion of coherent rays within `[tmin, tmax)` (for example the shadow rays of a
     /// tile toward one light), traced in packets: the same answers as [`TwoLevel::occluded`].
     pub fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
-        chunks(rays, |base, p, h| {
-            self.trace_occluded(p, h);
-            write_occluded(base, p, h, out);
-        });
+        self.trace_occluded(Rays::Aos(rays), out);
     }
 
     /// [`TwoLevel::intersect_packet`] on rays in SoA blocks; `out` holds eight entries per block.
     pub fn intersect_blocks(&self, blocks: &[RayBlock], out: &mut [Option<Hit>]) {
-        block_chunks(blocks, |base, p, h| {
-            self.trace_intersect(p, h);
-            write_hits(base, p, h, out);
-        });
+        self.trace_intersect(Rays::Soa(blocks), out);
     }
 
     /// [`TwoLevel::occluded_packet`] on rays in SoA blocks; `out` holds eight entries per block.
     pub fn occluded_blocks(&self, blocks: &[RayBlock], out: &mut [bool]) {
-        block_chunks(blocks, |base, p, h| {
-            self.trace_occluded(p, h);
-            write_occluded(base, p, h, out);
-        });
+        self.trace_occluded(Rays::Soa(blocks), out);
     }
 
     #[inline(always)]
-    fn trace_intersect(&self, p: &Packet, h: &mut PacketHits) {
+    fn trace_intersect(&self, rays: Rays, out: &mut [Option<Hit>]) {
         match self.kernel {
             // SAFETY: the kernel is only Simd/Avx512 when AVX2 and FMA were detected.
             #[cfg(target_arch = "x86_64")]
-            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_tl_intersect(self, p, h) },
-            _ => self.packet_intersect_k::<ScalarSet>(p, h),
+            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_tl_intersect(self, rays, out) },
+            _ => rays.each(|base, p, h| {
+                self.packet_intersect_k::<ScalarSet>(p, h);
+                write_hits(base, p, h, out);
+            }),
         }
     }
 
     #[inline(always)]
-    fn trace_occluded(&self, p: &Packet, h: &mut PacketHits) {
+    fn trace_occluded(&self, rays: Rays, out: &mut [bool]) {
         match self.kernel {
             // SAFETY: as above.
             #[cfg(target_arch = "x86_64")]
-            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_tl_occluded(self, p, h) },
-            _ => self.packet_occluded_k::<ScalarSet>(p, h),
+            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_tl_occluded(self, rays, out) },
+            _ => rays.each(|base, p, h| {
+                self.packet_occluded_k::<ScalarSet>(p, h);
+                write_occluded(base, p, h, out);
+            }),
         }
     }
 }
@@ -1539,14 +1557,20 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn avx2_tl_intersect(t: &TwoLevel, p: &Packet, h: &mut PacketHits) {
-    t.packet_intersect_k::<crate::kernel::SimdSet>(p, h);
+fn avx2_tl_intersect(t: &TwoLevel, rays: Rays, out: &mut [Option<Hit>]) {
+    rays.each(|base, p, h| {
+        t.packet_intersect_k::<crate::kernel::SimdSet>(p, h);
+        write_hits(base, p, h, out);
+    });
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn avx2_tl_occluded(t: &TwoLevel, p: &Packet, h: &mut PacketHits) {
-    t.packet_occluded_k::<crate::kernel::SimdSet>(p, h);
+fn avx2_tl_occluded(t: &TwoLevel, rays: Rays, out: &mut [bool]) {
+    rays.each(|base, p, h| {
+        t.packet_occluded_k::<crate::kernel::SimdSet>(p, h);
+        write_occluded(base, p, h, out);
+    });
 }
 
 #[cfg(target_arch = "x86_64")]
