@@ -244,7 +244,7 @@ pub(crate) trait Leaves {
 
 /// Asks for the cache lines of node `i` (a hint; no effect off x86-64).
 #[inline(always)]
-fn prefetch_node<const W: usize>(nodes: &[WideNode<W>], i: u32) {
+pub(crate) fn prefetch_node<const W: usize>(nodes: &[WideNode<W>], i: u32) {
     #[cfg(target_arch = "x86_64")]
     if let Some(n) = nodes.get(i as usize) {
         let p = (n as *const WideNode<W>).cast::<i8>();
