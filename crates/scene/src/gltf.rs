@@ -238,6 +238,11 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
         })
         .collect();
     let mut stack: Vec<(gltf::Node<'_>, Mat4, usize)> = root_nodes.into_iter().map(|n| (n, Mat4::IDENTITY, 0)).collect();
+    // Meshes already placed by some node, and those a node deforms (skin or morph targets):
+    // a deformed mesh gets a copy of its own for each further node that places it, so one
+    // node's pose never moves another node's vertices.
+    let mut placed: Vec<bool> = vec![false; scene.meshes.len()];
+    let mut deformed: Vec<bool> = vec![false; scene.meshes.len()];
     while let Some((node, parent, depth)) = stack.pop() {
         if depth > 256 {
             return Err(invalid(&format!("nodes[{}]", node.index()), "node hierarchy deeper than 256 (a cycle?)".into()));
@@ -245,7 +250,22 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         let affine = Affine3A::from_mat4(world);
         if let Some(m) = node.mesh() {
-            if let Some(Some(id)) = mesh_map.get(m.index()) {
+            if let Some(&Some(first)) = mesh_map.get(m.index()) {
+                let skinned = node.skin().is_some() && matches!(skin_data.get(m.index()), Some(Some(_)));
+                let morphing = morph_targets.get(m.index()).is_some_and(|t| !t.is_empty());
+                let deforms = skinned || morphing;
+                let (was_placed, was_deformed) = (placed[first as usize], deformed[first as usize]);
+                let id = &if (deforms && was_placed) || was_deformed {
+                    let copy = scene.meshes[first as usize].clone();
+                    scene.meshes.push(copy);
+                    placed.push(false);
+                    deformed.push(false);
+                    (scene.meshes.len() - 1) as u32
+                } else {
+                    first
+                };
+                placed[*id as usize] = true;
+                deformed[*id as usize] |= deforms;
                 scene.instances.push(Instance { geom: Geom::Mesh(*id), world_from_object: affine });
                 anim.instance_nodes.push(node.index() as u32);
                 if let (Some(skin), Some(Some((vj, vw)))) = (node.skin(), skin_data.get(m.index())) {
