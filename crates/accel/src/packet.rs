@@ -771,7 +771,6 @@ fn traverse<const ANY: bool, K: KernelSet, L: PacketLeaves, C: Counters>(
     if nodes.is_empty() {
         return;
     }
-
     // PERF: left uninitialised (zeroing 6 KB per packet showed in profiles); entries below
     // `sp` are always written before they are read.
     let mut st = [std::mem::MaybeUninit::<Entry>::uninit(); STACK];
@@ -809,7 +808,6 @@ fn traverse<const ANY: bool, K: KernelSet, L: PacketLeaves, C: Counters>(
             }
         } else if cur.code != EMPTY {
             let (m, any) = leaf_masks::<K>(nodes, cur.at, p, iv, h, active);
-
             if any != 0 {
                 let (first, count) = leaf_range(cur.code);
                 c.items(count);
@@ -873,13 +871,8 @@ pub(crate) struct UnitPacketLeaves<'a, K> {
 impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
     #[inline(always)]
     fn prefetch(&self, first: u32) {
-        #[cfg(target_arch = "x86_64")]
         if let Some(t4) = self.tris.get(first as usize) {
-            let p = (t4 as *const Tri4).cast::<i8>();
-            for line in 0..std::mem::size_of::<Tri4>().div_ceil(64) {
-                // SAFETY: a prefetch hint (it never faults); SSE is part of x86-64.
-                unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.wrapping_add(line * 64)) };
-            }
+            crate::traverse::prefetch(t4);
         }
     }
 

@@ -242,16 +242,27 @@ pub(crate) trait Leaves {
     fn occluded(&self, first: u32, count: u32, r: &RayPre, tmax: f32) -> bool;
 }
 
+/// Asks for the cache lines that hold `x` (a hint; no effect off x86-64).
+#[inline(always)]
+pub(crate) fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let p = (x as *const T).cast::<i8>();
+        for line in 0..std::mem::size_of::<T>().div_ceil(64) {
+            // SAFETY: a prefetch hint at addresses inside `x` (and it never faults); SSE is
+            // part of x86-64.
+            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.wrapping_add(line * 64)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
 /// Asks for the cache lines of node `i` (a hint; no effect off x86-64).
 #[inline(always)]
 pub(crate) fn prefetch_node<const W: usize>(nodes: &[WideNode<W>], i: u32) {
-    #[cfg(target_arch = "x86_64")]
     if let Some(n) = nodes.get(i as usize) {
-        let p = (n as *const WideNode<W>).cast::<i8>();
-        for line in 0..std::mem::size_of::<WideNode<W>>() / 64 {
-            // SAFETY: a prefetch of addresses inside `n`; SSE is part of x86-64.
-            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.add(line * 64)) };
-        }
+        prefetch(n);
     }
 }
 

@@ -255,7 +255,7 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
                 let morphing = morph_targets.get(m.index()).is_some_and(|t| !t.is_empty());
                 let deforms = skinned || morphing;
                 let (was_placed, was_deformed) = (placed[first as usize], deformed[first as usize]);
-                let id = &if (deforms && was_placed) || was_deformed {
+                let id = if (deforms && was_placed) || was_deformed {
                     let copy = scene.meshes[first as usize].clone();
                     scene.meshes.push(copy);
                     placed.push(false);
@@ -264,45 +264,43 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
                 } else {
                     first
                 };
-                placed[*id as usize] = true;
-                deformed[*id as usize] |= deforms;
-                scene.instances.push(Instance { geom: Geom::Mesh(*id), world_from_object: affine });
+                placed[id as usize] = true;
+                deformed[id as usize] |= deforms;
+                scene.instances.push(Instance { geom: Geom::Mesh(id), world_from_object: affine });
                 anim.instance_nodes.push(node.index() as u32);
                 if let (Some(skin), Some(Some((vj, vw)))) = (node.skin(), skin_data.get(m.index())) {
-                    if !anim.skins.iter().any(|s| s.mesh == *id) {
-                        let joints: Vec<u32> = skin.joints().map(|j| j.index() as u32).collect();
-                        let reader = skin.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
-                        let mut inverse_bind: Vec<Mat4> = reader
-                            .read_inverse_bind_matrices()
-                            .map(|it| it.map(|m| Mat4::from_cols_array_2d(&m)).collect())
-                            .unwrap_or_default();
-                        inverse_bind.resize(joints.len(), Mat4::IDENTITY);
-                        anim.skins.push(Skin {
-                            mesh: *id,
-                            instance: (scene.instances.len() - 1) as u32,
-                            joints,
-                            inverse_bind,
-                            base: scene.meshes[*id as usize].positions.clone(),
-                            base_normals: {
-                                let m = &scene.meshes[*id as usize];
-                                if m.normals.indices.is_none() && m.normals.values.len() == m.positions.len() {
-                                    m.normals.values.clone()
-                                } else {
-                                    Vec::new()
-                                }
-                            },
-                            vertex_joints: vj.clone(),
-                            vertex_weights: vw.clone(),
-                        });
-                    }
+                    let joints: Vec<u32> = skin.joints().map(|j| j.index() as u32).collect();
+                    let reader = skin.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+                    let mut inverse_bind: Vec<Mat4> = reader
+                        .read_inverse_bind_matrices()
+                        .map(|it| it.map(|m| Mat4::from_cols_array_2d(&m)).collect())
+                        .unwrap_or_default();
+                    inverse_bind.resize(joints.len(), Mat4::IDENTITY);
+                    anim.skins.push(Skin {
+                        mesh: id,
+                        instance: (scene.instances.len() - 1) as u32,
+                        joints,
+                        inverse_bind,
+                        base: scene.meshes[id as usize].positions.clone(),
+                        base_normals: {
+                            let m = &scene.meshes[id as usize];
+                            if m.normals.indices.is_none() && m.normals.values.len() == m.positions.len() {
+                                m.normals.values.clone()
+                            } else {
+                                Vec::new()
+                            }
+                        },
+                        vertex_joints: vj.clone(),
+                        vertex_weights: vw.clone(),
+                    });
                 }
                 let targets = morph_targets.get(m.index()).filter(|t| !t.is_empty());
-                if let Some(targets) = targets.filter(|_| !anim.morphs.iter().any(|x| x.mesh == *id)) {
+                if let Some(targets) = targets {
                     let weights = node.weights().or_else(|| m.weights()).map(<[f32]>::to_vec).unwrap_or_else(|| vec![0.0; targets.len()]);
                     anim.morphs.push(Morph {
-                        mesh: *id,
+                        mesh: id,
                         node: node.index() as u32,
-                        base: scene.meshes[*id as usize].positions.clone(),
+                        base: scene.meshes[id as usize].positions.clone(),
                         targets: targets.clone(),
                         default_weights: weights,
                     });
