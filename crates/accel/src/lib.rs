@@ -43,5 +43,5 @@ pub use kernel::Kernel;
 pub use mesh::{BuildError, BvhStats, MeshBvh, MeshOptions, Quality, TriangleTest, Width};
 pub use packet::{RayBlock, MAX_PACKET};
 pub use shape::{Shape, ShapeHit};
-pub use tlas::{frustum_excludes, FrustumCull, Geometry, Instance, TopBuilder, TwoLevel};
+pub use tlas::{Geometry, Instance, TopBuilder, TwoLevel};
 pub use traverse::TraversalStats;

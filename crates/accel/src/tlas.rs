@@ -253,60 +253,6 @@ impl TwoLevel {
         Ok(())
     }
 
-    /// False only when no instance can meet any ray of the frustum (a conservative test:
-    /// a box is dropped only when it lies entirely outside one plane). Each plane is
-    /// `(n, d)` with the inside where `n·p + d ≥ 0`. Instances with infinite bounds make
-    /// the answer true.
-    #[must_use]
-    pub fn frustum_may_hit(&self, planes: &[(glam::Vec3, f32)]) -> bool {
-        self.frustum_leaves(planes, &mut Vec::new(), 0) != FrustumCull::Empty
-    }
-
-    /// The leaf boxes of the top level that the frustum may meet (see
-    /// [`TwoLevel::frustum_may_hit`]), written into `boxes` when there are at most `cap`.
-    /// Smaller frusta inside this one (the 8×8 blocks of a tile) can then be tested against
-    /// those boxes alone ([`frustum_excludes`]).
-    pub fn frustum_leaves(&self, planes: &[(glam::Vec3, f32)], boxes: &mut Vec<Aabb>, cap: usize) -> FrustumCull {
-        boxes.clear();
-        if !self.unbounded.is_empty() {
-            return FrustumCull::Many;
-        }
-        let Some(_) = self.nodes.first() else { return FrustumCull::Empty };
-        // PERF: a fixed stack (this runs for every tile and block of a frame).
-        let mut stack = [0u32; crate::traverse::STACK];
-        let mut sp = 1;
-        while sp > 0 {
-            sp -= 1;
-            let Some(node) = self.nodes.get(stack[sp] as usize) else { continue };
-            for k in 0..8 {
-                let c = node.child[k];
-                if c == crate::wide::EMPTY {
-                    continue;
-                }
-                let b = node.child_bounds(k);
-                if b.is_empty() || frustum_excludes(planes, &b) {
-                    continue;
-                }
-                if c & crate::wide::LEAF != 0 {
-                    if boxes.len() >= cap {
-                        return FrustumCull::Many;
-                    }
-                    boxes.push(b);
-                    continue;
-                }
-                // A deeper tree than the stack holds cannot be culled: say it may be hit.
-                let Some(slot) = stack.get_mut(sp) else { return FrustumCull::Many };
-                *slot = c;
-                sp += 1;
-            }
-        }
-        if boxes.is_empty() {
-            FrustumCull::Empty
-        } else {
-            FrustumCull::Boxes
-        }
-    }
-
     /// Closest hit over all instances.
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
@@ -439,32 +385,4 @@ impl<K: KernelSet> Leaves for InstLeaves<'_, K> {
     fn occluded(&self, first: u32, count: u32, r: &RayPre, tmax: f32) -> bool {
         (first..first + count).any(|i| self.occludes(self.tl.order[i as usize], r, tmax))
     }
-}
-
-/// What [`TwoLevel::frustum_leaves`] found.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FrustumCull {
-    /// No instance can meet the frustum.
-    Empty,
-    /// The leaf boxes it may meet are listed.
-    Boxes,
-    /// More than the cap (or an unbounded instance): assume it meets something.
-    Many,
-}
-
-/// True when box `b` lies entirely outside one of the `planes` (`(n, d)`, inside where
-/// `n·p + d ≥ 0`), with a small relative margin so that rounding never drops a box a ray
-/// could still meet.
-#[must_use]
-pub fn frustum_excludes(planes: &[(glam::Vec3, f32)], b: &Aabb) -> bool {
-    planes.iter().any(|&(n, d)| {
-        // The box corner farthest along n; if even it is outside, the box is.
-        let p = glam::Vec3::new(
-            if n.x >= 0.0 { b.max.x } else { b.min.x },
-            if n.y >= 0.0 { b.max.y } else { b.min.y },
-            if n.z >= 0.0 { b.max.z } else { b.min.z },
-        );
-        let margin = 1e-5 * (p.abs().max_element() * n.abs().max_element() + d.abs());
-        n.dot(p) + d < -margin
-    })
 }

@@ -127,30 +127,16 @@ impl Camera {
         Some((px, py, z))
     }
 
-    /// The four planes bounding every ray through the image rectangle `[x0, x1] × [y0, y1]`
-    /// (pixels), for [`lucent_accel::TwoLevel::frustum_may_hit`]; `None` for orthographic
-    /// cameras.
+    /// The image size the camera was set up for.
     #[must_use]
-    pub fn tile_frustum(&self, x0: f32, y0: f32, x1: f32, y1: f32) -> Option<[(Vec3, f32); 4]> {
-        if self.ortho {
-            return None;
-        }
-        let dir = |x: f32, y: f32| {
-            let sx = (2.0 * x / self.width as f32 - 1.0) * self.half_w;
-            let sy = (1.0 - 2.0 * y / self.height as f32) * self.half_h;
-            self.forward + self.right * sx + self.up * sy
-        };
-        let (a, b, c, d) = (dir(x0, y0), dir(x1, y0), dir(x1, y1), dir(x0, y1));
-        let centre = dir((x0 + x1) * 0.5, (y0 + y1) * 0.5);
-        let mut planes = [(Vec3::ZERO, 0.0f32); 4];
-        for (i, (p, q)) in [(a, b), (b, c), (c, d), (d, a)].into_iter().enumerate() {
-            let mut n = p.cross(q);
-            if n.dot(centre) < 0.0 {
-                n = -n;
-            }
-            planes[i] = (n, -n.dot(self.eye));
-        }
-        Some(planes)
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Eye, right, up and forward vectors and the half extents of the viewport at distance
+    /// 1 (orthographic: of the view), for projecting the scene onto the image.
+    pub(crate) fn frame(&self) -> Frame {
+        Frame { vectors: [self.eye, self.right, self.up, self.forward], half_w: self.half_w, half_h: self.half_h, ortho: self.ortho }
     }
 
     /// Near and far clip.
@@ -164,6 +150,15 @@ impl Camera {
     pub fn eye(&self) -> Vec3 {
         self.eye
     }
+}
+
+/// See [`Camera::frame`].
+pub(crate) struct Frame {
+    /// Eye, right, up, forward.
+    pub vectors: [Vec3; 4],
+    pub half_w: f32,
+    pub half_h: f32,
+    pub ortho: bool,
 }
 
 /// A camera that frames `bounds` from the front (+z side), looking at its centre.

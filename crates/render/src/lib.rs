@@ -6,6 +6,7 @@
 #![warn(missing_docs)]
 
 pub mod camera;
+mod coverage;
 pub mod film;
 pub mod integrator;
 mod render;
@@ -13,6 +14,7 @@ pub mod texture;
 mod world;
 
 pub use camera::{framing_camera, Camera};
+pub use coverage::{Coverage, BLOCK_EDGE};
 pub use film::{Film, OutputError};
 pub use integrator::{Integrator, WhittedSettings};
 pub use render::{jitter, pcg_hash, render, render_pass, render_pixel, RenderSettings, TILE};

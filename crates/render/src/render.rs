@@ -1,11 +1,12 @@
 //! The tile renderer: tiles on all cores (rayon), samples deterministic per (pixel, sample).
 
 use crate::camera::Camera;
+use crate::coverage::Coverage;
 use crate::film::Film;
 use crate::integrator::{li, li_packet, radiance, Integrator, WhittedSettings};
 use crate::world::World;
 use glam::Vec3;
-use lucent_accel::{frustum_excludes, FrustumCull, Ray};
+use lucent_accel::Ray;
 use rayon::prelude::*;
 
 /// Render settings.
@@ -65,7 +66,7 @@ pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u6
     }
     let spp = s.spp.max(1);
     render_tiles(w, cam, s.width, s.height, progress, &|px, out| {
-        let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); BLOCK];
+        let mut rays = NO_RAYS;
         let rays = &mut rays[..px.len()];
         let n = px.len();
         if spp == 1 {
@@ -109,7 +110,7 @@ pub fn render_pass(w: &World, cam: &Camera, s: &RenderSettings, integrator: Inte
     };
     render_tiles(w, cam, s.width, s.height, &|_| {}, &|px, out| {
         if integrator == Integrator::Whitted && s.whitted.packets {
-            let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); BLOCK];
+            let mut rays = NO_RAYS;
             for (r, &(x, y)) in rays.iter_mut().zip(px) {
                 *r = ray(x, y);
             }
@@ -128,19 +129,26 @@ type BlockFn<'a> = dyn Fn(&[(u32, u32)], &mut [Vec3]) + Sync + 'a;
 /// Pixels per block handed to the integrators: 8×8, one ray packet.
 const BLOCK: usize = 64;
 
-/// Most top-level boxes a tile may meet for its blocks to be culled one by one.
-const BLOCK_CULL_BOXES: usize = 8;
+/// A block's ray buffer before its rays are made (PERF: a constant copied in; filling it
+/// ray by ray showed in profiles of sparse REND3R frames).
+const NO_RAYS: [Ray; BLOCK] = [Ray { org: Vec3::ZERO, dir: Vec3::X, tmin: 0.0, tmax: f32::INFINITY }; BLOCK];
 
-/// The tile loop shared by every renderer: tiles on rayon, empty tiles culled by their
-/// frustum; the pixels of the others are handed out in 8×8 blocks, `block(pixels, out)`.
+/// The tile loop shared by every renderer: tiles on rayon; the pixels of each 8×8 block
+/// that the frame's [`Coverage`] says may meet something are handed out together,
+/// `block(pixels, out)`, and the others show the background.
 fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dyn Fn(u64) + Sync), block: &BlockFn) -> (Film, u64) {
     let (tw, th) = (width.div_ceil(TILE), height.div_ceil(TILE));
     // PERF: a black film (a `memset`; storing the background pixel by pixel, one thread,
-    // took an eighth of a sparse REND3R frame). Culled tiles and blocks write the
-    // background themselves unless it is black.
+    // took an eighth of a sparse REND3R frame). Uncovered pixels get the background
+    // themselves unless it is black.
     let mut film = Film::new(width, height);
     let out = FilmPtr(film.pixels.as_mut_ptr());
     let bg = w.scene.background;
+    let paint = bg != Vec3::ZERO;
+    // Which pixels can meet anything, by projecting the instances (object order): a sparse
+    // scene, such as REND3R's 256 small spheres, traces a third of its pixels. `None`
+    // (something covers the whole image, or reaches around the eye) traces them all.
+    let cover = if cam.size() == (width, height) { Coverage::of(w, cam) } else { None };
     // PERF: every tile writes its pixels straight into the film (tiles are disjoint);
     // gathering per-tile buffers and copying them in afterwards, one thread, took half of a
     // one-sphere REND3R frame.
@@ -156,52 +164,48 @@ fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dy
                 // tile writes this pixel; the film outlives the parallel loop.
                 unsafe { *out.get().add((y * width + x) as usize) = c };
             };
-            let background = |x0: u32, y0: u32, x1: u32, y1: u32| {
-                if bg != Vec3::ZERO {
-                    for y in y0..y1 {
-                        for x in x0..x1 {
-                            put(x, y, bg);
+            let mut coords = [(0u32, 0u32); BLOCK];
+            let mut px = [Vec3::ZERO; BLOCK];
+            for by in (y0..y1).step_by(8) {
+                for bx in (x0..x1).step_by(8) {
+                    let (bx1, by1) = ((bx + 8).min(x1), (by + 8).min(y1));
+                    let mask = cover.as_ref().map_or(u64::MAX, |c| c.block(bx / 8, by / 8));
+                    if mask == 0 && !paint {
+                        continue;
+                    }
+                    // The pixels of the block inside the tile (a partial block at the image's
+                    // right or bottom edge has fewer).
+                    let (cols, rows) = (bx1 - bx, by1 - by);
+                    let inside = if cols == 8 && rows == 8 {
+                        u64::MAX
+                    } else {
+                        (u64::MAX >> (64 - 8 * rows)) & ((0xffu64 >> (8 - cols)) * 0x0101_0101_0101_0101)
+                    };
+                    let (trace, skip) = (mask & inside, !mask & inside);
+                    if paint {
+                        let mut b = skip;
+                        while b != 0 {
+                            let i = b.trailing_zeros();
+                            b &= b - 1;
+                            put(bx + i % 8, by + i / 8, bg);
                         }
                     }
-                }
-            };
-            // Frustum culling: a tile whose frustum meets no instance shows the background
-            // (exactly what its primary rays would return), so nothing is traced. The blocks
-            // of a tile are culled the same way against the few top-level boxes the tile
-            // meets (a sparse scene, such as REND3R's 256 small spheres, meets most tiles
-            // but few blocks).
-            let mut boxes = Vec::new();
-            let cull = match cam.tile_frustum(x0 as f32, y0 as f32, x1 as f32, y1 as f32) {
-                Some(f) => w.accel.frustum_leaves(&f, &mut boxes, BLOCK_CULL_BOXES),
-                None => FrustumCull::Many,
-            };
-            if cull != FrustumCull::Empty {
-                let mut coords = Vec::with_capacity(BLOCK);
-                let mut px = [Vec3::ZERO; BLOCK];
-                for by in (y0..y1).step_by(8) {
-                    for bx in (x0..x1).step_by(8) {
-                        let (bx1, by1) = ((bx + 8).min(x1), (by + 8).min(y1));
-                        if cull == FrustumCull::Boxes {
-                            let f = cam.tile_frustum(bx as f32, by as f32, bx1 as f32, by1 as f32);
-                            if f.is_some_and(|f| boxes.iter().all(|b| frustum_excludes(&f, b))) {
-                                background(bx, by, bx1, by1);
-                                continue;
-                            }
-                        }
-                        coords.clear();
-                        for y in by..by1 {
-                            for x in bx..bx1 {
-                                coords.push((x, y));
-                            }
-                        }
-                        block(&coords, &mut px[..coords.len()]);
-                        for (&(x, y), c) in coords.iter().zip(&px) {
-                            put(x, y, *c);
-                        }
+                    let mut n = 0;
+                    let mut b = trace;
+                    while b != 0 {
+                        let i = b.trailing_zeros();
+                        b &= b - 1;
+                        coords[n] = (bx + i % 8, by + i / 8);
+                        n += 1;
+                    }
+                    if n == 0 {
+                        continue;
+                    }
+                    block(&coords[..n], &mut px[..n]);
+                    for (&(x, y), c) in coords[..n].iter().zip(&px) {
+                        put(x, y, *c);
                     }
                 }
-            } else {
-                background(x0, y0, x1, y1);
             }
             progress(1);
             crate::world::rays_traced_here() - before

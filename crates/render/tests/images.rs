@@ -184,9 +184,9 @@ fn png_and_exr_round_trip() {
 }
 
 #[test]
-fn frustum_culling_never_changes_the_picture() {
-    // render() skips tiles whose frustum meets nothing; every pixel must equal the pixel
-    // traced on its own (no culling). The demo's sky tiles are culled.
+fn coverage_never_changes_the_picture() {
+    // render() traces only the pixels the coverage marks; every pixel must equal the pixel
+    // traced on its own (no coverage). The demo's sky is not covered.
     let s = demo_scene();
     let desc = s.camera.expect("camera");
     let world = World::new(s, MeshOptions::default()).expect("world");
@@ -194,34 +194,14 @@ fn frustum_culling_never_changes_the_picture() {
     let cam = Camera::new(&desc, w, h);
     let st = settings(w, h);
     let (film, _) = render(&world, &cam, &st, &|_| {});
-    let (mut culled, mut blocks_culled) = (0, 0);
     for y in 0..h {
         for x in 0..w {
             assert_eq!(film.get(x, y), lucent_render::render_pixel(&world, &cam, &st, x, y), "pixel {x},{y}");
         }
     }
-    for ty in 0..h.div_ceil(lucent_render::TILE) {
-        for tx in 0..w.div_ceil(lucent_render::TILE) {
-            let f = cam
-                .tile_frustum((tx * 16) as f32, (ty * 16) as f32, ((tx + 1) * 16).min(w) as f32, ((ty + 1) * 16).min(h) as f32)
-                .expect("perspective");
-            culled += (!world.accel.frustum_may_hit(&f)) as u32;
-            // Blocks of tiles that are traced are culled against the tile's few boxes.
-            let mut boxes = Vec::new();
-            if world.accel.frustum_leaves(&f, &mut boxes, 8) == lucent_accel::FrustumCull::Boxes {
-                for (bx, by) in [(0, 0), (8, 0), (0, 8), (8, 8)] {
-                    let (x0, y0) = (tx * 16 + bx, ty * 16 + by);
-                    if x0 >= w || y0 >= h {
-                        continue;
-                    }
-                    let b = cam.tile_frustum(x0 as f32, y0 as f32, (x0 + 8).min(w) as f32, (y0 + 8).min(h) as f32).expect("perspective");
-                    blocks_culled += boxes.iter().all(|x| lucent_accel::frustum_excludes(&b, x)) as u32;
-                }
-            }
-        }
-    }
-    assert!(culled > 0, "some sky tiles are culled");
-    assert!(blocks_culled > 0, "some sky blocks of traced tiles are culled");
+    let cover = lucent_render::Coverage::of(&world, &cam).expect("the demo has bounds");
+    let covered = cover.count();
+    assert!(covered < u64::from(w * h) * 9 / 10 && covered > u64::from(w * h) / 4, "{covered} of {} pixels covered", w * h);
 }
 
 #[test]
