@@ -6,7 +6,9 @@ use glam::{Affine3A, Vec3};
 ///
 /// `dir` need not be normalized: two-level traversal transforms it into object space
 /// without renormalizing, so `t` means the same thing in every space.
+// `repr(C)`: the eight floats in this order, so a packet loads a ray with one vector load.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Ray {
     /// Origin.
     pub org: Vec3,
