@@ -29,7 +29,25 @@ fn xvfb() -> (Kill, String) {
     let mut line = String::new();
     std::io::BufReader::new(reader).read_line(&mut line).expect("Xvfb reports its display");
     let num: u32 = line.trim().parse().unwrap_or_else(|_| panic!("Xvfb said {line:?}"));
-    (k, format!(":{num}"))
+    let display = format!(":{num}");
+    // The display number comes before the server always takes connections (a CI run once
+    // failed with "Failed to open connection to X server"): wait until a client gets in.
+    let start = Instant::now();
+    loop {
+        let ok = Command::new("xdotool")
+            .arg("getdisplaygeometry")
+            .env("DISPLAY", &display)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        if ok {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(20), "Xvfb on {display} takes no connections");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    (k, display)
 }
 
 fn xdo(display: &str, args: &[&str]) -> String {

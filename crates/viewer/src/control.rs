@@ -319,8 +319,9 @@ pub fn blit(pixels: &[Vec3], width: u32, height: u32, scale: f32, out: &mut [u32
         out.fill(0);
         return;
     }
-    let lut = srgb_lut();
-    let q = |c: f32| u32::from(lut[((if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 }) * LUT_MAX as f32 + 0.5) as usize]);
+    // The film's own exact 8-bit sRGB codes, so the window shows the bytes a PNG would hold.
+    let table = lucent_render::film::srgb8_table();
+    let q = |c: f32| u32::from(table.encode(c));
     let src: Vec<u32> = pixels
         .par_iter()
         .map(|p| {
@@ -338,23 +339,28 @@ pub fn blit(pixels: &[Vec3], width: u32, height: u32, scale: f32, out: &mut [u32
     });
 }
 
-const LUT_MAX: usize = 4095;
-
-/// Linear [0, 1] in 4096 steps to 8-bit sRGB (each step under one output level).
-fn srgb_lut() -> &'static [u8; LUT_MAX + 1] {
-    static LUT: std::sync::OnceLock<[u8; LUT_MAX + 1]> = std::sync::OnceLock::new();
-    LUT.get_or_init(|| {
-        let mut t = [0u8; LUT_MAX + 1];
-        for (i, v) in t.iter_mut().enumerate() {
-            *v = (lucent_render::film::linear_to_srgb(i as f32 / LUT_MAX as f32) * 255.0 + 0.5) as u8;
-        }
-        t
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_window_shows_the_bytes_a_png_would_hold() {
+        // A fine ramp through every 8-bit code (many values near each threshold) and past
+        // both ends, at its own size.
+        let n = 40_000;
+        let mut film = lucent_render::Film::new(n, 1);
+        for (i, p) in film.pixels.iter_mut().enumerate() {
+            let c = i as f32 / (n - 800) as f32 - 0.01;
+            *p = Vec3::new(c, c * c, 1.0 - c);
+        }
+        let mut out = vec![0u32; n as usize];
+        blit(&film.pixels, n, 1, 1.0, &mut out, n, 1);
+        let bytes = film.to_srgb8();
+        for (i, &o) in out.iter().enumerate() {
+            let want = u32::from(bytes[3 * i]) << 16 | u32::from(bytes[3 * i + 1]) << 8 | u32::from(bytes[3 * i + 2]);
+            assert_eq!(o, want, "pixel {i}");
+        }
+    }
 
     #[test]
     fn moving_renders_a_quarter_then_adapts_to_the_frame_budget() {
