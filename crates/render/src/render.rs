@@ -93,10 +93,12 @@ pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u6
 /// Sample `k` of `spp` through each pixel of `px` (the centre when `spp` is 1).
 #[inline(always)]
 fn block_rays(cam: &Camera, px: &[(u32, u32)], spp: u32, k: u32, rays: &mut [Ray]) {
-    for (r, &(x, y)) in rays.iter_mut().zip(px) {
+    let mut pts = [(0f32, 0f32); BLOCK];
+    for (p, &(x, y)) in pts.iter_mut().zip(px) {
         let (jx, jy) = if spp == 1 { (0.5, 0.5) } else { jitter(x, y, k) };
-        *r = cam.ray(x as f32 + jx, y as f32 + jy);
+        *p = (x as f32 + jx, y as f32 + jy);
     }
+    cam.rays_at(&pts[..px.len().min(BLOCK)], rays);
 }
 
 /// One sample per pixel: sample `index` of every pixel (0 = the pixel centre, then the
