@@ -102,17 +102,36 @@ fn xwd(display: &str, wid: &str) -> Shot {
     Shot { w, h, rgb }
 }
 
-/// The viewer's window id, once it exists (at most 30 s).
-fn viewer_window(display: &str) -> String {
-    let t = Instant::now();
-    loop {
-        let id = xdo(display, &["search", "--name", "lucent view"]);
-        if let Some(id) = id.lines().next().filter(|l| !l.is_empty()) {
-            return id.to_string();
+/// Starts `lucent view` as `setup` configures it (arguments, stdout) on `display`, and
+/// returns it (killed when dropped) with its window id, once the window exists (at most
+/// 30 s). A viewer that could not connect to the X server is started again, twice at most:
+/// two fresh-clone CI runs saw the first viewer of the run fail to connect to an Xvfb that
+/// had just taken another client, which never happened here.
+fn start_viewer(display: &str, setup: impl Fn(&mut Command)) -> (Kill, String) {
+    let errs = tempfile::tempdir().expect("tmp");
+    for attempt in 0..3 {
+        let log = errs.path().join(format!("stderr-{attempt}"));
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_lucent"));
+        cmd.arg("view").env("DISPLAY", display).stdout(Stdio::null()).stderr(std::fs::File::create(&log).expect("log"));
+        setup(&mut cmd);
+        let mut viewer = Kill(cmd.spawn().expect("lucent view"));
+        let t = Instant::now();
+        loop {
+            let id = xdo(display, &["search", "--name", "lucent view"]);
+            if let Some(id) = id.lines().next().filter(|l| !l.is_empty()) {
+                return (viewer, id.to_string());
+            }
+            if let Ok(Some(status)) = viewer.0.try_wait() {
+                let err = std::fs::read_to_string(&log).unwrap_or_default();
+                assert!(err.contains("Failed to open connection to X server") && attempt < 2, "lucent view exited ({status}): {err}");
+                std::thread::sleep(Duration::from_millis(500));
+                break;
+            }
+            assert!(t.elapsed() < Duration::from_secs(30), "no viewer window");
+            std::thread::sleep(Duration::from_millis(100));
         }
-        assert!(t.elapsed() < Duration::from_secs(30), "no viewer window");
-        std::thread::sleep(Duration::from_millis(100));
     }
+    unreachable!("the third attempt returns or panics")
 }
 
 /// Gives the window the keyboard focus and waits until it has it (no window manager runs
@@ -146,15 +165,11 @@ fn viewer_shows_the_demo_and_answers_keys_and_mouse() {
     let (_x, display) = xvfb();
     let shots = tempfile::tempdir().expect("tmp");
     let log = shots.path().join("view.log");
-    let viewer = Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(["view", "--size", "640x480", "--samples", "4", "--report", "--screenshots"])
-        .arg(shots.path())
-        .env("DISPLAY", &display)
-        .stdout(std::fs::File::create(&log).expect("log"))
-        .spawn()
-        .expect("lucent view");
-    let mut viewer = Kill(viewer);
-    let wid = viewer_window(&display);
+    let (mut viewer, wid) = start_viewer(&display, |c| {
+        c.args(["--size", "640x480", "--samples", "4", "--report", "--screenshots"])
+            .arg(shots.path())
+            .stdout(std::fs::File::create(&log).expect("log"));
+    });
     let title = wait_title(&display, &wid, "[converged]", 60);
     assert!(title.contains("built-in default demo") && title.contains("[converged]"), "{title}");
     let first = xwd(&display, &wid);
@@ -249,17 +264,9 @@ fn viewer_without_a_display_says_so() {
 
 /// Starts `lucent view ARGS FILE` on `display`; returns it (killed when dropped) and its window.
 fn view(display: &str, args: &[&str], file: &std::path::Path) -> (Kill, String) {
-    let viewer = Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .arg("view")
-        .args(args)
-        .arg(file)
-        .env("DISPLAY", display)
-        .stdout(Stdio::null())
-        .spawn()
-        .expect("lucent view");
-    let viewer = Kill(viewer);
-    let wid = viewer_window(display);
-    (viewer, wid)
+    start_viewer(display, |c| {
+        c.args(args).arg(file);
+    })
 }
 
 fn frame_number(title: &str) -> u64 {
