@@ -998,12 +998,27 @@ use crate::traverse::RayPre;
 
 /// Runs `body` on every chunk of at most [`MAX_PACKET`] rays, with the packet loaded.
 #[inline(always)]
-fn chunks(rays: &[Ray], mut body: impl FnMut(usize, &Packet, &mut PacketHits)) {
+fn chunks(rays: &[Ray], body: impl FnMut(usize, &Packet, &mut PacketHits)) {
+    aos_chunks(
+        rays,
+        |eight, b| {
+            for (l, r) in eight.iter().enumerate() {
+                b.set(l, r);
+            }
+        },
+        body,
+    );
+}
+
+/// Runs `body` on every chunk of at most [`MAX_PACKET`] rays, with the packet loaded:
+/// `fill(rays, block)` puts up to eight rays into a block, and one packet is reused.
+#[inline(always)]
+fn aos_chunks(rays: &[Ray], mut fill: impl FnMut(&[Ray], &mut RayBlock), mut body: impl FnMut(usize, &Packet, &mut PacketHits)) {
     let (mut p, mut h) = Packet::empty();
     for (c, chunk) in rays.chunks(MAX_PACKET).enumerate() {
         let mut blocks = [RayBlock::EMPTY; GROUPS];
-        for (i, r) in chunk.iter().enumerate() {
-            blocks[i / LANES].set(i % LANES, r);
+        for (b, eight) in blocks.iter_mut().zip(chunk.chunks(LANES)) {
+            fill(eight, b);
         }
         p.load_blocks_into(&blocks[..chunk.len().div_ceil(LANES)], &mut h);
         body(c * MAX_PACKET, &p, &mut h);
@@ -1290,21 +1305,14 @@ impl Rays<'_> {
     /// AVX2 must be available.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    unsafe fn each_avx2(self, mut body: impl FnMut(usize, &Packet, &mut PacketHits)) {
+    unsafe fn each_avx2(self, body: impl FnMut(usize, &Packet, &mut PacketHits)) {
         match self {
-            Rays::Aos(rays) => {
-                let (mut p, mut h) = Packet::empty();
-                for (c, chunk) in rays.chunks(MAX_PACKET).enumerate() {
-                    let mut blocks = [RayBlock::EMPTY; GROUPS];
-                    let groups = chunk.len().div_ceil(LANES);
-                    for (b, eight) in blocks.iter_mut().zip(chunk.chunks(LANES)) {
-                        // SAFETY: the caller guarantees AVX2.
-                        unsafe { avx::transpose_rays(eight, b) };
-                    }
-                    p.load_blocks_into(&blocks[..groups], &mut h);
-                    body(c * MAX_PACKET, &p, &mut h);
-                }
-            }
+            Rays::Aos(rays) => aos_chunks(
+                rays,
+                // SAFETY: the caller guarantees AVX2.
+                |eight, b| unsafe { avx::transpose_rays(eight, b) },
+                body,
+            ),
             Rays::Soa(b) => block_chunks(b, body),
         }
     }

@@ -30,8 +30,8 @@ fn xvfb() -> (Kill, String) {
     std::io::BufReader::new(reader).read_line(&mut line).expect("Xvfb reports its display");
     let num: u32 = line.trim().parse().unwrap_or_else(|_| panic!("Xvfb said {line:?}"));
     let display = format!(":{num}");
-    // The display number comes before the server always takes connections (a CI run once
-    // failed with "Failed to open connection to X server"): wait until a client gets in.
+    // Do not rely on the display number alone: wait until a client gets in. (This did not
+    // cure the CI failures to connect; `start_viewer` retries those.)
     let start = Instant::now();
     loop {
         let ok = Command::new("xdotool")

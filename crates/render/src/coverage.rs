@@ -306,15 +306,13 @@ fn box_region(b: &Aabb, inst: &lucent_accel::Instance, proj: &Projection) -> Reg
     if b.is_empty() {
         return Region::Nothing;
     }
-    let m = &inst.world_from_object;
+    let m = inst.world_from_object.as_daffine3();
     let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
-    let lin = glam::DMat3::from_cols(m.matrix3.x_axis.as_dvec3(), m.matrix3.y_axis.as_dvec3(), m.matrix3.z_axis.as_dvec3());
-    let t = DVec3::from(m.translation.to_array().map(f64::from));
     // Corners in camera coordinates (right, up, forward).
     let q: [DVec3; 8] = std::array::from_fn(|i| {
         let c =
             DVec3::new(if i & 1 != 0 { hi.x } else { lo.x }, if i & 2 != 0 { hi.y } else { lo.y }, if i & 4 != 0 { hi.z } else { lo.z });
-        proj.to_cam * (lin * c + t - proj.eye)
+        proj.to_cam * (m.transform_point3(c) - proj.eye)
     });
     if q.iter().any(|c| !c.is_finite()) {
         return Region::Everything;
@@ -381,21 +379,17 @@ fn box_region(b: &Aabb, inst: &lucent_accel::Instance, proj: &Projection) -> Reg
 /// The image ellipse of a sphere instance wholly in front of the eye; `None` when it is
 /// not (or the quadric is degenerate), for the box to stand in.
 fn ellipse(inst: &lucent_accel::Instance, proj: &Projection) -> Option<Region> {
-    let wfo = &inst.world_from_object;
-    let ofw = &inst.object_from_world;
-    let to_d = |v: glam::Vec3A| v.as_dvec3();
-    let lin = DMat3::from_cols(to_d(wfo.matrix3.x_axis), to_d(wfo.matrix3.y_axis), to_d(wfo.matrix3.z_axis));
-    let centre = to_d(wfo.translation);
+    let (wfo, ofw) = (inst.world_from_object.as_daffine3(), inst.object_from_world.as_daffine3());
     // Nearest depth of the ellipsoid along the camera's forward coordinate.
     let n = proj.to_cam.row(2);
-    let depth = n.dot(centre - proj.eye);
-    let reach = (lin.transpose() * n).length();
+    let depth = n.dot(wfo.translation - proj.eye);
+    let reach = (wfo.matrix3.transpose() * n).length();
     // (NaN fails the test too.)
     if (depth - reach).partial_cmp(&(1e-9 * (depth.abs() + reach))) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
-    let inv = DMat3::from_cols(to_d(ofw.matrix3.x_axis), to_d(ofw.matrix3.y_axis), to_d(ofw.matrix3.z_axis));
-    let o = inv * proj.eye + to_d(ofw.translation);
+    let inv = ofw.matrix3;
+    let o = ofw.transform_point3(proj.eye);
     let k = o.length_squared() - 1.0;
     if k.is_nan() || k <= 0.0 {
         return None;

@@ -170,6 +170,11 @@ fn local<'a>(w: &World, ray: &Ray, surf: Surface, mat: &'a Material) -> (Local<'
     (Local { surf, mat, d, front, ng, ns, kd, transmit, opaque, p_out }, c)
 }
 
+/// A packet's ray buffer before its rays are made (PERF: a constant copied in; filling it
+/// ray by ray showed in profiles of sparse REND3R frames).
+pub(crate) const NO_RAYS: [Ray; lucent_accel::MAX_PACKET] =
+    [Ray { org: Vec3::ZERO, dir: Vec3::X, tmin: 0.0, tmax: f32::INFINITY }; lucent_accel::MAX_PACKET];
+
 /// Light `l`'s contribution at a hit, and the shadow ray that must be clear for it to count
 /// (`None` when shadows are off); `None` when the light cannot reach the surface anyway.
 #[inline(always)]
@@ -324,8 +329,6 @@ pub fn li_packet(w: &World, rays: &[Ray], s: &WhittedSettings, out: &mut [Vec3])
 /// stay coherent; scattered ones fall back to single rays inside the kernels).
 fn li_packet_at(w: &World, rays: &[Ray], s: &WhittedSettings, depth: u32, out: &mut [Vec3]) {
     const N: usize = lucent_accel::MAX_PACKET;
-    // PERF: a constant copied in (filling the buffer ray by ray showed in profiles).
-    const NO_RAYS: [Ray; N] = [Ray { org: Vec3::ZERO, dir: Vec3::X, tmin: 0.0, tmax: f32::INFINITY }; N];
     static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
     for (rays, out) in rays.chunks(N).zip(out.chunks_mut(N)) {
         let n = rays.len();

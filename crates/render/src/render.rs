@@ -3,7 +3,7 @@
 use crate::camera::Camera;
 use crate::coverage::Coverage;
 use crate::film::Film;
-use crate::integrator::{li, li_packet, radiance, Integrator, WhittedSettings};
+use crate::integrator::{li, li_packet, radiance, Integrator, WhittedSettings, NO_RAYS};
 use crate::world::World;
 use glam::Vec3;
 use lucent_accel::Ray;
@@ -128,12 +128,10 @@ pub fn render_pass(w: &World, cam: &Camera, s: &RenderSettings, integrator: Inte
 /// Computes the pixels of a block: `block(pixels, out)`.
 type BlockFn<'a> = dyn Fn(&[(u32, u32)], &mut [Vec3]) + Sync + 'a;
 
-/// Pixels per block handed to the integrators: 8×8, one ray packet.
+/// Pixels per block handed to the integrators: 8×8 (one bit each in a coverage mask), one
+/// ray packet.
 const BLOCK: usize = 64;
-
-/// A block's ray buffer before its rays are made (PERF: a constant copied in; filling it
-/// ray by ray showed in profiles of sparse REND3R frames).
-const NO_RAYS: [Ray; BLOCK] = [Ray { org: Vec3::ZERO, dir: Vec3::X, tmin: 0.0, tmax: f32::INFINITY }; BLOCK];
+const _: () = assert!(BLOCK == lucent_accel::MAX_PACKET, "a block is one packet, and NO_RAYS holds a packet");
 
 /// The tile loop shared by every renderer: tiles on rayon; the pixels of each 8×8 block
 /// that the frame's [`Coverage`] says may meet something are handed out together,
