@@ -10,6 +10,7 @@ mod coverage;
 pub mod film;
 pub mod integrator;
 mod render;
+mod shading;
 pub mod texture;
 mod world;
 

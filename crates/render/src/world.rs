@@ -226,6 +226,12 @@ impl World {
         self.accel.occluded_packet(rays, out);
     }
 
+    /// Occlusion of rays in SoA blocks (empty lanes allowed), `rays` of them real.
+    pub(crate) fn occluded_blocks(&self, blocks: &[lucent_accel::RayBlock], out: &mut [bool], rays: usize) {
+        RAYS.with(|c| c.set(c.get() + rays as u64));
+        self.accel.occluded_blocks(blocks, out);
+    }
+
     /// Rebuilds the surface point of a hit.
     #[must_use]
     pub fn surface(&self, r: &Ray, h: &Hit) -> Surface {
