@@ -43,6 +43,9 @@ pub(crate) trait Real:
     fn exponent_mantissa(self) -> (Self, Self);
     /// `2^n` for integral `n` in `[-126, 127]`.
     fn exp2i(self) -> Self;
+    /// `x^y` for the Phong term: [`pow_unit`] on `f32`, [`pow_fast`] on lanes (whose
+    /// out-of-range lanes are redone one by one).
+    fn phong_pow(x: Self, y: Self) -> Self;
 }
 
 /// `self > o ? self : o` (`maxps`: `o` when either is NaN).
@@ -103,6 +106,10 @@ impl Real for f32 {
     fn exponent_mantissa(self) -> (Self, Self) {
         let bits = self.to_bits();
         (((bits >> 23) & 0xff) as i32 as f32 - 127.0, f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000))
+    }
+    #[inline(always)]
+    fn phong_pow(x: Self, y: Self) -> Self {
+        pow_unit(x, y)
     }
     #[inline(always)]
     fn exp2i(self) -> Self {
@@ -226,6 +233,10 @@ impl Real for F8 {
             m[i] = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
         }
         (F8(e), F8(m))
+    }
+    #[inline(always)]
+    fn phong_pow(x: Self, y: Self) -> Self {
+        pow_fast(x, y)
     }
     #[inline(always)]
     fn exp2i(self) -> Self {
@@ -433,10 +444,10 @@ pub(crate) struct LightSample<T: Real> {
     pub slow: T::Mask,
 }
 
-/// Light `lc` (of kind `K`) at hit `h`: Lambert diffuse plus Phong specular with the power
-/// `pow`, and the shadow ray's extent.
+/// Light `lc` (of kind `K`) at hit `h`: Lambert diffuse plus Phong specular, and the shadow
+/// ray's extent.
 #[inline(always)]
-pub(crate) fn light_lane<T: Real, const K: u8>(lc: &LightConst, h: &LitPoint<T>, pow: impl Fn(T, T) -> T) -> LightSample<T> {
+pub(crate) fn light_lane<T: Real, const K: u8>(lc: &LightConst, h: &LitPoint<T>) -> LightSample<T> {
     let zero = T::splat(0.0);
     let inf = T::splat(f32::INFINITY);
     let (ldir, dist, rad) = match K {
@@ -479,7 +490,7 @@ pub(crate) fn light_lane<T: Real, const K: u8>(lc: &LightConst, h: &LitPoint<T>,
     // mirror direction faces the eye.
     let use_spec = h.spec_any & (rv.gt(zero) | h.shininess.le(zero));
     let x = max(rv, zero);
-    let spec = V3::select(use_spec, h.specular.scale(pow(x, h.shininess)), V3::zero());
+    let spec = V3::select(use_spec, h.specular.scale(T::phong_pow(x, h.shininess)), V3::zero());
     let term = rad.mul(h.kd.scale(cos).scale(h.opaque).add(spec));
     LightSample { term, ldir, tmax, valid, slow: use_spec & pow_needs_slow(x, h.shininess) }
 }
@@ -488,9 +499,9 @@ pub(crate) fn light_lane<T: Real, const K: u8>(lc: &LightConst, h: &LitPoint<T>,
 #[inline(always)]
 pub(crate) fn light_sample(lc: &LightConst, h: &LitPoint<f32>) -> LightSample<f32> {
     match lc.kind {
-        POINT => light_lane::<f32, POINT>(lc, h, pow_unit),
-        DIRECTIONAL => light_lane::<f32, DIRECTIONAL>(lc, h, pow_unit),
-        _ => light_lane::<f32, SPOT>(lc, h, pow_unit),
+        POINT => light_lane::<f32, POINT>(lc, h),
+        DIRECTIONAL => light_lane::<f32, DIRECTIONAL>(lc, h),
+        _ => light_lane::<f32, SPOT>(lc, h),
     }
 }
 
@@ -759,7 +770,7 @@ impl HitLanes {
         out.slow = 0;
         for b in 0..self.blocks() {
             let j = b * W;
-            let s = light_lane::<F8, K>(lc, &self.lit_point8(j), pow_fast);
+            let s = light_lane::<F8, K>(lc, &self.lit_point8(j));
             let ok = s.valid & mask8(held >> j);
             s.term.store(&mut out.term, j);
             let blk = &mut out.blocks[b];
