@@ -1538,6 +1538,15 @@ impl TwoLevel {
     }
 
     #[inline(always)]
+    fn packet_among_k<K: KernelSet>(&self, ids: &[u32], p: &Packet, h: &mut PacketHits) {
+        let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
+        let n = self.instances().len();
+        for &i in ids.iter().filter(|&&i| (i as usize) < n).chain(&self.unbounded) {
+            leaves.hit_instance(i, p, &p.valid, h);
+        }
+    }
+
+    #[inline(always)]
     fn packet_occluded_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
         let active = p.valid;
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
@@ -1581,6 +1590,23 @@ impl TwoLevel {
     /// [`TwoLevel::intersect_packet`] on rays in SoA blocks; `out` holds eight entries per block.
     pub fn intersect_blocks(&self, blocks: &[RayBlock], out: &mut [Option<Hit>]) {
         self.trace_intersect(Rays::Soa(blocks), out);
+    }
+
+    /// [`TwoLevel::intersect_packet`] for rays known to meet no instance but those of
+    /// `ids` (and the unbounded ones), for example primary rays of a screen block that only
+    /// a few instances cover: those are tested directly, without the top-level walk. The
+    /// same answers, except which of two surfaces at exactly the same distance is
+    /// reported. Ids out of range are skipped.
+    pub fn intersect_packet_among(&self, rays: &[Ray], ids: &[u32], out: &mut [Option<Hit>]) {
+        match self.kernel {
+            // SAFETY: the kernel is only Simd/Avx512 when AVX2 and FMA were detected.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Simd | Kernel::Avx512 => unsafe { avx2_tl_intersect_among(self, Rays::Aos(rays), ids, out) },
+            _ => Rays::Aos(rays).each(|base, p, h| {
+                self.packet_among_k::<ScalarSet>(ids, p, h);
+                write_hits(base, p, h, out);
+            }),
+        }
     }
 
     /// [`TwoLevel::occluded_packet`] on rays in SoA blocks; `out` holds eight entries per block.
@@ -1630,6 +1656,18 @@ fn avx2_tl_intersect(t: &TwoLevel, rays: Rays, out: &mut [Option<Hit>]) {
     unsafe {
         rays.each_avx2(|base, p, h| {
             t.packet_intersect_k::<crate::kernel::SimdSet>(p, h);
+            write_hits(base, p, h, out);
+        })
+    };
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn avx2_tl_intersect_among(t: &TwoLevel, rays: Rays, ids: &[u32], out: &mut [Option<Hit>]) {
+    // SAFETY: this function is compiled with AVX2, which its callers checked.
+    unsafe {
+        rays.each_avx2(|base, p, h| {
+            t.packet_among_k::<crate::kernel::SimdSet>(ids, p, h);
             write_hits(base, p, h, out);
         })
     };

@@ -39,14 +39,43 @@ const MAX_INSTANCES: usize = 1 << 16;
 /// Instances projected per parallel task.
 const CHUNK: usize = 64;
 
+/// Most instances a block lists (see [`Coverage::candidates`]); more, and the block's rays
+/// go through the top-level index.
+pub const MAX_CANDIDATES: usize = 4;
+
+/// A block's candidate instances: the count (above [`MAX_CANDIDATES`]: too many to list),
+/// then the ids.
+#[derive(Clone, Copy, Debug, Default)]
+struct Candidates {
+    count: u32,
+    ids: [u32; MAX_CANDIDATES],
+}
+
+impl Candidates {
+    #[inline]
+    fn add(&mut self, id: u32) {
+        let n = self.count as usize;
+        // An instance fills a block row by row: only its first row adds it.
+        if n > 0 && n <= MAX_CANDIDATES && self.ids[n - 1] == id {
+            return;
+        }
+        if n < MAX_CANDIDATES {
+            self.ids[n] = id;
+        }
+        self.count = self.count.saturating_add(1).min(MAX_CANDIDATES as u32 + 1);
+    }
+}
+
 /// Which pixels' primary rays may meet an instance, as one 64-bit mask per 8×8 block (bit
-/// `8·row + column` within the block).
+/// `8·row + column` within the block), and which instances those can be, per block (when
+/// there are few).
 #[derive(Clone, Debug)]
 pub struct Coverage {
     width: u32,
     height: u32,
     blocks_x: u32,
     masks: Vec<u64>,
+    cands: Vec<Candidates>,
 }
 
 /// The camera's map from world points to image positions.
@@ -101,14 +130,17 @@ impl Coverage {
         let (width, height) = cam.size();
         let blocks_x = width.div_ceil(BLOCK_EDGE);
         let blocks_y = height.div_ceil(BLOCK_EDGE);
-        let empty = || Coverage { width, height, blocks_x, masks: vec![0; (blocks_x * blocks_y) as usize] };
+        let n_blocks = (blocks_x * blocks_y) as usize;
+        let empty = || Coverage { width, height, blocks_x, masks: vec![0; n_blocks], cands: vec![Candidates::default(); n_blocks] };
         // Chunks of instances in parallel, each job into masks of its own, then merged.
         insts
             .par_chunks(CHUNK)
+            .enumerate()
             // One set of masks per rayon job, not per chunk (PERF: a chunk's masks are
             // 24 KB at 512×384, and the sunflowers have 88 chunks).
-            .try_fold(empty, |mut c, chunk| {
-                for inst in chunk {
+            .try_fold(empty, |mut c, (ci, chunk)| {
+                for (k, inst) in chunk.iter().enumerate() {
+                    let id = (ci * CHUNK + k) as u32;
                     let geom = accel.geometries().get(inst.geometry as usize)?;
                     match region(geom, inst, &proj) {
                         Region::Nothing => {}
@@ -117,9 +149,9 @@ impl Coverage {
                             if r[0] - MARGIN <= 0.0 && r[2] - MARGIN <= 0.0 && r[1] + MARGIN >= proj.width && r[3] + MARGIN >= proj.height {
                                 return None;
                             }
-                            c.fill_rect(&r);
+                            c.fill_rect(&r, id);
                         }
-                        Region::Ellipse(k) => c.fill_ellipse(&k, &proj),
+                        Region::Ellipse(k) => c.fill_ellipse(&k, &proj, id),
                     }
                 }
                 Some(c)
@@ -127,6 +159,14 @@ impl Coverage {
             .try_reduce(empty, |mut a, b| {
                 for (x, y) in a.masks.iter_mut().zip(&b.masks) {
                     *x |= y;
+                }
+                for (x, y) in a.cands.iter_mut().zip(&b.cands) {
+                    for &id in &y.ids[..(y.count as usize).min(MAX_CANDIDATES)] {
+                        x.add(id);
+                    }
+                    if y.count as usize > MAX_CANDIDATES {
+                        x.count = MAX_CANDIDATES as u32 + 1;
+                    }
                 }
                 Some(a)
             })
@@ -139,6 +179,19 @@ impl Coverage {
             return 0;
         }
         self.masks.get((by * self.blocks_x + bx) as usize).copied().unwrap_or(0)
+    }
+
+    /// The instances that block (`bx`, `by`)'s covered pixels may meet, when there are at
+    /// most [`MAX_CANDIDATES`] (in the order they were found); `None` when there are more
+    /// (or outside the image). A ray of a covered pixel meets nothing else, so its closest
+    /// hit is the closest among these.
+    #[must_use]
+    pub fn candidates(&self, bx: u32, by: u32) -> Option<&[u32]> {
+        if bx >= self.blocks_x {
+            return None;
+        }
+        let c = self.cands.get((by * self.blocks_x + bx) as usize)?;
+        (c.count as usize <= MAX_CANDIDATES).then(|| &c.ids[..c.count as usize])
     }
 
     /// Whether pixel (`x`, `y`) is covered.
@@ -167,13 +220,14 @@ impl Coverage {
         (lo <= hi).then_some((lo as u32, hi as u32))
     }
 
-    /// Covers pixels `xa..=xb` of row `y`.
-    fn fill_row(&mut self, y: u32, xa: u32, xb: u32) {
-        self.fill_rows(y, y, xa, xb);
+    /// Covers pixels `xa..=xb` of row `y` for instance `id`.
+    fn fill_row(&mut self, y: u32, xa: u32, xb: u32, id: u32) {
+        self.fill_rows(y, y, xa, xb, id);
     }
 
-    /// Covers pixels `xa..=xb` of rows `ya..=yb`, one mask update per block.
-    fn fill_rows(&mut self, ya: u32, yb: u32, xa: u32, xb: u32) {
+    /// Covers pixels `xa..=xb` of rows `ya..=yb` for instance `id`, one mask update per
+    /// block.
+    fn fill_rows(&mut self, ya: u32, yb: u32, xa: u32, xb: u32, id: u32) {
         for by in ya / BLOCK_EDGE..=yb / BLOCK_EDGE {
             let r0 = ya.max(by * BLOCK_EDGE) - by * BLOCK_EDGE;
             let r1 = yb.min(by * BLOCK_EDGE + BLOCK_EDGE - 1) - by * BLOCK_EDGE;
@@ -183,21 +237,23 @@ impl Coverage {
                 let c0 = xa.max(bx * BLOCK_EDGE) - bx * BLOCK_EDGE;
                 let c1 = xb.min(bx * BLOCK_EDGE + BLOCK_EDGE - 1) - bx * BLOCK_EDGE;
                 let cols = (0xffu64 >> (7 - c1)) & (0xffu64 << c0);
-                if let Some(m) = self.masks.get_mut((by * self.blocks_x + bx) as usize) {
+                let i = (by * self.blocks_x + bx) as usize;
+                if let (Some(m), Some(c)) = (self.masks.get_mut(i), self.cands.get_mut(i)) {
                     *m |= rows & (cols * 0x0101_0101_0101_0101);
+                    c.add(id);
                 }
             }
         }
     }
 
-    fn fill_rect(&mut self, r: &[f64; 4]) {
+    fn fill_rect(&mut self, r: &[f64; 4], id: u32) {
         let (Some((xa, xb)), Some((ya, yb))) = (Self::pixels(r[0], r[1], self.width), Self::pixels(r[2], r[3], self.height)) else {
             return;
         };
-        self.fill_rows(ya, yb, xa, xb);
+        self.fill_rows(ya, yb, xa, xb, id);
     }
 
-    fn fill_ellipse(&mut self, k: &[[f64; 3]; 3], proj: &Projection) {
+    fn fill_ellipse(&mut self, k: &[[f64; 3]; 3], proj: &Projection, id: u32) {
         let [[k00, k01, k02], [_, k11, k12], [_, _, k22]] = *k;
         // The chord at screen height y: centre -(k12 y + k01)/k11, half-width
         // sqrt(D(y))/k11 with D(y) = a y² + 2 b y + c (a < 0 for an ellipse).
@@ -241,7 +297,7 @@ impl Coverage {
             let left = if bottom <= yl && yl <= top { left_most } else { l0.min(l1) };
             let right = if bottom <= yr && yr <= top { right_most } else { r0.max(r1) };
             if let Some((xa, xb)) = Self::pixels(left, right, self.width) {
-                self.fill_row(y, xa, xb);
+                self.fill_row(y, xa, xb, id);
             }
         }
     }
@@ -412,9 +468,9 @@ mod tests {
 
     #[test]
     fn block_masks_cover_exactly_the_filled_pixels() {
-        let mut c = Coverage { width: 20, height: 13, blocks_x: 3, masks: vec![0; 6] };
-        c.fill_rows(3, 10, 6, 17);
-        c.fill_row(12, 0, 0);
+        let mut c = Coverage { width: 20, height: 13, blocks_x: 3, masks: vec![0; 6], cands: vec![Candidates::default(); 6] };
+        c.fill_rows(3, 10, 6, 17, 7);
+        c.fill_row(12, 0, 0, 9);
         for y in 0..13 {
             for x in 0..20 {
                 let want = ((3..=10).contains(&y) && (6..=17).contains(&x)) || (y == 12 && x == 0);
@@ -422,6 +478,19 @@ mod tests {
             }
         }
         assert_eq!(c.count(), 8 * 12 + 1);
+        // Each block lists the instances that cover it, once each.
+        assert_eq!(c.candidates(0, 0), Some(&[7][..]));
+        assert_eq!(c.candidates(2, 1), Some(&[7][..]));
+        assert_eq!(c.candidates(0, 1), Some(&[7, 9][..]));
+        for id in 10..13 {
+            c.fill_row(0, 0, 0, id);
+        }
+        assert_eq!(c.candidates(0, 0), Some(&[7, 10, 11, 12][..]));
+        c.fill_row(1, 0, 0, 14);
+        assert_eq!(c.candidates(0, 0), None, "too many to list");
+        c.fill_row(1, 0, 0, 15);
+        assert_eq!(c.candidates(0, 0), None);
+        assert_eq!(c.candidates(3, 0), None, "outside");
         assert_eq!(Coverage::pixels(2.6, 5.1, 20), Some((2, 5)));
         assert_eq!(Coverage::pixels(2.2, 5.8, 20), Some((1, 6)));
         assert_eq!(Coverage::pixels(-9.0, 50.0, 20), Some((0, 19)));

@@ -271,13 +271,20 @@ fn shade(w: &World, ray: &Ray, surf: &Surface, mat: &Material, s: &WhittedSettin
 /// reflected and refracted rays one by one. The same radiance as [`li`] on each ray (only
 /// which of two surfaces at exactly the same distance is seen may differ).
 pub fn li_packet(w: &World, rays: &[Ray], s: &WhittedSettings, out: &mut [Vec3]) {
-    li_packet_at(w, rays, s, 0, out);
+    li_packet_at(w, rays, None, s, 0, out);
+}
+
+/// [`li_packet`] for rays that can meet no instance but those of `among` (when given: a
+/// screen block's candidates from [`crate::Coverage::candidates`]), which are then tested
+/// without the top-level walk.
+pub(crate) fn li_packet_among(w: &World, rays: &[Ray], among: Option<&[u32]>, s: &WhittedSettings, out: &mut [Vec3]) {
+    li_packet_at(w, rays, among, s, 0, out);
 }
 
 /// [`li_packet`] at recursion depth `depth`: the refracted rays of the block, then its
 /// reflected rays, are traced as packets of their own (a flat mirror's or a window's rays
 /// stay coherent; scattered ones fall back to single rays inside the kernels).
-fn li_packet_at(w: &World, rays: &[Ray], s: &WhittedSettings, depth: u32, out: &mut [Vec3]) {
+fn li_packet_at(w: &World, rays: &[Ray], among: Option<&[u32]>, s: &WhittedSettings, depth: u32, out: &mut [Vec3]) {
     const N: usize = lucent_accel::MAX_PACKET;
     static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
     let default = DEFAULT.get_or_init(Material::default);
@@ -285,7 +292,10 @@ fn li_packet_at(w: &World, rays: &[Ray], s: &WhittedSettings, depth: u32, out: &
     for (rays, out) in rays.chunks(N).zip(out.chunks_mut(N)) {
         let n = rays.len();
         let mut hits = [None; N];
-        w.intersect_packet(rays, &mut hits[..n]);
+        match among {
+            Some(ids) => w.intersect_packet_among(rays, ids, &mut hits[..n]),
+            None => w.intersect_packet(rays, &mut hits[..n]),
+        }
         // PERF: a block that met nothing shows the background; the per-hit arrays below
         // (about 10 KB to initialise) are skipped.
         if hits[..n].iter().all(Option::is_none) {
@@ -385,7 +395,7 @@ fn li_packet_at(w: &World, rays: &[Ray], s: &WhittedSettings, depth: u32, out: &
             if k == 0 {
                 continue;
             }
-            li_packet_at(w, &next[..k], s, depth + 1, &mut res[..k]);
+            li_packet_at(w, &next[..k], None, s, depth + 1, &mut res[..k]);
             for (&j, r) in who[..k].iter().zip(&res) {
                 if let Some((weight, _)) = sec[j][pass] {
                     out[h.slot[j] as usize] += weight * *r;

@@ -3,7 +3,7 @@
 use crate::camera::Camera;
 use crate::coverage::Coverage;
 use crate::film::Film;
-use crate::integrator::{li, li_packet, radiance, Integrator, WhittedSettings, NO_RAYS};
+use crate::integrator::{li, li_packet_among, radiance, Integrator, WhittedSettings, NO_RAYS};
 use crate::world::World;
 use glam::Vec3;
 use lucent_accel::Ray;
@@ -58,28 +58,28 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
 /// the number of rays traced.
 pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u64) + Sync)) -> (Film, u64) {
     if !s.whitted.packets {
-        return render_tiles(w, cam, s.width, s.height, progress, &|px, out| {
+        return render_tiles(w, cam, s.width, s.height, progress, &|px, _, out| {
             for (o, &(x, y)) in out.iter_mut().zip(px) {
                 *o = render_pixel(w, cam, s, x, y);
             }
         });
     }
     let spp = s.spp.max(1);
-    render_tiles(w, cam, s.width, s.height, progress, &|px, out| {
+    render_tiles(w, cam, s.width, s.height, progress, &|px, among, out| {
         let mut rays = NO_RAYS;
         let rays = &mut rays[..px.len()];
         let n = px.len();
         if spp == 1 {
             // One sample: straight into the block's output.
             block_rays(cam, px, spp, 0, rays);
-            li_packet(w, rays, &s.whitted, out);
+            li_packet_among(w, rays, among, &s.whitted, out);
             return;
         }
         let mut c = [Vec3::ZERO; BLOCK];
         out.fill(Vec3::ZERO);
         for k in 0..spp {
             block_rays(cam, px, spp, k, rays);
-            li_packet(w, rays, &s.whitted, &mut c[..n]);
+            li_packet_among(w, rays, among, &s.whitted, &mut c[..n]);
             for (o, v) in out.iter_mut().zip(&c) {
                 *o += *v;
             }
@@ -110,13 +110,13 @@ pub fn render_pass(w: &World, cam: &Camera, s: &RenderSettings, integrator: Inte
         let (jx, jy) = if index == 0 { (0.5, 0.5) } else { jitter(x, y, index) };
         cam.ray(x as f32 + jx, y as f32 + jy)
     };
-    render_tiles(w, cam, s.width, s.height, &|_| {}, &|px, out| {
+    render_tiles(w, cam, s.width, s.height, &|_| {}, &|px, among, out| {
         if integrator == Integrator::Whitted && s.whitted.packets {
             let mut rays = NO_RAYS;
             for (r, &(x, y)) in rays.iter_mut().zip(px) {
                 *r = ray(x, y);
             }
-            li_packet(w, &rays[..px.len()], &s.whitted, out);
+            li_packet_among(w, &rays[..px.len()], among, &s.whitted, out);
         } else {
             for (o, &(x, y)) in out.iter_mut().zip(px) {
                 *o = radiance(w, &ray(x, y), &s.whitted, integrator);
@@ -125,8 +125,9 @@ pub fn render_pass(w: &World, cam: &Camera, s: &RenderSettings, integrator: Inte
     })
 }
 
-/// Computes the pixels of a block: `block(pixels, out)`.
-type BlockFn<'a> = dyn Fn(&[(u32, u32)], &mut [Vec3]) + Sync + 'a;
+/// Computes the pixels of a block: `block(pixels, among, out)`, where `among` (when given)
+/// lists the only instances the pixels' primary rays can meet.
+type BlockFn<'a> = dyn Fn(&[(u32, u32)], Option<&[u32]>, &mut [Vec3]) + Sync + 'a;
 
 /// Pixels per block handed to the integrators: 8×8 (one bit each in a coverage mask), one
 /// ray packet.
@@ -135,7 +136,8 @@ const _: () = assert!(BLOCK == lucent_accel::MAX_PACKET, "a block is one packet,
 
 /// The tile loop shared by every renderer: tiles on rayon; the pixels of each 8×8 block
 /// that the frame's [`Coverage`] says may meet something are handed out together,
-/// `block(pixels, out)`, and the others show the background.
+/// `block(pixels, among, out)` with the block's candidate instances, and the others show
+/// the background.
 fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dyn Fn(u64) + Sync), block: &BlockFn) -> (Film, u64) {
     let (tw, th) = (width.div_ceil(TILE), height.div_ceil(TILE));
     // PERF: the film is not cleared first: the tiles write every pixel, traced or not, in
@@ -209,7 +211,8 @@ fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dy
                     if n == 0 {
                         continue;
                     }
-                    block(&coords[..n], &mut px[..n]);
+                    let among = cover.as_ref().and_then(|c| c.candidates(bx / 8, by / 8));
+                    block(&coords[..n], among, &mut px[..n]);
                     for (&(x, y), c) in coords[..n].iter().zip(&px) {
                         put(x, y, *c);
                     }

@@ -220,6 +220,13 @@ impl World {
         self.accel.intersect_packet(rays, out);
     }
 
+    /// Closest hits of coherent rays that can meet no instance but those of `ids` (see
+    /// `TwoLevel::intersect_packet_among`).
+    pub fn intersect_packet_among(&self, rays: &[Ray], ids: &[u32], out: &mut [Option<Hit>]) {
+        RAYS.with(|c| c.set(c.get() + rays.len() as u64));
+        self.accel.intersect_packet_among(rays, ids, out);
+    }
+
     /// Occlusion of coherent rays, traced in packets (see `TwoLevel::occluded_packet`).
     pub fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
         RAYS.with(|c| c.set(c.get() + rays.len() as u64));

@@ -87,16 +87,25 @@ fn random_camera(rng: &mut Pcg64, w: u32, h: u32, kind: u32, among: bool) -> Cam
     }
 }
 
-/// Checks that every ray through an uncovered pixel misses; returns (covered, hit) pixel
-/// counts at the pixel centres.
-fn check(world: &World, cam: &Camera, w: u32, h: u32, what: &str) -> (u64, u64) {
-    let Some(cover) = Coverage::of(world, cam) else { return (u64::from(w * h), 0) };
-    let mut hits = 0;
+/// Checks that every ray through an uncovered pixel misses, and that a covered pixel's
+/// rays hit only instances its block lists (when it lists them); returns (covered, hit,
+/// listed) pixel counts, hits at the pixel centres.
+fn check(world: &World, cam: &Camera, w: u32, h: u32, what: &str) -> (u64, u64, u64) {
+    let Some(cover) = Coverage::of(world, cam) else { return (u64::from(w * h), 0, 0) };
+    let (mut hits, mut listed) = (0, 0);
     for y in 0..h {
         for x in 0..w {
             let centre = world.intersect(&cam.ray(x as f32 + 0.5, y as f32 + 0.5)).is_some();
             hits += centre as u64;
             if cover.covered(x, y) {
+                if let Some(ids) = cover.candidates(x / 8, y / 8) {
+                    listed += 1;
+                    for (jx, jy) in [(0.5, 0.5), (0.0, 0.0), (0.999, 0.999), (0.0, 0.999), (0.999, 0.0)] {
+                        if let Some(hit) = world.intersect(&cam.ray(x as f32 + jx, y as f32 + jy)) {
+                            assert!(ids.contains(&hit.inst), "{what}: pixel {x},{y} hits instance {} not in {ids:?}", hit.inst);
+                        }
+                    }
+                }
                 continue;
             }
             for (jx, jy) in
@@ -107,25 +116,27 @@ fn check(world: &World, cam: &Camera, w: u32, h: u32, what: &str) -> (u64, u64) 
             }
         }
     }
-    (cover.count(), hits)
+    (cover.count(), hits, listed)
 }
 
 #[test]
 fn uncovered_pixels_never_hit() {
     let mut rng = Pcg64::seed_from_u64(7);
     let (w, h) = (64, 48);
-    let mut culled = 0;
+    let (mut culled, mut listed) = (0, 0);
     for round in 0..80 {
         let n = rng.random_range(1..6);
         let scene = random_scene(&mut rng, n, false);
         let world = World::new(scene, MeshOptions::default()).expect("world");
         for kind in 0..6 {
             let cam = random_camera(&mut rng, w, h, kind % 3, kind >= 3);
-            let (covered, _) = check(&world, &cam, w, h, &format!("round {round}, camera {kind}"));
+            let (covered, _, l) = check(&world, &cam, w, h, &format!("round {round}, camera {kind}"));
             culled += u64::from(w * h) - covered;
+            listed += l;
         }
     }
     assert!(culled > 80 * 6 * u64::from(w * h) / 4, "coverage culls little: {culled}");
+    assert!(listed > 80 * 6 * u64::from(w * h) / 20, "few blocks list their instances: {listed} pixels");
 }
 
 #[test]
@@ -138,7 +149,7 @@ fn spheres_are_covered_tightly_and_safely() {
         let world = World::new(scene, MeshOptions::default()).expect("world");
         for kind in [0, 2] {
             let cam = random_camera(&mut rng, w, h, kind, false);
-            let (c, hh) = check(&world, &cam, w, h, &format!("round {round}, camera {kind}"));
+            let (c, hh, _) = check(&world, &cam, w, h, &format!("round {round}, camera {kind}"));
             if Coverage::of(&world, &cam).is_some() {
                 covered += c;
                 hit += hh;

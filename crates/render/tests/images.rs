@@ -202,6 +202,13 @@ fn coverage_never_changes_the_picture() {
     let cover = lucent_render::Coverage::of(&world, &cam).expect("the demo has bounds");
     let covered = cover.count();
     assert!(covered < u64::from(w * h) * 9 / 10 && covered > u64::from(w * h) / 4, "{covered} of {} pixels covered", w * h);
+    // Blocks that list their few instances test those directly (no top-level walk): the
+    // comparison above covered that path too.
+    let listed = (0..h / 8)
+        .flat_map(|by| (0..w / 8).map(move |bx| (bx, by)))
+        .filter(|&(bx, by)| cover.block(bx, by) != 0 && cover.candidates(bx, by).is_some())
+        .count();
+    assert!(listed > 20, "only {listed} blocks list their instances");
 }
 
 #[test]
