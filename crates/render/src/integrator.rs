@@ -3,11 +3,11 @@
 //! every light with a hard shadow ray, plus recursive mirror reflection and refraction
 //! (Snell's law, exact dielectric Fresnel, total internal reflection) up to a depth limit.
 
-use crate::shading::{light_sample, mat_terms, offset, orient, put3, v3, HitLanes, LightConst, LightLanes, LitPoint};
+use crate::shading::{light_sample, mat_terms, offset, orient, put3, v3, with_scratch, LightConst, LitPoint, Scratch};
 use crate::texture::sample;
 use crate::world::{Surface, World};
 use glam::Vec3;
-use lucent_accel::Ray;
+use lucent_accel::{Hit, Ray};
 use lucent_scene::{Light, Material};
 
 /// Integrator settings.
@@ -286,8 +286,6 @@ pub(crate) fn li_packet_among(w: &World, rays: &[Ray], among: Option<&[u32]>, s:
 /// stay coherent; scattered ones fall back to single rays inside the kernels).
 fn li_packet_at(w: &World, rays: &[Ray], among: Option<&[u32]>, s: &WhittedSettings, depth: u32, out: &mut [Vec3]) {
     const N: usize = lucent_accel::MAX_PACKET;
-    static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
-    let default = DEFAULT.get_or_init(Material::default);
     let bg = w.scene.background;
     for (rays, out) in rays.chunks(N).zip(out.chunks_mut(N)) {
         let n = rays.len();
@@ -302,104 +300,115 @@ fn li_packet_at(w: &World, rays: &[Ray], among: Option<&[u32]>, s: &WhittedSetti
             out.fill(bg);
             continue;
         }
-        // The hits, gathered into lanes (structure of arrays) for the shading arithmetic.
-        let mut h = HitLanes::new();
-        let mut mats: [&Material; N] = [default; N];
-        let mut transmit = [0.0f32; N];
-        let mut m = 0;
-        for (i, (ray, hit)) in rays.iter().zip(&hits[..n]).enumerate() {
-            let Some(hit) = hit else {
-                out[i] = bg;
+        with_scratch(|sc| shade_hits(w, rays, &hits[..n], s, depth, out, sc));
+    }
+}
+
+/// Shades the hits of one packet (`hits[i]` of `rays[i]`, into `out[i]`; misses show the
+/// background), in the lane buffers `sc`.
+fn shade_hits(w: &World, rays: &[Ray], hits: &[Option<Hit>], s: &WhittedSettings, depth: u32, out: &mut [Vec3], sc: &mut Scratch) {
+    const N: usize = lucent_accel::MAX_PACKET;
+    static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
+    let default = DEFAULT.get_or_init(Material::default);
+    let bg = w.scene.background;
+    // The hits, gathered into lanes (structure of arrays) for the shading arithmetic.
+    let h = &mut sc.h;
+    h.spec_any = 0;
+    let mut mats: [&Material; N] = [default; N];
+    let mut transmit = [0.0f32; N];
+    let mut m = 0;
+    for (i, (ray, hit)) in rays.iter().zip(hits).enumerate() {
+        let Some(hit) = hit else {
+            out[i] = bg;
+            continue;
+        };
+        let surf = w.surface(ray, hit);
+        let mat = w.scene.materials.get(surf.material as usize).unwrap_or(default);
+        let t = mat_terms(mat, textured_kd(w, mat, surf.uv), w.scene.ambient);
+        out[i] = t.c;
+        h.slot[m] = i as u8;
+        put3(&mut h.p, m, surf.p);
+        put3(&mut h.dir, m, ray.dir);
+        put3(&mut h.ng, m, surf.ng);
+        put3(&mut h.ns, m, surf.ns);
+        put3(&mut h.kd, m, t.kd);
+        put3(&mut h.specular, m, mat.specular);
+        h.opaque[m] = t.opaque;
+        h.spec_any |= u64::from(mat.specular.max_element() > 0.0) << m;
+        h.shininess[m] = mat.shininess;
+        mats[m] = mat;
+        transmit[m] = t.transmit;
+        m += 1;
+    }
+    h.m = m;
+    h.orient(w.scale);
+    // Each light at every hit at once, then its shadow rays as one packet.
+    if !w.lights.is_empty() {
+        let ll = &mut sc.ll;
+        let mut blocked = [false; N];
+        let nb = m.div_ceil(8);
+        for l in &w.lights {
+            let rays = h.light(l, ll);
+            if rays == 0 {
                 continue;
-            };
-            let surf = w.surface(ray, hit);
-            let mat = w.scene.materials.get(surf.material as usize).unwrap_or(default);
-            let t = mat_terms(mat, textured_kd(w, mat, surf.uv), w.scene.ambient);
-            out[i] = t.c;
-            h.slot[m] = i as u8;
-            put3(&mut h.p, m, surf.p);
-            put3(&mut h.dir, m, ray.dir);
-            put3(&mut h.ng, m, surf.ng);
-            put3(&mut h.ns, m, surf.ns);
-            put3(&mut h.kd, m, t.kd);
-            put3(&mut h.specular, m, mat.specular);
-            h.opaque[m] = t.opaque;
-            h.spec_any |= u64::from(mat.specular.max_element() > 0.0) << m;
-            h.shininess[m] = mat.shininess;
-            mats[m] = mat;
-            transmit[m] = t.transmit;
-            m += 1;
-        }
-        h.m = m;
-        h.orient(w.scale);
-        // Each light at every hit at once, then its shadow rays as one packet.
-        if !w.lights.is_empty() {
-            let mut ll = LightLanes::new();
-            let mut blocked = [false; N];
-            let nb = m.div_ceil(8);
-            for l in &w.lights {
-                let rays = h.light(l, &mut ll);
-                if rays == 0 {
-                    continue;
-                }
-                if s.shadows {
-                    w.occluded_blocks(&ll.blocks[..nb], &mut blocked[..nb * 8], rays);
-                }
-                let mut lit = ll.valid;
-                while lit != 0 {
-                    let j = lit.trailing_zeros() as usize;
-                    lit &= lit - 1;
-                    if !blocked[j] {
-                        out[h.slot[j] as usize] += v3(&ll.term, j);
-                    }
+            }
+            if s.shadows {
+                w.occluded_blocks(&ll.blocks[..nb], &mut blocked[..nb * 8], rays);
+            }
+            let mut lit = ll.valid;
+            while lit != 0 {
+                let j = lit.trailing_zeros() as usize;
+                lit &= lit - 1;
+                if !blocked[j] {
+                    out[h.slot[j] as usize] += v3(&ll.term, j);
                 }
             }
         }
-        // PERF: blocks where nothing reflects or transmits (REND3R's matte spheres) skip
-        // the secondary stage and its buffers (a tenth of a 256-sphere frame).
-        if depth >= s.max_depth || !(0..m).any(|j| transmit[j] > 0.0 || mats[j].reflect.max_element() > 0.0) {
+    }
+    // PERF: blocks where nothing reflects or transmits (REND3R's matte spheres) skip
+    // the secondary stage and its buffers (a tenth of a 256-sphere frame).
+    if depth >= s.max_depth || !(0..m).any(|j| transmit[j] > 0.0 || mats[j].reflect.max_element() > 0.0) {
+        return;
+    }
+    // Transmitted light first, then reflected, as `secondary` adds them.
+    // PERF: a fixed array, as the lanes (no allocation per block and depth).
+    let mut sec = [[None; 2]; N];
+    for (j, slot) in sec[..m].iter_mut().enumerate() {
+        let local = Local {
+            p: v3(&h.p, j),
+            mat: mats[j],
+            d: v3(&h.dir, j),
+            front: (h.front >> j) & 1 == 1,
+            ng: v3(&h.ng, j),
+            ns: v3(&h.ns, j),
+            kd: v3(&h.kd, j),
+            transmit: transmit[j],
+            opaque: h.opaque[j],
+            p_out: v3(&h.p_out, j),
+            off: h.off[j],
+        };
+        *slot = secondary_rays(w, &local);
+    }
+    let sec = &sec[..m];
+    let mut next = NO_RAYS;
+    let mut who = [0usize; N];
+    let mut res = [Vec3::ZERO; N];
+    for pass in 0..2 {
+        let mut k = 0;
+        for (j, r) in sec.iter().enumerate() {
+            if let Some((_, ray)) = r[pass] {
+                next[k] = ray;
+                who[k] = j;
+                k += 1;
+            }
+        }
+        if k == 0 {
             continue;
         }
-        // Transmitted light first, then reflected, as `secondary` adds them.
-        // PERF: a fixed array, as the lanes (no allocation per block and depth).
-        let mut sec = [[None; 2]; N];
-        for (j, slot) in sec[..m].iter_mut().enumerate() {
-            let local = Local {
-                p: v3(&h.p, j),
-                mat: mats[j],
-                d: v3(&h.dir, j),
-                front: (h.front >> j) & 1 == 1,
-                ng: v3(&h.ng, j),
-                ns: v3(&h.ns, j),
-                kd: v3(&h.kd, j),
-                transmit: transmit[j],
-                opaque: h.opaque[j],
-                p_out: v3(&h.p_out, j),
-                off: h.off[j],
-            };
-            *slot = secondary_rays(w, &local);
-        }
-        let sec = &sec[..m];
-        let mut next = NO_RAYS;
-        let mut who = [0usize; N];
-        let mut res = [Vec3::ZERO; N];
-        for pass in 0..2 {
-            let mut k = 0;
-            for (j, r) in sec.iter().enumerate() {
-                if let Some((_, ray)) = r[pass] {
-                    next[k] = ray;
-                    who[k] = j;
-                    k += 1;
-                }
-            }
-            if k == 0 {
-                continue;
-            }
-            li_packet_at(w, &next[..k], None, s, depth + 1, &mut res[..k]);
-            for (&j, r) in who[..k].iter().zip(&res) {
-                if let Some((weight, _)) = sec[j][pass] {
-                    out[h.slot[j] as usize] += weight * *r;
-                }
+        li_packet_at(w, &next[..k], None, s, depth + 1, &mut res[..k]);
+        for (&j, r) in who[..k].iter().zip(&res) {
+            if let Some((weight, _)) = sec[j][pass] {
+                out[h.slot[j] as usize] += weight * *r;
             }
         }
     }
