@@ -189,6 +189,7 @@ impl Shape {
 
     /// Outward surface normal (object space, not normalized) at a point of part `part`.
     #[must_use]
+    #[inline]
     pub fn normal_local(self, p: Vec3, part: u32) -> Vec3 {
         match (self, part) {
             (Shape::Sphere, _) => p,

@@ -172,33 +172,28 @@ fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dy
                 for bx in (x0..x1).step_by(8) {
                     let (bx1, by1) = ((bx + 8).min(x1), (by + 8).min(y1));
                     let mask = cover.as_ref().map_or(u64::MAX, |c| c.block(bx / 8, by / 8));
-                    if mask == 0 {
-                        // PERF: a row at a time (pixel by pixel, the background of sparse
-                        // REND3R frames was a tenth of their time).
-                        let row = [bg; 8];
-                        for y in by..by1 {
-                            // SAFETY: the row's pixels bx..bx1 lie inside this tile and the
-                            // film's allocation, and no other tile writes them.
-                            unsafe {
-                                std::ptr::copy_nonoverlapping(row.as_ptr(), out.get().add((y * width + bx) as usize), (bx1 - bx) as usize)
-                            };
-                        }
-                        continue;
-                    }
+                    let (cols, rows) = (bx1 - bx, by1 - by);
                     // The pixels of the block inside the tile (a partial block at the image's
                     // right or bottom edge has fewer).
-                    let (cols, rows) = (bx1 - bx, by1 - by);
                     let inside = if cols == 8 && rows == 8 {
                         u64::MAX
                     } else {
                         (u64::MAX >> (64 - 8 * rows)) & ((0xffu64 >> (8 - cols)) * 0x0101_0101_0101_0101)
                     };
-                    let (trace, skip) = (mask & inside, !mask & inside);
-                    let mut b = skip;
-                    while b != 0 {
-                        let i = b.trailing_zeros();
-                        b &= b - 1;
-                        put(bx + i % 8, by + i / 8, bg);
+                    let trace = mask & inside;
+                    if trace != inside {
+                        // PERF: the background a row at a time (pixel by pixel, the background
+                        // of sparse REND3R frames was a tenth of their time); traced pixels
+                        // overwrite it below.
+                        let row = [bg; 8];
+                        for y in by..by1 {
+                            // SAFETY: the row's pixels bx..bx1 lie inside this tile and the
+                            // film's allocation, and no other tile writes them.
+                            unsafe { std::ptr::copy_nonoverlapping(row.as_ptr(), out.get().add((y * width + bx) as usize), cols as usize) };
+                        }
+                    }
+                    if trace == 0 {
+                        continue;
                     }
                     let mut n = 0;
                     let mut b = trace;
@@ -223,8 +218,9 @@ fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dy
         })
         .sum();
     // SAFETY: every pixel lies in exactly one tile and one of its blocks, and each block
-    // wrote each of its pixels once above: the traced ones from `block`, the others the
-    // background. (Had a tile panicked, the length would still be zero here.)
+    // wrote each of its pixels above: the traced ones from `block` (over the background
+    // where the block was only partly traced), the others the background. (Had a tile
+    // panicked, the length would still be zero here.)
     unsafe { pixels.set_len(n_pixels) };
     (Film { width, height, pixels }, rays)
 }
