@@ -805,7 +805,7 @@ pub(crate) struct Scratch {
 
 thread_local! {
     /// Each thread's free lane buffers (one set per level of recursion in use).
-    static SCRATCH: std::cell::RefCell<Vec<Box<Scratch>>> = const { std::cell::RefCell::new(Vec::new()) };
+    static LANE_POOL: std::cell::RefCell<Vec<Box<Scratch>>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Runs `f` with lane buffers of this thread's (PERF: zeroing 13 KB of fresh buffers per
@@ -813,9 +813,10 @@ thread_local! {
 /// values: every field a packet reads is written first, except `spec_any`, which the
 /// gather clears.
 pub(crate) fn with_scratch<R>(f: impl FnOnce(&mut Scratch) -> R) -> R {
-    let mut sc = SCRATCH.with(|v| v.borrow_mut().pop()).unwrap_or_else(|| Box::new(Scratch { h: HitLanes::new(), ll: LightLanes::new() }));
+    let mut sc =
+        LANE_POOL.with(|v| v.borrow_mut().pop()).unwrap_or_else(|| Box::new(Scratch { h: HitLanes::new(), ll: LightLanes::new() }));
     let r = f(&mut sc);
-    SCRATCH.with(|v| v.borrow_mut().push(sc));
+    LANE_POOL.with(|v| v.borrow_mut().push(sc));
     r
 }
 
