@@ -45,25 +45,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     let start = Instant::now();
     let mut frame = 0u64;
     let mut warned = false;
-    loop {
-        if frame >= a.frames || a.seconds.is_some_and(|s| start.elapsed().as_secs_f64() >= s) {
-            println!("stopped after {frame} frames (limit reached)");
-            break;
-        }
-        match p.run_to_frame(50_000_000) {
-            Step::Frame => {}
-            Step::Busy => {
-                anyhow::bail!(
-                    "{}: the program executed {} words without reaching nf or er (a loop with no nf?)",
-                    a.program.display(),
-                    p.executed
-                )
-            }
-            _ => {
-                println!("program halted after {frame} frames ({} words executed)", p.executed);
-                break;
-            }
-        }
+    while within_limits(&a, start, frame) && reached_frame(&a, p.run_to_frame(WORDS_PER_FRAME), p.executed, frame)? {
         frame += 1;
         let t = Instant::now();
         let (film, info) = render_frame(&p.state, &fs)?;
@@ -88,6 +70,35 @@ pub fn run(a: RunArgs) -> Result<()> {
     Ok(())
 }
 
+/// Words a program may execute between two frames before it counts as a runaway loop.
+const WORDS_PER_FRAME: u64 = 50_000_000;
+
+/// Whether another frame is allowed: false (said on the terminal) once `--frames` frames
+/// were made or `--seconds` have passed.
+fn within_limits(a: &RunArgs, start: Instant, frame: u64) -> bool {
+    let more = frame < a.frames && !a.seconds.is_some_and(|s| start.elapsed().as_secs_f64() >= s);
+    if !more {
+        println!("stopped after {frame} frames (limit reached)");
+    }
+    more
+}
+
+/// Whether the program reached its next `nf` (`step`); false (said on the terminal) when it
+/// halted; an error when it ran `WORDS_PER_FRAME` words without either (the board model
+/// and the processor alike).
+fn reached_frame(a: &RunArgs, step: Step, executed: u64, frame: u64) -> Result<bool> {
+    match step {
+        Step::Frame => Ok(true),
+        Step::Busy => {
+            anyhow::bail!("{}: the program executed {executed} words without reaching nf or er (a loop with no nf?)", a.program.display())
+        }
+        _ => {
+            println!("program halted after {frame} frames ({executed} words executed)");
+            Ok(false)
+        }
+    }
+}
+
 fn run_board(a: &RunArgs, words: &[u32], switches: u16) -> Result<()> {
     use lucent_engine::board::{Board, Build};
     let build = if a.mode == Mode::Raster { Build::Raster } else { Build::Raytracing };
@@ -103,15 +114,7 @@ fn run_board(a: &RunArgs, words: &[u32], switches: u16) -> Result<()> {
     std::fs::create_dir_all(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
     let start = Instant::now();
     let mut frame = 0u64;
-    loop {
-        if frame >= a.frames || a.seconds.is_some_and(|s| start.elapsed().as_secs_f64() >= s) {
-            println!("stopped after {frame} frames (limit reached)");
-            break;
-        }
-        if b.processor.run_to_frame(50_000_000) != Step::Frame {
-            println!("program halted after {frame} frames ({} words executed)", b.processor.executed);
-            break;
-        }
+    while within_limits(a, start, frame) && reached_frame(a, b.processor.run_to_frame(WORDS_PER_FRAME), b.processor.executed, frame)? {
         frame += 1;
         let t = Instant::now();
         let film = b.frame();

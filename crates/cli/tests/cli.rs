@@ -290,3 +290,26 @@ fn bench_rend3r_times_the_chosen_rows() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("--lights 2: Table IV's rows have 0 or 1 lights"));
 }
+
+/// `lucent run` ends on a program that loops without `nf`, with the same clear error in the
+/// main path and in the board model, and reports where a halting program stopped.
+#[test]
+fn run_ends_on_a_loop_without_frames() {
+    let d = tempfile::tempdir().expect("tmp");
+    let looping = d.path().join("loop.rdr");
+    std::fs::write(&looping, "nr\nlr\n").expect("write");
+    for extra in [&[][..], &["--compat", "board"][..]] {
+        let o = lucent().arg("run").arg(&looping).args(extra).arg("-o").arg(d.path().join("out")).output().expect("run");
+        assert!(!o.status.success(), "{extra:?}: a runaway loop must fail");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains("loop.rdr") && e.contains("without reaching nf or er"), "{extra:?}: {e}");
+    }
+    let halting = d.path().join("halt.rdr");
+    std::fs::write(&halting, "nr\nnf\ner\n").expect("write");
+    for extra in [&[][..], &["--compat", "board"][..]] {
+        let o = lucent().arg("run").arg(&halting).args(extra).arg("-o").arg(d.path().join("halt")).output().expect("run");
+        assert!(o.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&o.stderr));
+        let s = String::from_utf8_lossy(&o.stdout);
+        assert!(s.contains("program halted after 1 frames"), "{extra:?}: {s}");
+    }
+}
