@@ -107,12 +107,8 @@ pub fn radiance(w: &World, ray: &Ray, s: &WhittedSettings, integrator: Integrato
             if integrator == Integrator::Normals {
                 return ns * 0.5 + Vec3::splat(0.5);
             }
-            static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
-            let mat = w.scene.materials.get(surf.material as usize).unwrap_or_else(|| DEFAULT.get_or_init(Material::default));
-            let mut kd = mat.diffuse;
-            if let Some(t) = mat.diffuse_tex.and_then(|t| w.scene.textures.get(t as usize)) {
-                kd *= sample(t, surf.uv).truncate();
-            }
+            let mat = material(w, surf.material);
+            let kd = textured_kd(w, mat, surf.uv);
             let base = if kd.max_element() > 0.0 { kd } else { mat.specular.max(mat.reflect).max(mat.transmit) };
             base * (0.15 + 0.85 * (-d).dot(ns).max(0.0)) + mat.emission.min(Vec3::ONE)
         }
@@ -126,10 +122,19 @@ pub fn li(w: &World, ray: &Ray, s: &WhittedSettings, depth: u32) -> Vec3 {
         return w.scene.background;
     };
     let surf = w.surface(ray, &hit);
-    // PERF: borrowed, not cloned (a clone allocates the name on every hit).
+    shade(w, ray, &surf, material(w, surf.material), s, depth)
+}
+
+/// Material `index` of the scene, or the default one for an index out of range (PERF:
+/// borrowed, not cloned: a clone allocates the name on every hit).
+fn material(w: &World, index: u32) -> &Material {
+    w.scene.materials.get(index as usize).unwrap_or_else(|| default_material())
+}
+
+/// `Material::default()`, made once.
+fn default_material() -> &'static Material {
     static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
-    let mat = w.scene.materials.get(surf.material as usize).unwrap_or_else(|| DEFAULT.get_or_init(Material::default));
-    shade(w, ray, &surf, mat, s, depth)
+    DEFAULT.get_or_init(Material::default)
 }
 
 /// What shading one hit needs, found before any light is asked.
@@ -308,13 +313,11 @@ fn li_packet_at(w: &World, rays: &[Ray], among: Option<&[u32]>, s: &WhittedSetti
 /// background), in the lane buffers `sc`.
 fn shade_hits(w: &World, rays: &[Ray], hits: &[Option<Hit>], s: &WhittedSettings, depth: u32, out: &mut [Vec3], sc: &mut Scratch) {
     const N: usize = lucent_accel::MAX_PACKET;
-    static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
-    let default = DEFAULT.get_or_init(Material::default);
     let bg = w.scene.background;
     // The hits, gathered into lanes (structure of arrays) for the shading arithmetic.
     let h = &mut sc.h;
     h.spec_any = 0;
-    let mut mats: [&Material; N] = [default; N];
+    let mut mats: [&Material; N] = [default_material(); N];
     let mut transmit = [0.0f32; N];
     let mut m = 0;
     for (i, (ray, hit)) in rays.iter().zip(hits).enumerate() {
@@ -323,7 +326,7 @@ fn shade_hits(w: &World, rays: &[Ray], hits: &[Option<Hit>], s: &WhittedSettings
             continue;
         };
         let surf = w.surface(ray, hit);
-        let mat = w.scene.materials.get(surf.material as usize).unwrap_or(default);
+        let mat = material(w, surf.material);
         let t = mat_terms(mat, textured_kd(w, mat, surf.uv), w.scene.ambient);
         out[i] = t.c;
         h.slot[m] = i as u8;

@@ -129,43 +129,28 @@ pub(crate) struct F8(pub [f32; W]);
 #[repr(C, align(32))]
 pub(crate) struct M8(pub [i32; W]);
 
+/// A lane-wise binary operator `$op` on the eight-lane type `$ty` (of `$elem`s).
 macro_rules! lanewise {
-    ($tr:ident, $name:ident, $op:tt) => {
-        impl $tr for F8 {
-            type Output = F8;
+    ($ty:ident, $elem:ty, $tr:ident, $name:ident, $op:tt) => {
+        impl $tr for $ty {
+            type Output = $ty;
             #[inline(always)]
             fn $name(self, o: Self) -> Self {
-                let mut r = [0f32; W];
+                let mut r = [<$elem>::default(); W];
                 for i in 0..W {
                     r[i] = self.0[i] $op o.0[i];
                 }
-                F8(r)
+                $ty(r)
             }
         }
     };
 }
-lanewise!(Add, add, +);
-lanewise!(Sub, sub, -);
-lanewise!(Mul, mul, *);
-lanewise!(Div, div, /);
-
-macro_rules! maskwise {
-    ($tr:ident, $name:ident, $op:tt) => {
-        impl $tr for M8 {
-            type Output = M8;
-            #[inline(always)]
-            fn $name(self, o: Self) -> Self {
-                let mut r = [0i32; W];
-                for i in 0..W {
-                    r[i] = self.0[i] $op o.0[i];
-                }
-                M8(r)
-            }
-        }
-    };
-}
-maskwise!(BitAnd, bitand, &);
-maskwise!(BitOr, bitor, |);
+lanewise!(F8, f32, Add, add, +);
+lanewise!(F8, f32, Sub, sub, -);
+lanewise!(F8, f32, Mul, mul, *);
+lanewise!(F8, f32, Div, div, /);
+lanewise!(M8, i32, BitAnd, bitand, &);
+lanewise!(M8, i32, BitOr, bitor, |);
 
 impl Not for M8 {
     type Output = M8;

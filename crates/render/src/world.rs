@@ -227,12 +227,6 @@ impl World {
         self.accel.intersect_packet_among(rays, ids, out);
     }
 
-    /// Occlusion of coherent rays, traced in packets (see `TwoLevel::occluded_packet`).
-    pub fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
-        RAYS.with(|c| c.set(c.get() + rays.len() as u64));
-        self.accel.occluded_packet(rays, out);
-    }
-
     /// Occlusion of rays in SoA blocks (empty lanes allowed), `rays` of them real.
     pub(crate) fn occluded_blocks(&self, blocks: &[lucent_accel::RayBlock], out: &mut [bool], rays: usize) {
         RAYS.with(|c| c.set(c.get() + rays as u64));
