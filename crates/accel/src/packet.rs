@@ -137,11 +137,13 @@ impl F8 {
     /// Largest lane.
     #[inline(always)]
     fn hmax(self) -> f32 {
-        let mut m = self.0[0];
-        for i in 1..LANES {
-            m = if self.0[i] > m { self.0[i] } else { m };
-        }
-        m
+        // PERF: a tree (three steps the compiler keeps in vector registers), not a chain of
+        // seven dependent compares; the same maximum for lanes without NaN.
+        let m = |a: f32, b: f32| if a > b { a } else { b };
+        let v = self.0;
+        let a = [m(v[0], v[4]), m(v[1], v[5]), m(v[2], v[6]), m(v[3], v[7])];
+        let b = [m(a[0], a[2]), m(a[1], a[3])];
+        m(b[0], b[1])
     }
 }
 
@@ -420,6 +422,9 @@ impl Packet {
         let mut any = 0;
         for g in 0..self.groups {
             let m = active[g];
+            if m.bits() == 0 {
+                continue;
+            }
             any |= m.bits();
             let (pinf, ninf) = (F8::splat(inf), F8::splat(-inf));
             for k in 0..3 {
@@ -480,6 +485,9 @@ impl Packet {
         let mut ehi = [F8::splat(-inf); 3];
         for g in 0..self.groups {
             let m = active[g];
+            if m.bits() == 0 {
+                continue;
+            }
             for k in 0..3 {
                 let e = self.o[g][k].add(self.d[g][k].mul(h.t[g]));
                 elo[k] = elo[k].min(F8::splat(inf).blend(m, e));
@@ -544,7 +552,9 @@ impl Packet {
                 hi[k] = hi[k].max(F8::splat(-inf).blend(set[g], self.o[g][k]));
             }
         }
-        OriginBounds { lo: lo.map(|v| -(v.neg().hmax())), hi: hi.map(F8::hmax) }
+        // PERF: written out, not `array::map` (see `load_blocks_into`).
+        let low = |v: F8| -(v.neg().hmax());
+        OriginBounds { lo: [low(lo[0]), low(lo[1]), low(lo[2])], hi: [hi[0].hmax(), hi[1].hmax(), hi[2].hmax()] }
     }
 
     /// The lanes of `set` split at the middle of the widest axis of their origins' bounds
@@ -561,6 +571,31 @@ impl Packet {
             above[g] = m.andnot(set[g]);
         }
         (below, above)
+    }
+
+    /// The lanes of `set` split by the sign of their direction on the first axis where
+    /// it differs (the sign of the reciprocal, which the interval tests go by): `None` when
+    /// every lane has the same signs. Rays toward a light straight above a tile, or primary
+    /// rays through the image's centre column, mix signs; each half is coherent again.
+    #[inline(always)]
+    fn sign_split(&self, set: &Masks) -> Option<(Masks, Masks)> {
+        let z = F8::splat(0.0);
+        for k in 0..3 {
+            let mut neg = [M8::NONE; GROUPS];
+            let mut pos = [M8::NONE; GROUPS];
+            let (mut any_neg, mut any_pos) = (0, 0);
+            for g in 0..self.groups {
+                let m = self.inv[g][k].lt(z);
+                neg[g] = m.and(set[g]);
+                pos[g] = m.andnot(set[g]);
+                any_neg |= neg[g].bits();
+                any_pos |= pos[g].bits();
+            }
+            if any_neg != 0 && any_pos != 0 {
+                return Some((neg, pos));
+            }
+        }
+        None
     }
 }
 
@@ -1050,11 +1085,15 @@ const SPLIT_DEPTH: usize = 4;
 /// together pays ([`Interval::worth`] with origin spread `ext`). A packet whose origins
 /// spread too far (the shadow rays of a tile that spans several objects) is halved at the
 /// middle of its widest origin axis, up to [`SPLIT_DEPTH`] times, and each half tried again:
-/// rays that start on one object stay together. What is left (mixed direction signs, fewer
+/// rays that start on one object stay together. Rays that mix direction signs (no interval
+/// bounds them: a light straight above the tile, a view along an axis) are halved by sign
+/// instead ([`Packet::sign_split`]), also up to [`SPLIT_DEPTH`] times. What is left (fewer
 /// than three rays, or still scattered) goes as groups of eight when a group agrees on
-/// direction signs, else ray by ray. `split` false turns the halving off: inside an
-/// instance the packet was already formed by the top level (splitting there again cost the
-/// sunflowers 8%).
+/// direction signs, else ray by ray. `split` false turns the halving by origin off: inside
+/// an instance the packet was already formed by the top level (splitting there again cost
+/// the sunflowers 8%); sign splits stay on, as a rotation can mix the signs of rays that
+/// agreed in world space. PERF: before sign splits, such rays went one by one: the BART
+/// kitchen's frame with shadows took 6% longer.
 ///
 /// PERF: a macro, not a function taking closures: closures are not compiled with the
 /// caller's target features, so the AVX2 kernels would not inline into them.
@@ -1077,7 +1116,9 @@ macro_rules! coherent_parts {
             // those that are close enough get the full interval.
             let bounds = (depth > 0).then(|| p.origin_bounds(&set));
             let close = bounds.is_none_or(|b| b.widest().1 <= ext && lanes >= 3);
-            // Whether halving may still help: not for mixed direction signs (no interval).
+            // Whether halving may still help; rays that mix direction signs (no interval) are
+            // split by sign instead.
+            let mut by_sign = None;
             let splittable = if close {
                 let whole = {
                     let ($m, $hh) = (&set, &*h);
@@ -1090,14 +1131,21 @@ macro_rules! coherent_parts {
                         continue;
                     }
                     Some(_) => true,
-                    None => false,
+                    None => {
+                        by_sign = p.sign_split(&set);
+                        by_sign.is_some()
+                    }
                 }
             } else {
                 true
             };
-            if splittable && depth < max_depth && lanes >= 6 {
-                let b = bounds.unwrap_or_else(|| p.origin_bounds(&set));
-                let (below, above) = p.split_at(&set, b);
+            // Sign splits are made inside instances too (see above).
+            let limit = if by_sign.is_some() { SPLIT_DEPTH } else { max_depth };
+            if splittable && depth < limit && lanes >= 6 {
+                let (below, above) = match by_sign {
+                    Some(halves) => halves,
+                    None => p.split_at(&set, bounds.unwrap_or_else(|| p.origin_bounds(&set))),
+                };
                 work[n] = (below, depth + 1);
                 work[n + 1] = (above, depth + 1);
                 n += 2;
@@ -1384,8 +1432,32 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
         InstLeaves { tl: self.tl, k: std::marker::PhantomData }
     }
 
+    /// The lanes `m` against instance `id`, closest hits into `h`.
     #[inline(always)]
     fn hit_instance(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+        #[cfg(target_arch = "x86_64")]
+        if K::SIMD {
+            // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
+            unsafe { avx2_hit_instance(self.tl, id, p, m, h) };
+            return;
+        }
+        self.hit_instance_here(id, p, m, h);
+    }
+
+    /// The lanes `m` against instance `id`, occluded lanes to `-inf` in `h`.
+    #[inline(always)]
+    fn occludes(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+        #[cfg(target_arch = "x86_64")]
+        if K::SIMD {
+            // SAFETY: as above.
+            unsafe { avx2_occludes(self.tl, id, p, m, h) };
+            return;
+        }
+        self.occludes_here(id, p, m, h);
+    }
+
+    #[inline(always)]
+    fn hit_instance_here(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
         let inst = &self.tl.instances()[id as usize];
         if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
             // The rays carried into object space exactly as the single-ray path does.
@@ -1433,7 +1505,7 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
     }
 
     #[inline(always)]
-    fn occludes(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    fn occludes_here(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
         let inst = &self.tl.instances()[id as usize];
         if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
             let lp = p.transformed(&inst.object_from_world, m);
@@ -1470,6 +1542,24 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
             }
         });
     }
+}
+
+/// [`InstPacketLeaves::hit_instance`] with AVX2, out of line. PERF: inlined, every kind of
+/// instance (mesh walks with their own fallbacks, spheres, other shapes) made the top-level
+/// walk one function of 137 KB of code, four times the first-level instruction cache.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline(never)]
+fn avx2_hit_instance(tl: &TwoLevel, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    InstPacketLeaves::<crate::kernel::SimdSet> { tl, k: std::marker::PhantomData }.hit_instance_here(id, p, m, h);
+}
+
+/// [`InstPacketLeaves::occludes`] with AVX2, out of line (see [`avx2_hit_instance`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline(never)]
+fn avx2_occludes(tl: &TwoLevel, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    InstPacketLeaves::<crate::kernel::SimdSet> { tl, k: std::marker::PhantomData }.occludes_here(id, p, m, h);
 }
 
 /// The unit-sphere test of the lanes `m` of group `g` against instance `inst` within
