@@ -317,18 +317,25 @@ fn reinsertion_keeps_the_tree_valid_and_lowers_its_cost() {
     }
 }
 
+/// A soup of 4,000 triangles in a 10-unit cube (seed `seed`), an eye in front of it and an
+/// 8×8 fan of rays from the eye toward +z, their slopes from `first` in steps of 0.01.
+fn soup_and_tile(seed: u64, first: f32) -> (MeshBvh, Vec<Ray>) {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let (p, idx) = soup(&mut rng, 4000, 10.0);
+    let bvh = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("build");
+    let eye = Vec3::new(5.0, 5.0, -20.0);
+    let slope = |k: usize| first + k as f32 * 0.01;
+    let rays = (0..64).map(|i| Ray::new(eye, Vec3::new(slope(i % 8), slope(i / 8), 1.0).normalize())).collect();
+    (bvh, rays)
+}
+
 /// The counting packet kernels give the plain ones' answers and count their work: a packet
 /// of coherent rays visits far fewer nodes than its rays do one by one.
 #[test]
 fn packet_stats_count_and_agree() {
     use lucent_accel::TraversalStats;
-    let mut rng = Pcg64::seed_from_u64(5);
-    let (p, idx) = soup(&mut rng, 4000, 10.0);
-    let bvh = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("build");
     // An 8×8 fan of rays from one point (a pinhole tile) and their shadow rays toward a light.
-    let eye = Vec3::new(5.0, 5.0, -20.0);
-    let rays: Vec<Ray> =
-        (0..64).map(|i| Ray::new(eye, Vec3::new(0.001 + (i % 8) as f32 * 0.01, 0.001 + (i / 8) as f32 * 0.01, 1.0).normalize())).collect();
+    let (bvh, rays) = soup_and_tile(5, 0.001);
     let (mut plain, mut counted) = (vec![None; 64], vec![None; 64]);
     bvh.intersect_packet(&rays, &mut plain);
     let mut st = TraversalStats::default();
@@ -365,12 +372,7 @@ fn packet_stats_count_and_agree() {
 #[test]
 fn packets_that_mix_direction_signs_are_split_by_sign() {
     use lucent_accel::TraversalStats;
-    let mut rng = Pcg64::seed_from_u64(9);
-    let (p, idx) = soup(&mut rng, 4000, 10.0);
-    let bvh = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("build");
-    let eye = Vec3::new(5.0, 5.0, -20.0);
-    let rays: Vec<Ray> =
-        (0..64).map(|i| Ray::new(eye, Vec3::new(((i % 8) as f32 - 3.5) * 0.01, ((i / 8) as f32 - 3.5) * 0.01, 1.0).normalize())).collect();
+    let (bvh, rays) = soup_and_tile(9, -0.035);
     let mut hits = vec![None; 64];
     let mut st = TraversalStats::default();
     bvh.intersect_packet_with_stats(&rays, &mut hits, &mut st);
