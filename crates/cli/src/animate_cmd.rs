@@ -12,7 +12,7 @@ use std::time::Instant;
 
 pub struct AnimateArgs {
     pub scene: Option<PathBuf>,
-    pub demo: Option<String>,
+    pub demo: crate::render_cmd::DemoArg,
     pub from: Option<f32>,
     pub to: Option<f32>,
     pub fps: f32,
@@ -28,11 +28,8 @@ pub fn run(a: AnimateArgs) -> Result<()> {
     if !(a.fps.is_finite() && a.fps > 0.0) {
         bail!("--fps must be a positive number (got {})", a.fps);
     }
-    let scene = crate::render_cmd::load_scene(a.scene.as_deref(), a.demo.as_deref())?;
-    let name = a
-        .scene
-        .as_ref()
-        .map_or_else(|| format!("the built-in {} demo", a.demo.as_deref().unwrap_or("default")), |p| p.display().to_string());
+    let scene = crate::render_cmd::load_scene(a.scene.as_deref(), a.demo)?;
+    let name = a.scene.as_ref().map_or_else(|| format!("the {}", a.demo.label()), |p| p.display().to_string());
     let range = scene.animation.as_ref().map(|an| an.time_range());
     if range.is_none() {
         tracing::warn!("{name} has no animation: every frame is the same");

@@ -33,10 +33,8 @@ enum Cmd {
     Render {
         /// Scene file (.obj, .obj.gz, .ply, .gltf, .glb). Without it: the built-in demo scene.
         scene: Option<PathBuf>,
-        /// A built-in scene instead of a file: `default` (the feature demo) or `sunflowers`
-        /// (5,622 instanced sunflowers of 32k triangles each, swaying).
-        #[arg(long, value_parser = ["default", "sunflowers"])]
-        demo: Option<String>,
+        #[command(flatten)]
+        demo: render_cmd::DemoArg,
         /// Camera as EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV: eye, look-at point, up vector, vertical
         /// field of view in degrees. Default: the scene's camera, else one framing the scene.
         #[arg(long, value_delimiter = ',', allow_hyphen_values = true, num_args = 1)]
@@ -149,10 +147,8 @@ enum Cmd {
     Animate {
         /// Scene (.gltf/.glb with animations). Without it: the built-in demo (static).
         scene: Option<PathBuf>,
-        /// A built-in scene instead of a file: `default` (the feature demo) or `sunflowers`
-        /// (5,622 instanced sunflowers of 32k triangles each, swaying).
-        #[arg(long, value_parser = ["default", "sunflowers"])]
-        demo: Option<String>,
+        #[command(flatten)]
+        demo: render_cmd::DemoArg,
         /// Start time in seconds (default: the first key).
         #[arg(long, allow_hyphen_values = true)]
         from: Option<f32>,
@@ -194,10 +190,8 @@ enum Cmd {
         /// Scene (.obj, .obj.gz, .ply, .gltf, .glb) or REND3R program (.rdr, .mem, .bin).
         /// Without it: the built-in demo scene.
         input: Option<PathBuf>,
-        /// A built-in scene instead of a file: `default` (the feature demo) or `sunflowers`
-        /// (5,622 instanced sunflowers of 32k triangles each, swaying).
-        #[arg(long, value_parser = ["default", "sunflowers"])]
-        demo: Option<String>,
+        #[command(flatten)]
+        demo: render_cmd::DemoArg,
         /// Start camera as EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV (default: the scene's).
         #[arg(long, value_delimiter = ',', allow_hyphen_values = true, num_args = 1)]
         camera: Option<Vec<f32>>,
@@ -267,10 +261,8 @@ enum Cmd {
     Info {
         /// Scene file. Without it: the built-in demo scene.
         scene: Option<PathBuf>,
-        /// A built-in scene instead of a file: `default` (the feature demo) or `sunflowers`
-        /// (5,622 instanced sunflowers of 32k triangles each, swaying).
-        #[arg(long, value_parser = ["default", "sunflowers"])]
-        demo: Option<String>,
+        #[command(flatten)]
+        demo: render_cmd::DemoArg,
     },
     /// Speed reports.
     #[command(subcommand)]
@@ -470,6 +462,19 @@ fn run() -> Result<()> {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
+    // Rust ignores SIGPIPE, so printing into a closed pipe (`lucent info … | head -2`) made
+    // `println!` panic. With the default action such a command ends quietly, as `cat` does.
+    // Not for the commands that hold connections (the network device and its client, the
+    // viewer's X server): a peer that hangs up must be an error they handle, not a signal
+    // that ends the process.
+    #[cfg(unix)]
+    if !matches!(cli.cmd, Cmd::Serve(_) | Cmd::Send { .. } | Cmd::View { .. }) {
+        // SAFETY: called before this process starts any thread of its own (the tracing
+        // subscriber starts none); it only resets one signal's action to the default.
+        unsafe {
+            libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        }
+    }
     match cli.cmd {
         Cmd::Render { scene, demo, camera, ortho, size, spp, threads, output, max_depth, no_shadows, watertight, single_rays, quality } => {
             render_cmd::run(render_cmd::RenderArgs {
@@ -488,7 +493,7 @@ fn run() -> Result<()> {
                 quality_high: quality == "high",
             })
         }
-        Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo.as_deref()),
+        Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo),
         Cmd::Animate { scene, demo, from, to, fps, size, camera, spp, max_depth, no_shadows, output } => {
             animate_cmd::run(animate_cmd::AnimateArgs { scene, demo, from, to, fps, size, camera, spp, max_depth, no_shadows, output })
         }

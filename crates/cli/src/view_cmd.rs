@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 pub struct ViewArgs {
     pub input: Option<PathBuf>,
-    pub demo: Option<String>,
+    pub demo: crate::render_cmd::DemoArg,
     pub camera: Option<Vec<f32>>,
     pub size: (u32, u32),
     pub target_fps: f64,
@@ -45,14 +45,13 @@ pub fn run(a: ViewArgs) -> Result<()> {
             Content::Program { processor: Box::new(processor), settings, name: p.display().to_string() }
         }
         input => {
-            let scene = crate::render_cmd::load_scene(input, a.demo.as_deref())?;
+            let scene = crate::render_cmd::load_scene(input, a.demo)?;
             let home = crate::render_cmd::choose_camera(&scene, a.camera.as_deref(), false)?;
             let st = scene.stats();
             let stats = format!("{} tris, {} instances, {} lights", st.triangles, st.instances, scene.lights.len());
             let mut world = World::new(scene, MeshOptions::default()).context("cannot build the scene")?;
             world.ensure_light(home.eye);
-            let name =
-                input.map_or_else(|| format!("built-in {} demo", a.demo.as_deref().unwrap_or("default")), |p| p.display().to_string());
+            let name = input.map_or_else(|| a.demo.label(), |p| p.display().to_string());
             Content::Scene { world: Box::new(world), home, stats, name }
         }
     };

@@ -26,6 +26,22 @@ fn render_demo_writes_a_real_picture() {
     assert!(colours.len() > 500, "only {} colours", colours.len());
 }
 
+/// Output piped into a reader that stops early (`lucent info … | head -2`) ends the
+/// command quietly, as `cat` does, not with a panic about a broken pipe.
+#[cfg(unix)]
+#[test]
+fn a_closed_output_pipe_ends_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    let mut child = lucent().args(["info", "--demo", "default"]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("run");
+    // Close the reading end before the scene is built and described.
+    drop(child.stdout.take());
+    let o = child.wait_with_output().expect("wait");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(o.status.signal(), Some(13), "ended by SIGPIPE: {:?} {err}", o.status);
+}
+
 #[test]
 fn render_errors_are_clear() {
     let o = lucent().args(["render", "/no/such/scene.obj", "-o", "/tmp/x.png"]).output().expect("run");
