@@ -242,7 +242,12 @@ impl TwoLevel {
         match self.builder {
             TopBuilder::Linear => build_lbvh_into(prims, 2, &mut self.scratch),
             TopBuilder::Sah if prims.len() >= CLUSTER_MIN => build_clustered_into(prims, &cfg, TOP_CLUSTER, &mut self.scratch),
-            TopBuilder::Sah => self.scratch.bvh = build_binary(prims.clone(), &cfg),
+            TopBuilder::Sah => {
+                // The references go into the tree, and the old tree's list becomes the next
+                // rebuild's buffer: no copy and no allocation per frame.
+                let old = std::mem::replace(&mut self.scratch.bvh, build_binary(std::mem::take(prims), &cfg));
+                *prims = old.prims;
+            }
         }
         let bin = &self.scratch.bvh;
         self.bounds = bin.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds);
