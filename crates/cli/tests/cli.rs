@@ -26,15 +26,19 @@ fn render_demo_writes_a_real_picture() {
     assert!(colours.len() > 500, "only {} colours", colours.len());
 }
 
-/// Output piped into a reader that stops early (`lucent info … | head -2`) ends the
+/// Output piped into a reader that stops early (`lucent disasm … | head -2`) ends the
 /// command quietly, as `cat` does, not with a panic about a broken pipe.
 #[cfg(unix)]
 #[test]
 fn a_closed_output_pipe_ends_quietly() {
     use std::os::unix::process::ExitStatusExt;
     use std::process::Stdio;
-    let mut child = lucent().args(["info", "--demo", "default"]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("run");
-    // Close the reading end before the scene is built and described.
+    // 40,000 `nf` words disassemble to 120 KB, more than a pipe holds: the writer meets the
+    // closed pipe whenever the reader goes.
+    let d = tempfile::tempdir().expect("tmp");
+    let mem = d.path().join("many.mem");
+    std::fs::write(&mem, "00000400\n".repeat(40_000)).expect("write");
+    let mut child = lucent().arg("disasm").arg(&mem).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("run");
     drop(child.stdout.take());
     let o = child.wait_with_output().expect("wait");
     let err = String::from_utf8_lossy(&o.stderr);
