@@ -36,8 +36,14 @@ const MARGIN: f64 = 0.25;
 /// projecting them would cost more than it saves.
 const MAX_INSTANCES: usize = 1 << 16;
 
-/// Instances projected per parallel task.
-const CHUNK: usize = 64;
+/// Up to this many instances, their regions are found on the calling thread.
+const SERIAL_MAX: usize = 1024;
+
+/// Up to this many regions, their rows are filled on the calling thread.
+const SERIAL_FILLS: usize = 16;
+
+/// Image rows per band of the parallel fill (whole blocks).
+const BAND_ROWS: u32 = 2 * BLOCK_EDGE;
 
 /// Most instances a block lists (see [`Coverage::candidates`]); more, and the block's rays
 /// go through the top-level index.
@@ -71,8 +77,6 @@ impl Candidates {
 /// there are few).
 #[derive(Clone, Debug)]
 pub struct Coverage {
-    width: u32,
-    height: u32,
     blocks_x: u32,
     masks: Vec<u64>,
     cands: Vec<Candidates>,
@@ -121,6 +125,20 @@ impl Coverage {
     /// traced (an unbounded instance, an instance over the whole image, a huge crowd).
     #[must_use]
     pub fn of(w: &World, cam: &Camera) -> Option<Self> {
+        Self::with(w, cam, false)
+    }
+
+    /// [`Coverage::of`] for rays through pixel centres only (one sample per pixel, not
+    /// jittered): a pixel is covered when a region comes within [`MARGIN`] of its centre,
+    /// rather than of its square, so the rim of pixels whose rays only graze a region's
+    /// box goes (a quarter of the traced pixels of REND3R's 256 spheres). Boxes still cover
+    /// whole squares.
+    #[must_use]
+    pub fn of_centres(w: &World, cam: &Camera) -> Option<Self> {
+        Self::with(w, cam, true)
+    }
+
+    fn with(w: &World, cam: &Camera, centres: bool) -> Option<Self> {
         let proj = projection(cam)?;
         let accel = &w.accel;
         let insts = accel.instances();
@@ -131,45 +149,59 @@ impl Coverage {
         let blocks_x = width.div_ceil(BLOCK_EDGE);
         let blocks_y = height.div_ceil(BLOCK_EDGE);
         let n_blocks = (blocks_x * blocks_y) as usize;
-        let empty = || Coverage { width, height, blocks_x, masks: vec![0; n_blocks], cands: vec![Candidates::default(); n_blocks] };
-        // Chunks of instances in parallel, each job into masks of its own, then merged.
-        insts
-            .par_chunks(CHUNK)
-            .enumerate()
-            // One set of masks per rayon job, not per chunk (PERF: a chunk's masks are
-            // 24 KB at 512×384, and the sunflowers have 88 chunks).
-            .try_fold(empty, |mut c, (ci, chunk)| {
-                for (k, inst) in chunk.iter().enumerate() {
-                    let id = (ci * CHUNK + k) as u32;
-                    let geom = accel.geometries().get(inst.geometry as usize)?;
-                    match region(geom, inst, &proj) {
-                        Region::Nothing => {}
-                        Region::Everything => return None,
-                        Region::Rect(r) => {
-                            if r[0] - MARGIN <= 0.0 && r[2] - MARGIN <= 0.0 && r[1] + MARGIN >= proj.width && r[3] + MARGIN >= proj.height {
-                                return None;
-                            }
-                            c.fill_rect(&r, id);
-                        }
-                        Region::Ellipse(k) => c.fill_ellipse(&k, &proj, id),
+        let mut c = Coverage { blocks_x, masks: vec![0; n_blocks], cands: vec![Candidates::default(); n_blocks] };
+        // First what each instance covers (its rows, and how to find each row's span),
+        // then the rows, in bands of block rows that own their masks: no merging.
+        let fill = |(id, inst): (usize, &lucent_accel::Instance)| -> Option<Option<(u32, Fill)>> {
+            let geom = accel.geometries().get(inst.geometry as usize)?;
+            Some(match region(geom, inst, &proj) {
+                Region::Nothing => None,
+                Region::Everything => return None,
+                Region::Rect(r) => {
+                    if r[0] - MARGIN <= 0.0 && r[2] - MARGIN <= 0.0 && r[1] + MARGIN >= proj.width && r[3] + MARGIN >= proj.height {
+                        return None;
+                    }
+                    match (pixels(r[0], r[1], width), pixels(r[2], r[3], height)) {
+                        (Some((xa, xb)), Some((ya, yb))) => Some((id as u32, Fill::Rect { xa, xb, ya, yb })),
+                        _ => None,
                     }
                 }
-                Some(c)
+                Region::Ellipse(k) => EllipseRows::new(&k, &proj).map(|e| (id as u32, Fill::Ellipse(e))),
             })
-            .try_reduce(empty, |mut a, b| {
-                for (x, y) in a.masks.iter_mut().zip(&b.masks) {
-                    *x |= y;
+        };
+        // PERF: a few hundred instances are prepared on the calling thread (a job per
+        // chunk cost more than the work).
+        let fills: Vec<(u32, Fill)> = if insts.len() <= SERIAL_MAX {
+            insts.iter().enumerate().map(fill).collect::<Option<Vec<_>>>()?.into_iter().flatten().collect()
+        } else {
+            insts.par_iter().enumerate().map(fill).collect::<Option<Vec<_>>>()?.into_iter().flatten().collect()
+        };
+        let rows_of = |f: &Fill| match f {
+            Fill::Rect { ya, yb, .. } => (*ya, *yb),
+            Fill::Ellipse(e) => (e.ya, e.yb),
+        };
+        let band = |(bi, (masks, cands)): (usize, (&mut [u64], &mut [Candidates]))| {
+            let y0 = bi as u32 * BAND_ROWS;
+            let mut band = Band { y0, y1: (y0 + BAND_ROWS).min(height), blocks_x, masks, cands };
+            for (id, f) in &fills {
+                let (ya, yb) = rows_of(f);
+                let (ya, yb) = (ya.max(band.y0), yb.min(band.y1 - 1));
+                if ya > yb {
+                    continue;
                 }
-                for (x, y) in a.cands.iter_mut().zip(&b.cands) {
-                    for &id in &y.ids[..(y.count as usize).min(MAX_CANDIDATES)] {
-                        x.add(id);
-                    }
-                    if y.count as usize > MAX_CANDIDATES {
-                        x.count = MAX_CANDIDATES as u32 + 1;
-                    }
+                match f {
+                    Fill::Rect { xa, xb, .. } => band.fill_rows(ya, yb, *xa, *xb, *id),
+                    Fill::Ellipse(e) => e.fill(&mut band, ya, yb, *id, centres),
                 }
-                Some(a)
-            })
+            }
+        };
+        let per_band = (blocks_x * BAND_ROWS / BLOCK_EDGE) as usize;
+        if fills.len() <= SERIAL_FILLS {
+            c.masks.chunks_mut(per_band).zip(c.cands.chunks_mut(per_band)).enumerate().for_each(band);
+        } else {
+            c.masks.par_chunks_mut(per_band).zip(c.cands.par_chunks_mut(per_band)).enumerate().for_each(band);
+        }
+        Some(c)
     }
 
     /// The mask of block (`bx`, `by`) (in blocks); zero outside the image.
@@ -206,28 +238,47 @@ impl Coverage {
         self.masks.iter().map(|m| u64::from(m.count_ones())).sum()
     }
 
-    /// The pixel range `[lo, hi]` (clamped to `0..n`) of pixels whose squares meet
-    /// `[a, b]` grown by the margin; `None` when empty.
-    fn pixels(a: f64, b: f64, n: u32) -> Option<(u32, u32)> {
-        if n == 0 {
-            return None;
-        }
-        if a.is_nan() || b.is_nan() {
-            return Some((0, n - 1));
-        }
-        let lo = floor(a - MARGIN).max(0.0);
-        let hi = floor(b + MARGIN).min(f64::from(n) - 1.0);
-        (lo <= hi).then_some((lo as u32, hi as u32))
+    /// The whole image as one band (for tests).
+    #[cfg(test)]
+    fn all(&mut self) -> Band<'_> {
+        let y1 = (self.masks.len() as u32 / self.blocks_x.max(1)) * BLOCK_EDGE;
+        Band { y0: 0, y1, blocks_x: self.blocks_x, masks: &mut self.masks, cands: &mut self.cands }
     }
+}
 
+/// What one instance covers, ready to be filled band by band.
+enum Fill {
+    /// Pixels `xa..=xb` of rows `ya..=yb`.
+    Rect {
+        xa: u32,
+        xb: u32,
+        ya: u32,
+        yb: u32,
+    },
+    Ellipse(EllipseRows),
+}
+
+/// Rows `y0..y1` (pixels; `y0` a multiple of [`BLOCK_EDGE`]) of the coverage, with their
+/// blocks' masks and candidates, filled by one task.
+struct Band<'a> {
+    y0: u32,
+    y1: u32,
+    blocks_x: u32,
+    masks: &'a mut [u64],
+    cands: &'a mut [Candidates],
+}
+
+impl Band<'_> {
     /// Covers pixels `xa..=xb` of row `y` for instance `id`.
+    #[cfg(test)]
     fn fill_row(&mut self, y: u32, xa: u32, xb: u32, id: u32) {
         self.fill_rows(y, y, xa, xb, id);
     }
 
-    /// Covers pixels `xa..=xb` of rows `ya..=yb` for instance `id`, one mask update per
-    /// block.
+    /// Covers pixels `xa..=xb` of rows `ya..=yb` (inside the band) for instance `id`, one
+    /// mask update per block.
     fn fill_rows(&mut self, ya: u32, yb: u32, xa: u32, xb: u32, id: u32) {
+        let first = self.y0 / BLOCK_EDGE;
         for by in ya / BLOCK_EDGE..=yb / BLOCK_EDGE {
             let r0 = ya.max(by * BLOCK_EDGE) - by * BLOCK_EDGE;
             let r1 = yb.min(by * BLOCK_EDGE + BLOCK_EDGE - 1) - by * BLOCK_EDGE;
@@ -237,7 +288,7 @@ impl Coverage {
                 let c0 = xa.max(bx * BLOCK_EDGE) - bx * BLOCK_EDGE;
                 let c1 = xb.min(bx * BLOCK_EDGE + BLOCK_EDGE - 1) - bx * BLOCK_EDGE;
                 let cols = (0xffu64 >> (7 - c1)) & (0xffu64 << c0);
-                let i = (by * self.blocks_x + bx) as usize;
+                let i = ((by - first) * self.blocks_x + bx) as usize;
                 if let (Some(m), Some(c)) = (self.masks.get_mut(i), self.cands.get_mut(i)) {
                     *m |= rows & (cols * 0x0101_0101_0101_0101);
                     c.add(id);
@@ -245,18 +296,87 @@ impl Coverage {
             }
         }
     }
+}
 
-    fn fill_rect(&mut self, r: &[f64; 4], id: u32) {
-        let (Some((xa, xb)), Some((ya, yb))) = (Self::pixels(r[0], r[1], self.width), Self::pixels(r[2], r[3], self.height)) else {
-            return;
-        };
-        self.fill_rows(ya, yb, xa, xb, id);
+/// The pixel range `[lo, hi]` (clamped to `0..n`) of pixels whose squares meet `[a, b]`
+/// grown by the margin; `None` when empty.
+fn pixels(a: f64, b: f64, n: u32) -> Option<(u32, u32)> {
+    if n == 0 {
+        return None;
     }
+    if a.is_nan() || b.is_nan() {
+        return Some((0, n - 1));
+    }
+    // Clamped into the image first, where truncation is the floor: ⌊max(x, 0)⌋ =
+    // max(⌊x⌋, 0) and ⌊min(x, n − 1)⌋ = min(⌊x⌋, n − 1).
+    let (a, b) = (a - MARGIN, b + MARGIN);
+    if b < 0.0 {
+        return None;
+    }
+    let lo = a.clamp(0.0, f64::from(n));
+    let hi = b.min(f64::from(n) - 1.0);
+    // SAFETY: both are finite (NaN was handled above), non-negative and at most `n`, so
+    // they fit a u32. PERF: Rust's saturating `as` conversion, and a floor made of it,
+    // were a third of the coverage's time.
+    let (lo, hi) = unsafe { (lo.to_int_unchecked::<u32>(), hi.to_int_unchecked::<u32>()) };
+    (lo <= hi).then_some((lo, hi))
+}
 
-    fn fill_ellipse(&mut self, k: &[[f64; 3]; 3], proj: &Projection, id: u32) {
+/// The pixel range `[lo, hi]` (clamped to `0..n`) of pixels whose centres lie in `[a, b]`
+/// grown by the margin; `None` when empty.
+fn pixel_centres(a: f64, b: f64, n: u32) -> Option<(u32, u32)> {
+    if n == 0 {
+        return None;
+    }
+    if a.is_nan() || b.is_nan() {
+        return Some((0, n - 1));
+    }
+    // Pixel x's centre is x + 0.5: x from ⌈a − margin − 0.5⌉ to ⌊b + margin − 0.5⌋.
+    let (a, b) = (a - MARGIN - 0.5, b + MARGIN - 0.5);
+    if b < 0.0 {
+        return None;
+    }
+    let lo = a.clamp(0.0, f64::from(n));
+    let hi = b.min(f64::from(n) - 1.0);
+    // SAFETY: as in `pixels`: finite, non-negative, at most `n`.
+    let (lo_t, hi) = unsafe { (lo.to_int_unchecked::<u32>(), hi.to_int_unchecked::<u32>()) };
+    let lo = if f64::from(lo_t) < lo { lo_t + 1 } else { lo_t };
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// A projected ellipse prepared for filling row by row: `G(sx, sy) ≤ 0` with the
+/// symmetric matrix `K` over `(1, sx, sy)`. The chord at screen height `y` has its centre
+/// at `−(k12 y + k01)/k11` and half-width `sqrt(D(y))/k11` with `D(y) = a y² + 2 b y + c`
+/// (`a < 0` for an ellipse).
+struct EllipseRows {
+    /// Image rows covered.
+    ya: u32,
+    yb: u32,
+    k01: f64,
+    k12: f64,
+    r11: f64,
+    a: f64,
+    b: f64,
+    c: f64,
+    /// Extent in sy.
+    y_lo: f64,
+    y_hi: f64,
+    /// Heights of the leftmost and rightmost points, and their image x.
+    yl: f64,
+    yr: f64,
+    left_most: f64,
+    right_most: f64,
+    /// Image x of screen x: `px0 + px1 · sx`; screen y of image row position: `sy0 + sy1 · py`.
+    px0: f64,
+    px1: f64,
+    sy0: f64,
+    sy1: f64,
+    width: u32,
+}
+
+impl EllipseRows {
+    fn new(k: &[[f64; 3]; 3], proj: &Projection) -> Option<Self> {
         let [[k00, k01, k02], [_, k11, k12], [_, _, k22]] = *k;
-        // The chord at screen height y: centre -(k12 y + k01)/k11, half-width
-        // sqrt(D(y))/k11 with D(y) = a y² + 2 b y + c (a < 0 for an ellipse).
         let (a, b, c) = (k12 * k12 - k11 * k22, k12 * k01 - k11 * k02, k01 * k01 - k11 * k00);
         let roots = |b: f64, c: f64| -> Option<(f64, f64)> {
             let disc = b * b - a * c;
@@ -267,52 +387,61 @@ impl Coverage {
             })
         };
         // Extent in sy (where D vanishes) and in sx (the same for the transposed form).
-        let Some((y_lo, y_hi)) = roots(b, c) else { return };
-        let Some((x_lo, x_hi)) = roots(k12 * k02 - k22 * k01, k02 * k02 - k22 * k00) else { return };
-        // Heights of the leftmost and rightmost points.
-        let (yl, yr) = (-(k12 * x_lo + k02) / k22, -(k12 * x_hi + k02) / k22);
-        let r11 = 1.0 / k11;
-        // The chord in image x (pixels): px = px0 + px1 * sx.
+        let (y_lo, y_hi) = roots(b, c)?;
+        let (x_lo, x_hi) = roots(k12 * k02 - k22 * k01, k02 * k02 - k22 * k00)?;
         let (px1, px0) = (0.5 * proj.width / proj.half_w, 0.5 * proj.width);
-        let chord = |y: f64| {
-            let mid = -(k12 * y + k01) * r11;
-            let half = (a * y * y + 2.0 * b * y + c).max(0.0).sqrt() * r11;
-            (px0 + px1 * (mid - half), px0 + px1 * (mid + half))
-        };
-        let (left_most, right_most) = (px0 + px1 * x_lo, px0 + px1 * x_hi);
-        let Some((ya, yb)) = Self::pixels(proj.py(y_hi), proj.py(y_lo), self.height) else { return };
-        // sy of image row position py: sy0 + sy1 * py.
-        let (sy0, sy1) = (proj.half_h, -2.0 * proj.half_h / proj.height);
+        let (ya, yb) = pixels(proj.py(y_hi), proj.py(y_lo), proj.height as u32)?;
+        Some(Self {
+            ya,
+            yb,
+            k01,
+            k12,
+            r11: 1.0 / k11,
+            a,
+            b,
+            c,
+            y_lo,
+            y_hi,
+            yl: -(k12 * x_lo + k02) / k22,
+            yr: -(k12 * x_hi + k02) / k22,
+            left_most: px0 + px1 * x_lo,
+            right_most: px0 + px1 * x_hi,
+            px0,
+            px1,
+            sy0: proj.half_h,
+            sy1: -2.0 * proj.half_h / proj.height,
+            width: proj.width as u32,
+        })
+    }
+
+    /// Fills rows `ya..=yb` (within the ellipse's rows and the band's) of `band`: the
+    /// pixels whose squares (or, with `centres`, whose centres) come within [`MARGIN`].
+    fn fill(&self, band: &mut Band, ya: u32, yb: u32, id: u32, centres: bool) {
+        let e = self;
+        // The image rows' extent that counts: the square, or the centre.
+        let (above, below) = if centres { (-0.5 + MARGIN, 0.5 + MARGIN) } else { (MARGIN, 1.0 + MARGIN) };
         for y in ya..=yb {
             // The row's band in sy (sy falls as the image row grows), within the ellipse.
-            let top = (sy0 + sy1 * (f64::from(y) - MARGIN)).min(y_hi);
-            let bottom = (sy0 + sy1 * (f64::from(y) + 1.0 + MARGIN)).max(y_lo);
+            let top = (e.sy0 + e.sy1 * (f64::from(y) - above)).min(e.y_hi);
+            let bottom = (e.sy0 + e.sy1 * (f64::from(y) + below)).max(e.y_lo);
             if bottom > top {
                 continue;
             }
+            // The chords at both ends of the band, their square roots side by side.
+            let d = |y: f64| (e.a * y * y + 2.0 * e.b * y + e.c).max(0.0);
+            let (h0, h1) = (d(bottom).sqrt() * e.r11, d(top).sqrt() * e.r11);
+            let (m0, m1) = (-(e.k12 * bottom + e.k01) * e.r11, -(e.k12 * top + e.k01) * e.r11);
+            let (l0, r0) = (e.px0 + e.px1 * (m0 - h0), e.px0 + e.px1 * (m0 + h0));
+            let (l1, r1) = (e.px0 + e.px1 * (m1 - h1), e.px0 + e.px1 * (m1 + h1));
             // The left edge is convex and the right edge concave in sy: over the band they
             // reach out furthest at the extreme points, or else at the band's ends.
-            let (l0, r0) = chord(bottom);
-            let (l1, r1) = chord(top);
-            let left = if bottom <= yl && yl <= top { left_most } else { l0.min(l1) };
-            let right = if bottom <= yr && yr <= top { right_most } else { r0.max(r1) };
-            if let Some((xa, xb)) = Self::pixels(left, right, self.width) {
-                self.fill_row(y, xa, xb, id);
+            let left = if bottom <= e.yl && e.yl <= top { e.left_most } else { l0.min(l1) };
+            let right = if bottom <= e.yr && e.yr <= top { e.right_most } else { r0.max(r1) };
+            let span = if centres { pixel_centres(left, right, e.width) } else { pixels(left, right, e.width) };
+            if let Some((xa, xb)) = span {
+                band.fill_rows(y, y, xa, xb, id);
             }
         }
-    }
-}
-
-/// `x.floor()` for the finite values of pixel coordinates (clamped far outside any image),
-/// without a library call.
-#[inline]
-fn floor(x: f64) -> f64 {
-    let x = x.clamp(-1e15, 1e15);
-    let t = x as i64 as f64;
-    if t > x {
-        t - 1.0
-    } else {
-        t
     }
 }
 
@@ -468,9 +597,9 @@ mod tests {
 
     #[test]
     fn block_masks_cover_exactly_the_filled_pixels() {
-        let mut c = Coverage { width: 20, height: 13, blocks_x: 3, masks: vec![0; 6], cands: vec![Candidates::default(); 6] };
-        c.fill_rows(3, 10, 6, 17, 7);
-        c.fill_row(12, 0, 0, 9);
+        let mut c = Coverage { blocks_x: 3, masks: vec![0; 6], cands: vec![Candidates::default(); 6] };
+        c.all().fill_rows(3, 10, 6, 17, 7);
+        c.all().fill_row(12, 0, 0, 9);
         for y in 0..13 {
             for x in 0..20 {
                 let want = ((3..=10).contains(&y) && (6..=17).contains(&x)) || (y == 12 && x == 0);
@@ -483,18 +612,18 @@ mod tests {
         assert_eq!(c.candidates(2, 1), Some(&[7][..]));
         assert_eq!(c.candidates(0, 1), Some(&[7, 9][..]));
         for id in 10..13 {
-            c.fill_row(0, 0, 0, id);
+            c.all().fill_row(0, 0, 0, id);
         }
         assert_eq!(c.candidates(0, 0), Some(&[7, 10, 11, 12][..]));
-        c.fill_row(1, 0, 0, 14);
+        c.all().fill_row(1, 0, 0, 14);
         assert_eq!(c.candidates(0, 0), None, "too many to list");
-        c.fill_row(1, 0, 0, 15);
+        c.all().fill_row(1, 0, 0, 15);
         assert_eq!(c.candidates(0, 0), None);
         assert_eq!(c.candidates(3, 0), None, "outside");
-        assert_eq!(Coverage::pixels(2.6, 5.1, 20), Some((2, 5)));
-        assert_eq!(Coverage::pixels(2.2, 5.8, 20), Some((1, 6)));
-        assert_eq!(Coverage::pixels(-9.0, 50.0, 20), Some((0, 19)));
-        assert_eq!(Coverage::pixels(30.0, 50.0, 20), None);
-        assert_eq!(Coverage::pixels(-30.0, -5.0, 20), None);
+        assert_eq!(pixels(2.6, 5.1, 20), Some((2, 5)));
+        assert_eq!(pixels(2.2, 5.8, 20), Some((1, 6)));
+        assert_eq!(pixels(-9.0, 50.0, 20), Some((0, 19)));
+        assert_eq!(pixels(30.0, 50.0, 20), None);
+        assert_eq!(pixels(-30.0, -5.0, 20), None);
     }
 }

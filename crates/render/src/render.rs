@@ -58,14 +58,16 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
 /// the number of rays traced.
 pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u64) + Sync)) -> (Film, u64) {
     if !s.whitted.packets {
-        return render_tiles(w, cam, s.width, s.height, progress, &|px, _, out| {
+        let samples = if s.spp.max(1) == 1 { Samples::Centres } else { Samples::Anywhere };
+        return render_tiles(w, cam, samples, s.width, s.height, progress, &|px, _, out| {
             for (o, &(x, y)) in out.iter_mut().zip(px) {
                 *o = render_pixel(w, cam, s, x, y);
             }
         });
     }
     let spp = s.spp.max(1);
-    render_tiles(w, cam, s.width, s.height, progress, &|px, among, out| {
+    let samples = if spp == 1 { Samples::Centres } else { Samples::Anywhere };
+    render_tiles(w, cam, samples, s.width, s.height, progress, &|px, among, out| {
         let mut rays = NO_RAYS;
         let rays = &mut rays[..px.len()];
         let n = px.len();
@@ -110,7 +112,8 @@ pub fn render_pass(w: &World, cam: &Camera, s: &RenderSettings, integrator: Inte
         let (jx, jy) = if index == 0 { (0.5, 0.5) } else { jitter(x, y, index) };
         cam.ray(x as f32 + jx, y as f32 + jy)
     };
-    render_tiles(w, cam, s.width, s.height, &|_| {}, &|px, among, out| {
+    let samples = if index == 0 { Samples::Centres } else { Samples::Anywhere };
+    render_tiles(w, cam, samples, s.width, s.height, &|_| {}, &|px, among, out| {
         if integrator == Integrator::Whitted && s.whitted.packets {
             let mut rays = NO_RAYS;
             for (r, &(x, y)) in rays.iter_mut().zip(px) {
@@ -123,6 +126,16 @@ pub fn render_pass(w: &World, cam: &Camera, s: &RenderSettings, integrator: Inte
             }
         }
     })
+}
+
+/// Where in its pixel a ray of the frame starts: decides which pixels the coverage must
+/// count.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Samples {
+    /// The centre only (one sample per pixel).
+    Centres,
+    /// Anywhere in the pixel's square (jittered samples).
+    Anywhere,
 }
 
 /// Computes the pixels of a block: `block(pixels, among, out)`, where `among` (when given)
@@ -138,7 +151,15 @@ const _: () = assert!(BLOCK == lucent_accel::MAX_PACKET, "a block is one packet,
 /// that the frame's [`Coverage`] says may meet something are handed out together,
 /// `block(pixels, among, out)` with the block's candidate instances, and the others show
 /// the background.
-fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dyn Fn(u64) + Sync), block: &BlockFn) -> (Film, u64) {
+fn render_tiles(
+    w: &World,
+    cam: &Camera,
+    samples: Samples,
+    width: u32,
+    height: u32,
+    progress: &(dyn Fn(u64) + Sync),
+    block: &BlockFn,
+) -> (Film, u64) {
     let (tw, th) = (width.div_ceil(TILE), height.div_ceil(TILE));
     // PERF: the film is not cleared first: the tiles write every pixel, traced or not, in
     // parallel (clearing 2.4 MB on one thread was a seventh of a sparse REND3R frame).
@@ -149,7 +170,11 @@ fn render_tiles(w: &World, cam: &Camera, width: u32, height: u32, progress: &(dy
     // Which pixels can meet anything, by projecting the instances (object order): a sparse
     // scene, such as REND3R's 256 small spheres, traces a third of its pixels. `None`
     // (something covers the whole image, or reaches around the eye) traces them all.
-    let cover = if cam.size() == (width, height) { Coverage::of(w, cam) } else { None };
+    let cover = match samples {
+        _ if cam.size() != (width, height) => None,
+        Samples::Centres => Coverage::of_centres(w, cam),
+        Samples::Anywhere => Coverage::of(w, cam),
+    };
     // PERF: every tile writes its pixels straight into the film (tiles are disjoint);
     // gathering per-tile buffers and copying them in afterwards, one thread, took half of a
     // one-sphere REND3R frame.

@@ -91,6 +91,7 @@ fn random_camera(rng: &mut Pcg64, w: u32, h: u32, kind: u32, among: bool) -> Cam
 /// rays hit only instances its block lists (when it lists them); returns (covered, hit,
 /// listed) pixel counts, hits at the pixel centres.
 fn check(world: &World, cam: &Camera, w: u32, h: u32, what: &str) -> (u64, u64, u64) {
+    check_centres(world, cam, w, h, what);
     let Some(cover) = Coverage::of(world, cam) else { return (u64::from(w * h), 0, 0) };
     let (mut hits, mut listed) = (0, 0);
     for y in 0..h {
@@ -119,6 +120,28 @@ fn check(world: &World, cam: &Camera, w: u32, h: u32, what: &str) -> (u64, u64, 
     (cover.count(), hits, listed)
 }
 
+/// [`Coverage::of_centres`]: the ray through an uncovered pixel's centre misses, a listed
+/// block's centre rays hit only listed instances, and no more pixels are covered than by
+/// [`Coverage::of`]. Returns the covered pixels.
+fn check_centres(world: &World, cam: &Camera, w: u32, h: u32, what: &str) -> u64 {
+    let Some(cover) = Coverage::of_centres(world, cam) else { return u64::from(w * h) };
+    let squares = Coverage::of(world, cam).expect("the centres' coverage exists, so the squares' does");
+    for y in 0..h {
+        for x in 0..w {
+            let hit = world.intersect(&cam.ray(x as f32 + 0.5, y as f32 + 0.5));
+            if !cover.covered(x, y) {
+                assert!(hit.is_none(), "{what}: pixel {x},{y}'s centre is not covered but its ray hits");
+                continue;
+            }
+            assert!(squares.covered(x, y), "{what}: pixel {x},{y}: the centre is covered, the square not");
+            if let (Some(ids), Some(hit)) = (cover.candidates(x / 8, y / 8), hit) {
+                assert!(ids.contains(&hit.inst), "{what}: pixel {x},{y}'s centre hits instance {} not in {ids:?}", hit.inst);
+            }
+        }
+    }
+    cover.count()
+}
+
 #[test]
 fn uncovered_pixels_never_hit() {
     let mut rng = Pcg64::seed_from_u64(7);
@@ -143,7 +166,7 @@ fn uncovered_pixels_never_hit() {
 fn spheres_are_covered_tightly_and_safely() {
     let mut rng = Pcg64::seed_from_u64(11);
     let (w, h) = (96, 72);
-    let (mut covered, mut hit) = (0, 0);
+    let (mut covered, mut hit, mut centres) = (0, 0, 0);
     for round in 0..40 {
         let scene = random_scene(&mut rng, 8, true);
         let world = World::new(scene, MeshOptions::default()).expect("world");
@@ -153,12 +176,15 @@ fn spheres_are_covered_tightly_and_safely() {
             if Coverage::of(&world, &cam).is_some() {
                 covered += c;
                 hit += hh;
+                centres += check_centres(&world, &cam, w, h, &format!("round {round}, camera {kind}, centres"));
             }
         }
     }
-    // Ellipses filled row by row: a rim of about a pixel over the pixels that hit.
+    // Ellipses filled row by row: a rim of about a pixel over the pixels that hit; for
+    // centres, a rim of about a quarter pixel.
     assert!(hit > 10_000, "{hit}");
     assert!(covered < hit * 3 / 2, "covered {covered} for {hit} hits");
+    assert!(centres < hit * 23 / 20, "centres covered {centres} for {hit} hits");
 }
 
 #[test]
