@@ -31,6 +31,7 @@ mod mesh;
 pub mod packet;
 pub mod reference;
 pub mod reinsert;
+mod shadow_grid;
 mod shape;
 mod tlas;
 pub mod traverse;

@@ -11,7 +11,7 @@ use crate::mesh::{BuildError, BvhStats, MeshBvh};
 use crate::shape::Shape;
 use crate::traverse::{self, Leaves, RayPre};
 use crate::wide::{collapse_spread, WideNode};
-use glam::Affine3A;
+use glam::{Affine3A, Vec3};
 
 /// What an instance draws.
 #[derive(Clone, Debug)]
@@ -90,6 +90,10 @@ pub struct TwoLevel {
     boxes: Vec<Aabb>,
     prims: Vec<PrimRef>,
     scratch: MortonScratch,
+    /// Directions toward directional lights, and the shadow-ray grids over the instances
+    /// along them (rebuilt with the top level).
+    shadow_dirs: Vec<Vec3>,
+    pub(crate) shadow_grids: Vec<crate::shadow_grid::DirGrid>,
 }
 
 impl TwoLevel {
@@ -107,6 +111,8 @@ impl TwoLevel {
             boxes: Vec::new(),
             prims: Vec::new(),
             scratch: MortonScratch::default(),
+            shadow_dirs: Vec::new(),
+            shadow_grids: Vec::new(),
         };
         s.rebuild()?;
         Ok(s)
@@ -156,6 +162,37 @@ impl TwoLevel {
     pub fn update_instances(&mut self, f: impl FnOnce(&mut [Instance])) -> Result<(), BuildError> {
         f(&mut self.instances);
         self.rebuild()
+    }
+
+    /// Declares the unit directions toward directional lights (as their shadow rays carry
+    /// them, bit for bit). Packets of shadow rays along one of them are then tested against
+    /// the instances a light-space grid lists near their origins, instead of walking the
+    /// top level (see `shadow_grid`); the answers are the same. The grids are rebuilt with
+    /// the top level.
+    pub fn set_shadow_directions(&mut self, dirs: &[Vec3]) {
+        self.shadow_dirs.clear();
+        self.shadow_dirs.extend_from_slice(dirs);
+        self.build_shadow_grids();
+    }
+
+    fn build_shadow_grids(&mut self) {
+        self.shadow_grids.clear();
+        for &d in &self.shadow_dirs {
+            if let Some(g) = crate::shadow_grid::DirGrid::build(d, &self.boxes, &self.bounds) {
+                self.shadow_grids.push(g);
+            }
+        }
+    }
+
+    /// The instances besides the unbounded ones that the shadow grid of `dir` lists for a
+    /// ray from `origin` (for tests and tools): `None` when `dir` has no grid (see
+    /// [`TwoLevel::set_shadow_directions`]) or the list is too long to be used.
+    #[must_use]
+    pub fn shadow_candidates_at(&self, dir: Vec3, origin: Vec3) -> Option<Vec<u32>> {
+        let grid = self.shadow_grids.iter().find(|g| g.dir == dir)?;
+        let mut out = [0; crate::shadow_grid::MAX_CANDIDATES];
+        let n = grid.candidates(origin, origin, &mut out)?;
+        Some(out[..n].to_vec())
     }
 
     /// World bounds of the bounded instances.
@@ -255,6 +292,7 @@ impl TwoLevel {
         self.order.extend(bin.prims.iter().map(PrimRef::id));
         let n = self.instances.len();
         collapse_spread::<8>(bin, &mut self.nodes).map_err(|_| BuildError::TooLarge(n))?;
+        self.build_shadow_grids();
         Ok(())
     }
 

@@ -398,6 +398,69 @@ fn packets_that_mix_direction_signs_are_split_by_sign() {
     assert!(st.nodes * 2 < single.nodes, "shadow packet {st:?}, rays one by one {single:?}");
 }
 
+/// Shadow rays toward a directional light through the light-space grid give the walk's
+/// answers: over a field of spheres and mesh instances (rotated, unequally scaled, some
+/// large), from points on their surfaces and from points above them, on every kernel. The
+/// grid lists few instances per ray, and every instance a ray meets is listed.
+#[test]
+fn shadow_grid_packets_match_single_rays() {
+    let mut rng = Pcg64::seed_from_u64(33);
+    let (p, idx) = soup(&mut rng, 300, 1.0);
+    let mesh = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("mesh");
+    let mut insts = Vec::new();
+    for i in 0..300u32 {
+        let (x, y) = ((i % 20) as f32 * 3.0 - 30.0, (i / 20) as f32 * 2.2 - 16.0);
+        let s = Vec3::new(rng.random_range(0.3..1.4), rng.random_range(0.3..1.4), rng.random_range(0.3..1.4));
+        let q = Quat::from_euler(glam::EulerRot::XYZ, rng.random(), rng.random(), rng.random());
+        let g = u32::from(i % 7 == 0);
+        let s = if i % 50 == 0 { s * 3.0 } else { s };
+        insts.push(Instance::new(g, Affine3A::from_scale_rotation_translation(s, q, Vec3::new(x, y, -20.0 - (i % 3) as f32))));
+    }
+    let base = TwoLevel::new(vec![Geometry::Shape(Shape::Sphere), Geometry::Mesh(mesh)], insts).expect("tlas");
+    for (round, d) in
+        [Vec3::new(-1.0, 1.0, 1.0), Vec3::new(0.2, 0.1, 1.0), Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, -0.3, 0.05)].into_iter().enumerate()
+    {
+        let d = d.normalize();
+        let mut with_grid = base.clone();
+        with_grid.set_shadow_directions(&[d]);
+        // Origins: hits of rays from a camera (on surfaces), and points in the gaps.
+        let mut shadow = Vec::new();
+        for k in 0..64 * 48 {
+            let (px, py) = (k % 64, k / 64);
+            let dir = Vec3::new((px as f32 + 0.5) / 64.0 - 0.5, (py as f32 + 0.5) / 48.0 - 0.5, -0.75) * 2.7;
+            let r = Ray::new(Vec3::new(0.3, -0.2, 5.0), dir);
+            let o = match base.intersect(&r) {
+                Some(h) => r.org + r.dir * h.t,
+                None => r.org + r.dir * 7.0,
+            };
+            shadow.push(Ray { org: o, dir: d, tmin: 1e-4, tmax: f32::INFINITY });
+        }
+        let (mut listed, mut blocked) = (0usize, 0usize);
+        for kernel in Kernel::available() {
+            let mut tl = with_grid.clone();
+            tl.set_kernel(kernel);
+            let mut occ = vec![false; shadow.len()];
+            tl.occluded_packet(&shadow, &mut occ);
+            for (r, o) in shadow.iter().zip(&occ) {
+                assert_eq!(base.occluded(r), *o, "round {round}, {kernel:?}: {r:?}");
+                blocked += usize::from(*o);
+            }
+        }
+        for r in &shadow {
+            let Some(ids) = with_grid.shadow_candidates_at(d, r.org) else { continue };
+            listed += 1;
+            // Every instance the ray meets (closest hits after moving past each) is listed.
+            let mut ray = *r;
+            while let Some(h) = base.intersect(&ray) {
+                assert!(ids.contains(&h.inst), "round {round}: {r:?} meets instance {} not in {ids:?}", h.inst);
+                ray.tmin = h.t * 1.0001 + 1e-4;
+            }
+        }
+        assert!(listed > shadow.len() * 3 / 5, "round {round}: the grid listed {listed} of {}", shadow.len());
+        assert!(blocked > 0, "round {round}: nothing blocked");
+    }
+}
+
 /// Packets over a field of sphere instances (the REND3R Table IV kind of scene, with
 /// rotations and unequal scales) give the single-ray answers bit for bit on every kernel:
 /// camera tiles, and shadow rays that start on the spheres they hit (the SIMD sphere test

@@ -124,7 +124,24 @@ impl World {
         let scale = bounds.map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
         let mut w = Self { scene, accel, info, lights: Vec::new(), scale, opts };
         w.lights = if w.scene.lights.is_empty() { w.emitter_lights(bounds) } else { w.scene.lights.clone() };
+        w.sync_shadow_grids();
         Ok(w)
+    }
+
+    /// Gives the top level the directions toward the directional lights, for its
+    /// shadow-ray grids (exactly as the shading makes the rays: the light's direction,
+    /// normalized and reversed). Rays along any other direction take the walk, so a light
+    /// changed afterwards costs speed, never correctness.
+    fn sync_shadow_grids(&mut self) {
+        let dirs: Vec<Vec3> = self
+            .lights
+            .iter()
+            .filter_map(|l| match l.kind {
+                LightKind::Directional { direction } => Some(-direction.normalize()),
+                _ => None,
+            })
+            .collect();
+        self.accel.set_shadow_directions(&dirs);
     }
 
     /// Poses an animated scene at time `t` (glTF seconds): instance transforms from the
@@ -187,6 +204,7 @@ impl World {
                 };
             }
         }
+        self.sync_shadow_grids();
         Ok(pose.camera.or(self.scene.camera))
     }
 
