@@ -180,10 +180,33 @@ impl Coverage {
             Fill::Rect { ya, yb, .. } => (*ya, *yb),
             Fill::Ellipse(e) => (e.ya, e.yb),
         };
+        // Each band's fills, in instance order (PERF: every band scanning every fill read
+        // the whole list once per band).
+        let n_bands = height.div_ceil(BAND_ROWS) as usize;
+        let mut start = vec![0u32; n_bands + 1];
+        for (_, f) in &fills {
+            let (ya, yb) = rows_of(f);
+            for b in (ya / BAND_ROWS) as usize..=((yb / BAND_ROWS) as usize).min(n_bands - 1) {
+                start[b + 1] += 1;
+            }
+        }
+        for b in 0..n_bands {
+            start[b + 1] += start[b];
+        }
+        let mut list = vec![0u32; start[n_bands] as usize];
+        let mut next = start.clone();
+        for (k, (_, f)) in fills.iter().enumerate() {
+            let (ya, yb) = rows_of(f);
+            for b in (ya / BAND_ROWS) as usize..=((yb / BAND_ROWS) as usize).min(n_bands - 1) {
+                list[next[b] as usize] = k as u32;
+                next[b] += 1;
+            }
+        }
         let band = |(bi, (masks, cands)): (usize, (&mut [u64], &mut [Candidates]))| {
             let y0 = bi as u32 * BAND_ROWS;
             let mut band = Band { y0, y1: (y0 + BAND_ROWS).min(height), blocks_x, masks, cands };
-            for (id, f) in &fills {
+            let mine = start.get(bi..bi + 2).map_or(&[][..], |s| &list[s[0] as usize..s[1] as usize]);
+            for (id, f) in mine.iter().map(|&k| &fills[k as usize]) {
                 let (ya, yb) = rows_of(f);
                 let (ya, yb) = (ya.max(band.y0), yb.min(band.y1 - 1));
                 if ya > yb {
