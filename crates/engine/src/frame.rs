@@ -89,10 +89,16 @@ pub struct FrameSettings {
 /// Linear RGB of an RGB565 colour (read as sRGB).
 #[must_use]
 pub fn rgb565(c: u16) -> Vec3 {
-    let r = ((c >> 11) & 31) as f32 / 31.0;
-    let g = ((c >> 5) & 63) as f32 / 63.0;
-    let b = (c & 31) as f32 / 31.0;
-    Vec3::new(lucent_scene::srgb_to_linear(r), lucent_scene::srgb_to_linear(g), lucent_scene::srgb_to_linear(b))
+    // PERF: the 32 + 64 channel values decoded once (three `powf` per shape were most of
+    // turning a 256-sphere state into a scene); the same values as decoding each time.
+    static LINEAR: std::sync::OnceLock<([f32; 32], [f32; 64])> = std::sync::OnceLock::new();
+    let (five, six) = LINEAR.get_or_init(|| {
+        (
+            std::array::from_fn(|i| lucent_scene::srgb_to_linear(i as f32 / 31.0)),
+            std::array::from_fn(|i| lucent_scene::srgb_to_linear(i as f32 / 63.0)),
+        )
+    });
+    Vec3::new(five[usize::from((c >> 11) & 31)], six[usize::from((c >> 5) & 63)], five[usize::from(c & 31)])
 }
 
 fn v3(r: &Record, a: u8) -> Vec3 {
