@@ -82,13 +82,14 @@ impl DirGrid {
         let usable = |b: &Aabb| !b.is_empty() && b.is_finite();
         let mut lo = [f32::INFINITY; 2];
         let mut hi = [f32::NEG_INFINITY; 2];
-        let mut count = 0usize;
-        for b in boxes.iter().filter(|b| usable(b)) {
+        let mut prints = Vec::with_capacity(boxes.len());
+        for (i, b) in boxes.iter().enumerate().filter(|(_, b)| usable(b)) {
             let f = footprint(b);
             lo = [lo[0].min(f[0]), lo[1].min(f[2])];
             hi = [hi[0].max(f[1]), hi[1].max(f[3])];
-            count += 1;
+            prints.push((i as u32, f));
         }
+        let count = prints.len();
         if count == 0 || !(lo[0].is_finite() && lo[1].is_finite() && hi[0].is_finite() && hi[1].is_finite()) {
             return None;
         }
@@ -100,8 +101,8 @@ impl DirGrid {
         let mut g = Self { dir, u, v, lo, hi, inv_cell, n, center, scale, start: vec![0; (n[0] * n[1]) as usize + 1], ids: Vec::new() };
         // Counting sort of (cell, instance) pairs: count, prefix sums, fill.
         let mut entries = 0usize;
-        for b in boxes.iter().filter(|b| usable(b)) {
-            let [x0, x1, y0, y1] = g.cells(&footprint(b));
+        for (_, f) in &prints {
+            let [x0, x1, y0, y1] = g.cells(f);
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     g.start[(y * n[0] + x) as usize + 1] += 1;
@@ -117,12 +118,12 @@ impl DirGrid {
         }
         g.ids = vec![0; entries];
         let mut next = g.start.clone();
-        for (i, b) in boxes.iter().enumerate().filter(|(_, b)| usable(b)) {
-            let [x0, x1, y0, y1] = g.cells(&footprint(b));
+        for &(i, ref f) in &prints {
+            let [x0, x1, y0, y1] = g.cells(f);
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let c = (y * n[0] + x) as usize;
-                    g.ids[next[c] as usize] = i as u32;
+                    g.ids[next[c] as usize] = i;
                     next[c] += 1;
                 }
             }
