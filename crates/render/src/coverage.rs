@@ -172,7 +172,15 @@ impl Coverage {
         // PERF: a few hundred instances are prepared on the calling thread (a job per
         // chunk cost more than the work).
         let fills: Vec<(u32, Fill)> = if insts.len() <= SERIAL_MAX {
-            insts.iter().enumerate().map(fill).collect::<Option<Vec<_>>>()?.into_iter().flatten().collect()
+            // PERF: straight into one vector (collecting `Option`s and flattening them moved
+            // every region twice).
+            let mut v = Vec::with_capacity(insts.len());
+            for x in insts.iter().enumerate() {
+                if let Some(f) = fill(x)? {
+                    v.push(f);
+                }
+            }
+            v
         } else {
             insts.par_iter().enumerate().map(fill).collect::<Option<Vec<_>>>()?.into_iter().flatten().collect()
         };
