@@ -170,6 +170,12 @@ impl TwoLevel {
     /// top level (see `shadow_grid`); the answers are the same. The grids are rebuilt with
     /// the top level.
     pub fn set_shadow_directions(&mut self, dirs: &[Vec3]) {
+        // The same directions (bit for bit): the grids are current already, since every
+        // rebuild rebuilds them (a posed frame rebuilt them once with its instances).
+        let bits = |v: &Vec3| v.to_array().map(f32::to_bits);
+        if self.shadow_dirs.len() == dirs.len() && self.shadow_dirs.iter().zip(dirs).all(|(a, b)| bits(a) == bits(b)) {
+            return;
+        }
         self.shadow_dirs.clear();
         self.shadow_dirs.extend_from_slice(dirs);
         self.build_shadow_grids();

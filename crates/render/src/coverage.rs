@@ -366,46 +366,34 @@ impl Band<'_> {
 /// The pixel range `[lo, hi]` (clamped to `0..n`) of pixels whose squares meet `[a, b]`
 /// grown by the margin; `None` when empty.
 fn pixels(a: f64, b: f64, n: u32) -> Option<(u32, u32)> {
+    pixel_range(a, b, n, false)
+}
+
+/// [`pixels`], or with `centres` the range of pixels whose centres (pixel `x`'s is
+/// `x + 0.5`) lie in `[a, b]` grown by the margin.
+fn pixel_range(a: f64, b: f64, n: u32, centres: bool) -> Option<(u32, u32)> {
     if n == 0 {
         return None;
     }
     if a.is_nan() || b.is_nan() {
         return Some((0, n - 1));
     }
-    // Clamped into the image first, where truncation is the floor: ⌊max(x, 0)⌋ =
-    // max(⌊x⌋, 0) and ⌊min(x, n − 1)⌋ = min(⌊x⌋, n − 1).
-    let (a, b) = (a - MARGIN, b + MARGIN);
+    // Squares: x from ⌊a − margin⌋ to ⌊b + margin⌋. Centres: x from ⌈a − margin − 0.5⌉
+    // to ⌊b + margin − 0.5⌋.
+    let shift = if centres { 0.5 } else { 0.0 };
+    let (a, b) = (a - MARGIN - shift, b + MARGIN - shift);
     if b < 0.0 {
         return None;
     }
+    // Clamped into the image first, where truncation is the floor: ⌊max(x, 0)⌋ =
+    // max(⌊x⌋, 0) and ⌊min(x, n − 1)⌋ = min(⌊x⌋, n − 1).
     let lo = a.clamp(0.0, f64::from(n));
     let hi = b.min(f64::from(n) - 1.0);
     // SAFETY: both are finite (NaN was handled above), non-negative and at most `n`, so
     // they fit a u32. PERF: Rust's saturating `as` conversion, and a floor made of it,
     // were a third of the coverage's time.
-    let (lo, hi) = unsafe { (lo.to_int_unchecked::<u32>(), hi.to_int_unchecked::<u32>()) };
-    (lo <= hi).then_some((lo, hi))
-}
-
-/// The pixel range `[lo, hi]` (clamped to `0..n`) of pixels whose centres lie in `[a, b]`
-/// grown by the margin; `None` when empty.
-fn pixel_centres(a: f64, b: f64, n: u32) -> Option<(u32, u32)> {
-    if n == 0 {
-        return None;
-    }
-    if a.is_nan() || b.is_nan() {
-        return Some((0, n - 1));
-    }
-    // Pixel x's centre is x + 0.5: x from ⌈a − margin − 0.5⌉ to ⌊b + margin − 0.5⌋.
-    let (a, b) = (a - MARGIN - 0.5, b + MARGIN - 0.5);
-    if b < 0.0 {
-        return None;
-    }
-    let lo = a.clamp(0.0, f64::from(n));
-    let hi = b.min(f64::from(n) - 1.0);
-    // SAFETY: as in `pixels`: finite, non-negative, at most `n`.
     let (lo_t, hi) = unsafe { (lo.to_int_unchecked::<u32>(), hi.to_int_unchecked::<u32>()) };
-    let lo = if f64::from(lo_t) < lo { lo_t + 1 } else { lo_t };
+    let lo = if centres && f64::from(lo_t) < lo { lo_t + 1 } else { lo_t };
     (lo <= hi).then_some((lo, hi))
 }
 
@@ -509,7 +497,7 @@ impl EllipseRows {
             // reach out furthest at the extreme points, or else at the band's ends.
             let left = if bottom <= e.yl && e.yl <= top { e.left_most } else { l0.min(l1) };
             let right = if bottom <= e.yr && e.yr <= top { e.right_most } else { r0.max(r1) };
-            let span = if centres { pixel_centres(left, right, e.width) } else { pixels(left, right, e.width) };
+            let span = pixel_range(left, right, e.width, centres);
             if let Some(span) = span {
                 let r = (y % BLOCK_EDGE) as usize;
                 spans[r] = span;
@@ -705,5 +693,11 @@ mod tests {
         assert_eq!(pixels(-9.0, 50.0, 20), Some((0, 19)));
         assert_eq!(pixels(30.0, 50.0, 20), None);
         assert_eq!(pixels(-30.0, -5.0, 20), None);
+        // Centres: pixel x counts when x + 0.5 lies within the margin of [a, b].
+        assert_eq!(pixel_range(2.6, 5.1, 20, true), Some((2, 4)));
+        assert_eq!(pixel_range(2.2, 5.8, 20, true), Some((2, 5)));
+        assert_eq!(pixel_range(3.75, 3.75, 20, true), Some((3, 3)));
+        assert_eq!(pixel_range(3.76, 4.0, 20, true), None);
+        assert_eq!(pixel_range(-9.0, 50.0, 20, true), Some((0, 19)));
     }
 }

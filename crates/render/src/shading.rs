@@ -387,11 +387,17 @@ const POINT: u8 = 0;
 const DIRECTIONAL: u8 = 1;
 const SPOT: u8 = 2;
 
+/// The unit direction toward a directional light that shines along `direction`: the
+/// direction of its shadow rays, bit for bit (the top level's shadow grids match on it).
+pub(crate) fn toward_directional(direction: Vec3) -> Vec3 {
+    -direction.normalize()
+}
+
 impl LightConst {
     pub(crate) fn new(l: &Light) -> Self {
         let (kind, position, dir, cos_inner, cos_outer) = match l.kind {
             LightKind::Point { position } => (POINT, position, Vec3::ZERO, 0.0, 0.0),
-            LightKind::Directional { direction } => (DIRECTIONAL, Vec3::ZERO, -direction.normalize(), 0.0, 0.0),
+            LightKind::Directional { direction } => (DIRECTIONAL, Vec3::ZERO, toward_directional(direction), 0.0, 0.0),
             LightKind::Spot { position, direction, inner, outer } => (SPOT, position, direction.normalize(), inner.cos(), outer.cos()),
         };
         Self { kind, position, dir, cos_inner, cos_outer, color: l.color, inverse_square: l.inverse_square }

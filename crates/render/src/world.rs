@@ -129,15 +129,14 @@ impl World {
     }
 
     /// Gives the top level the directions toward the directional lights, for its
-    /// shadow-ray grids (exactly as the shading makes the rays: the light's direction,
-    /// normalized and reversed). Rays along any other direction take the walk, so a light
+    /// shadow-ray grids (exactly as the shading makes the rays). Rays along any other direction take the walk, so a light
     /// changed afterwards costs speed, never correctness.
     fn sync_shadow_grids(&mut self) {
         let dirs: Vec<Vec3> = self
             .lights
             .iter()
             .filter_map(|l| match l.kind {
-                LightKind::Directional { direction } => Some(-direction.normalize()),
+                LightKind::Directional { direction } => Some(crate::shading::toward_directional(direction)),
                 _ => None,
             })
             .collect();
