@@ -1057,25 +1057,44 @@ fn chunks(rays: &[Ray], body: impl FnMut(usize, &Packet, &mut PacketHits)) {
 /// `fill(rays, block)` puts up to eight rays into a block, and one packet is reused.
 #[inline(always)]
 fn aos_chunks(rays: &[Ray], mut fill: impl FnMut(&[Ray], &mut RayBlock), mut body: impl FnMut(usize, &Packet, &mut PacketHits)) {
-    let (mut p, mut h) = Packet::empty();
-    for (c, chunk) in rays.chunks(MAX_PACKET).enumerate() {
-        let mut blocks = [RayBlock::EMPTY; GROUPS];
-        for (b, eight) in blocks.iter_mut().zip(chunk.chunks(LANES)) {
-            fill(eight, b);
+    with_spare_packet(|p, h| {
+        for (c, chunk) in rays.chunks(MAX_PACKET).enumerate() {
+            let mut blocks = [RayBlock::EMPTY; GROUPS];
+            for (b, eight) in blocks.iter_mut().zip(chunk.chunks(LANES)) {
+                fill(eight, b);
+            }
+            p.load_blocks_into(&blocks[..chunk.len().div_ceil(LANES)], h);
+            body(c * MAX_PACKET, p, h);
         }
-        p.load_blocks_into(&blocks[..chunk.len().div_ceil(LANES)], &mut h);
-        body(c * MAX_PACKET, &p, &mut h);
-    }
+    });
+}
+
+thread_local! {
+    /// Each thread's packet between calls (see [`with_spare_packet`]).
+    static SPARE_PACKET: std::cell::Cell<Option<Box<(Packet, PacketHits)>>> = const { std::cell::Cell::new(None) };
+}
+
+/// Runs `body` with a packet and its hits to load rays into: the thread's spare one (left
+/// as the previous call left it), or a new one when a call is already using it. PERF: a
+/// fresh packet is 4 KB to zero per call, a fiftieth of a sparse REND3R frame.
+/// [`Packet::load_blocks_into`] sets everything a kernel reads, whatever was there before.
+#[inline(always)]
+fn with_spare_packet(body: impl FnOnce(&mut Packet, &mut PacketHits)) {
+    let mut spare = SPARE_PACKET.with(std::cell::Cell::take).unwrap_or_else(|| Box::new(Packet::empty()));
+    let (p, h) = &mut *spare;
+    body(p, h);
+    SPARE_PACKET.with(|s| s.set(Some(spare)));
 }
 
 /// Runs `body` on every run of at most [`GROUPS`] blocks, with the packet loaded.
 #[inline(always)]
 fn block_chunks(blocks: &[RayBlock], mut body: impl FnMut(usize, &Packet, &mut PacketHits)) {
-    let (mut p, mut h) = Packet::empty();
-    for (c, chunk) in blocks.chunks(GROUPS).enumerate() {
-        p.load_blocks_into(chunk, &mut h);
-        body(c * MAX_PACKET, &p, &mut h);
-    }
+    with_spare_packet(|p, h| {
+        for (c, chunk) in blocks.chunks(GROUPS).enumerate() {
+            p.load_blocks_into(chunk, h);
+            body(c * MAX_PACKET, p, h);
+        }
+    });
 }
 
 /// How many times a packet whose origins spread too far may be halved (up to 16 parts).
