@@ -139,102 +139,18 @@ impl Coverage {
     }
 
     fn with(w: &World, cam: &Camera, centres: bool) -> Option<Self> {
-        let proj = projection(cam)?;
-        let accel = &w.accel;
-        let insts = accel.instances();
-        if insts.len() > MAX_INSTANCES {
-            return None;
-        }
-        let (width, height) = cam.size();
-        let blocks_x = width.div_ceil(BLOCK_EDGE);
-        let blocks_y = height.div_ceil(BLOCK_EDGE);
-        let n_blocks = (blocks_x * blocks_y) as usize;
-        let mut c = Coverage { blocks_x, masks: vec![0; n_blocks], cands: vec![Candidates::default(); n_blocks] };
-        // First what each instance covers (its rows, and how to find each row's span),
-        // then the rows, in bands of block rows that own their masks: no merging.
-        let fill = |(id, inst): (usize, &lucent_accel::Instance)| -> Option<Option<(u32, Fill)>> {
-            let geom = accel.geometries().get(inst.geometry as usize)?;
-            Some(match region(geom, inst, &proj) {
-                Region::Nothing => None,
-                Region::Everything => return None,
-                Region::Rect(r) => {
-                    if r[0] - MARGIN <= 0.0 && r[2] - MARGIN <= 0.0 && r[1] + MARGIN >= proj.width && r[3] + MARGIN >= proj.height {
-                        return None;
-                    }
-                    match (pixels(r[0], r[1], width), pixels(r[2], r[3], height)) {
-                        (Some((xa, xb)), Some((ya, yb))) => Some((id as u32, Fill::Rect { xa, xb, ya, yb })),
-                        _ => None,
-                    }
-                }
-                Region::Ellipse(k) => EllipseRows::new(&k, &proj).map(|e| (id as u32, Fill::Ellipse(e))),
-            })
-        };
-        // PERF: a few hundred instances are prepared on the calling thread (a job per
-        // chunk cost more than the work).
-        let fills: Vec<(u32, Fill)> = if insts.len() <= SERIAL_MAX {
-            // PERF: straight into one vector (collecting `Option`s and flattening them moved
-            // every region twice).
-            let mut v = Vec::with_capacity(insts.len());
-            for x in insts.iter().enumerate() {
-                if let Some(f) = fill(x)? {
-                    v.push(f);
-                }
-            }
-            v
-        } else {
-            insts.par_iter().enumerate().map(fill).collect::<Option<Vec<_>>>()?.into_iter().flatten().collect()
-        };
-        let rows_of = |f: &Fill| match f {
-            Fill::Rect { ya, yb, .. } => (*ya, *yb),
-            Fill::Ellipse(e) => (e.ya, e.yb),
-        };
-        // Each band's fills, in instance order (PERF: every band scanning every fill read
-        // the whole list once per band).
-        let n_bands = height.div_ceil(BAND_ROWS) as usize;
-        let mut start = vec![0u32; n_bands + 1];
-        for (_, f) in &fills {
-            let (ya, yb) = rows_of(f);
-            for b in (ya / BAND_ROWS) as usize..=((yb / BAND_ROWS) as usize).min(n_bands - 1) {
-                start[b + 1] += 1;
-            }
-        }
-        for b in 0..n_bands {
-            start[b + 1] += start[b];
-        }
-        let mut list = vec![0u32; start[n_bands] as usize];
-        let mut next = start.clone();
-        for (k, (_, f)) in fills.iter().enumerate() {
-            let (ya, yb) = rows_of(f);
-            for b in (ya / BAND_ROWS) as usize..=((yb / BAND_ROWS) as usize).min(n_bands - 1) {
-                list[next[b] as usize] = k as u32;
-                next[b] += 1;
-            }
-        }
-        let band = |(bi, (masks, cands)): (usize, (&mut [u64], &mut [Candidates]))| {
-            let y0 = bi as u32 * BAND_ROWS;
-            let mut band = Band { y0, y1: (y0 + BAND_ROWS).min(height), blocks_x, masks, cands };
-            let mine = start.get(bi..bi + 2).map_or(&[][..], |s| &list[s[0] as usize..s[1] as usize]);
-            for (id, f) in mine.iter().map(|&k| &fills[k as usize]) {
-                let (ya, yb) = rows_of(f);
-                let (ya, yb) = (ya.max(band.y0), yb.min(band.y1 - 1));
-                if ya > yb {
-                    continue;
-                }
-                match f {
-                    Fill::Rect { xa, xb, .. } => band.fill_rows(ya, yb, *xa, *xb, *id),
-                    Fill::Ellipse(e) => e.fill(&mut band, ya, yb, *id, centres),
-                }
-            }
-        };
-        let per_band = (blocks_x * BAND_ROWS / BLOCK_EDGE) as usize;
-        if fills.len() <= SERIAL_FILLS {
+        let prep = Prepared::new(w, cam, centres)?;
+        let mut c =
+            Coverage { blocks_x: prep.blocks_x, masks: vec![0; prep.n_blocks()], cands: vec![Candidates::default(); prep.n_blocks()] };
+        let per_band = prep.blocks_per_band();
+        let band = |(bi, (masks, cands)): (usize, (&mut [u64], &mut [Candidates]))| prep.fill_band(bi, masks, cands);
+        if prep.fills.len() <= SERIAL_FILLS {
             c.masks.chunks_mut(per_band).zip(c.cands.chunks_mut(per_band)).enumerate().for_each(band);
         } else {
             c.masks.par_chunks_mut(per_band).zip(c.cands.par_chunks_mut(per_band)).enumerate().for_each(band);
         }
         Some(c)
     }
-
     /// The mask of block (`bx`, `by`) (in blocks); zero outside the image.
     #[must_use]
     pub fn block(&self, bx: u32, by: u32) -> u64 {
@@ -277,6 +193,171 @@ impl Coverage {
     }
 }
 
+/// A frame's coverage before its rows are filled: what each instance covers, and which
+/// instances each band of [`BAND_ROWS`] image rows must fill. Bands are filled apart
+/// ([`Prepared::band`]), so the tile renderer fills each band in the task that renders it:
+/// one parallel step per frame, not two.
+pub struct Prepared {
+    blocks_x: u32,
+    height: u32,
+    centres: bool,
+    /// The instances' regions (instance id, region), in instance order.
+    fills: Vec<(u32, Fill)>,
+    /// Band `b`'s regions: `list[start[b]..start[b + 1]]` (indices into `fills`).
+    start: Vec<u32>,
+    list: Vec<u32>,
+}
+
+impl Prepared {
+    /// Image rows per band (whole blocks).
+    pub const BAND_ROWS: u32 = BAND_ROWS;
+
+    /// The regions of `w`'s instances seen by `cam` (pixel squares, or with `centres` pixel
+    /// centres; see [`Coverage::of_centres`]); `None` when every pixel must be traced.
+    #[must_use]
+    pub fn new(w: &World, cam: &Camera, centres: bool) -> Option<Self> {
+        let proj = projection(cam)?;
+        let accel = &w.accel;
+        let insts = accel.instances();
+        if insts.len() > MAX_INSTANCES {
+            return None;
+        }
+        let (width, height) = cam.size();
+        let blocks_x = width.div_ceil(BLOCK_EDGE);
+        // First what each instance covers (its rows, and how to find each row's span);
+        // the rows are filled band by band, each band owning its masks: no merging.
+        let fill = |(id, inst): (usize, &lucent_accel::Instance)| -> Option<Option<(u32, Fill)>> {
+            let geom = accel.geometries().get(inst.geometry as usize)?;
+            Some(match region(geom, inst, &proj) {
+                Region::Nothing => None,
+                Region::Everything => return None,
+                Region::Rect(r) => {
+                    if r[0] - MARGIN <= 0.0 && r[2] - MARGIN <= 0.0 && r[1] + MARGIN >= proj.width && r[3] + MARGIN >= proj.height {
+                        return None;
+                    }
+                    match (pixels(r[0], r[1], width), pixels(r[2], r[3], height)) {
+                        (Some((xa, xb)), Some((ya, yb))) => Some((id as u32, Fill::Rect { xa, xb, ya, yb })),
+                        _ => None,
+                    }
+                }
+                Region::Ellipse(k) => EllipseRows::new(&k, &proj).map(|e| (id as u32, Fill::Ellipse(e))),
+            })
+        };
+        // PERF: a few hundred instances are prepared on the calling thread (a job per
+        // chunk cost more than the work).
+        let fills: Vec<(u32, Fill)> = if insts.len() <= SERIAL_MAX {
+            // PERF: straight into one vector (collecting `Option`s and flattening them moved
+            // every region twice).
+            let mut v = Vec::with_capacity(insts.len());
+            for x in insts.iter().enumerate() {
+                if let Some(f) = fill(x)? {
+                    v.push(f);
+                }
+            }
+            v
+        } else {
+            insts.par_iter().enumerate().map(fill).collect::<Option<Vec<_>>>()?.into_iter().flatten().collect()
+        };
+        // Each band's fills, in instance order (PERF: every band scanning every fill read
+        // the whole list once per band).
+        let n_bands = height.div_ceil(BAND_ROWS).max(1) as usize;
+        let bands_of = |f: &Fill| {
+            let (ya, yb) = f.rows();
+            (ya / BAND_ROWS) as usize..=((yb / BAND_ROWS) as usize).min(n_bands - 1)
+        };
+        let mut start = vec![0u32; n_bands + 1];
+        for (_, f) in &fills {
+            for b in bands_of(f) {
+                start[b + 1] += 1;
+            }
+        }
+        for b in 0..n_bands {
+            start[b + 1] += start[b];
+        }
+        let mut list = vec![0u32; start[n_bands] as usize];
+        let mut next = start.clone();
+        for (k, (_, f)) in fills.iter().enumerate() {
+            for b in bands_of(f) {
+                list[next[b] as usize] = k as u32;
+                next[b] += 1;
+            }
+        }
+        Some(Self { blocks_x, height, centres, fills, start, list })
+    }
+
+    /// Blocks in the whole image.
+    fn n_blocks(&self) -> usize {
+        (self.blocks_x * self.height.div_ceil(BLOCK_EDGE)) as usize
+    }
+
+    /// Blocks in a (whole) band.
+    fn blocks_per_band(&self) -> usize {
+        (self.blocks_x * BAND_ROWS / BLOCK_EDGE) as usize
+    }
+
+    /// Fills band `bi` (image rows `bi·BAND_ROWS ..`) into its blocks' `masks` and
+    /// `cands` (cleared by the caller).
+    fn fill_band(&self, bi: usize, masks: &mut [u64], cands: &mut [Candidates]) {
+        let y0 = bi as u32 * BAND_ROWS;
+        let mut band = Band { y0, y1: (y0 + BAND_ROWS).min(self.height), blocks_x: self.blocks_x, masks, cands };
+        let mine = self.start.get(bi..bi + 2).map_or(&[][..], |s| &self.list[s[0] as usize..s[1] as usize]);
+        for (id, f) in mine.iter().map(|&k| &self.fills[k as usize]) {
+            let (ya, yb) = f.rows();
+            let (ya, yb) = (ya.max(band.y0), yb.min(band.y1.saturating_sub(1)));
+            if ya > yb {
+                continue;
+            }
+            match f {
+                Fill::Rect { xa, xb, .. } => band.fill_rows(ya, yb, *xa, *xb, *id),
+                Fill::Ellipse(e) => e.fill(&mut band, ya, yb, *id, self.centres),
+            }
+        }
+    }
+
+    /// The coverage of band `bi`: the blocks of image rows `bi·BAND_ROWS ..` (block rows
+    /// `bi·BAND_ROWS/8 ..`).
+    #[must_use]
+    pub fn band(&self, bi: usize) -> BandCoverage {
+        let n = self.blocks_per_band();
+        let mut b = BandCoverage {
+            by0: bi as u32 * (BAND_ROWS / BLOCK_EDGE),
+            blocks_x: self.blocks_x,
+            masks: vec![0; n],
+            cands: vec![Candidates::default(); n],
+        };
+        self.fill_band(bi, &mut b.masks, &mut b.cands);
+        b
+    }
+}
+
+/// The coverage of one band of image rows ([`Prepared::band`]), read as [`Coverage`] is.
+pub struct BandCoverage {
+    /// The band's first block row.
+    by0: u32,
+    blocks_x: u32,
+    masks: Vec<u64>,
+    cands: Vec<Candidates>,
+}
+
+impl BandCoverage {
+    fn index(&self, bx: u32, by: u32) -> Option<usize> {
+        (bx < self.blocks_x && by >= self.by0).then(|| ((by - self.by0) * self.blocks_x + bx) as usize)
+    }
+
+    /// The mask of block (`bx`, `by`) (in blocks, image coordinates); zero outside the band.
+    #[must_use]
+    pub fn block(&self, bx: u32, by: u32) -> u64 {
+        self.index(bx, by).and_then(|i| self.masks.get(i)).copied().unwrap_or(0)
+    }
+
+    /// As [`Coverage::candidates`], within the band.
+    #[must_use]
+    pub fn candidates(&self, bx: u32, by: u32) -> Option<&[u32]> {
+        let c = self.cands.get(self.index(bx, by)?)?;
+        (c.count as usize <= MAX_CANDIDATES).then(|| &c.ids[..c.count as usize])
+    }
+}
+
 /// What one instance covers, ready to be filled band by band.
 enum Fill {
     /// Pixels `xa..=xb` of rows `ya..=yb`.
@@ -287,6 +368,16 @@ enum Fill {
         yb: u32,
     },
     Ellipse(EllipseRows),
+}
+
+impl Fill {
+    /// The image rows covered (inclusive).
+    fn rows(&self) -> (u32, u32) {
+        match self {
+            Fill::Rect { ya, yb, .. } => (*ya, *yb),
+            Fill::Ellipse(e) => (e.ya, e.yb),
+        }
+    }
 }
 
 /// Rows `y0..y1` (pixels; `y0` a multiple of [`BLOCK_EDGE`]) of the coverage, with their

@@ -1,7 +1,7 @@
 //! The tile renderer: tiles on all cores (rayon), samples deterministic per (pixel, sample).
 
 use crate::camera::Camera;
-use crate::coverage::Coverage;
+use crate::coverage::{BandCoverage, Prepared};
 use crate::film::Film;
 use crate::integrator::{li, li_packet_among, radiance, Integrator, WhittedSettings, NO_RAYS};
 use crate::world::World;
@@ -170,85 +170,92 @@ fn render_tiles(
     // Which pixels can meet anything, by projecting the instances (object order): a sparse
     // scene, such as REND3R's 256 small spheres, traces a third of its pixels. `None`
     // (something covers the whole image, or reaches around the eye) traces them all.
-    let cover = match samples {
+    let prep = match samples {
         _ if cam.size() != (width, height) => None,
-        Samples::Centres => Coverage::of_centres(w, cam),
-        Samples::Anywhere => Coverage::of(w, cam),
+        Samples::Centres => Prepared::new(w, cam, true),
+        Samples::Anywhere => Prepared::new(w, cam, false),
     };
+    // PERF: a band of tiles fills its coverage in the task that renders it, so a frame has
+    // one parallel step (the fill as a step of its own, with its hand-off to the workers,
+    // was a tenth of a 256-sphere REND3R frame).
+    const _: () = assert!(TILE == Prepared::BAND_ROWS, "a row of tiles is one band of the coverage");
     // PERF: every tile writes its pixels straight into the film (tiles are disjoint);
     // gathering per-tile buffers and copying them in afterwards, one thread, took half of a
     // one-sphere REND3R frame.
-    let rays = (0..tw * th)
-        .into_par_iter()
-        .map(|t| {
-            let (tx, ty) = (t % tw, t / tw);
-            let (x0, y0) = (tx * TILE, ty * TILE);
-            let (x1, y1) = ((x0 + TILE).min(width), (y0 + TILE).min(height));
-            let before = crate::world::rays_traced_here();
-            let put = |x: u32, y: u32, c: Vec3| {
-                // SAFETY: (x, y) lies inside this tile and inside the film's allocation
-                // (`n_pixels` long), and no other tile writes this pixel; the buffer
-                // outlives the parallel loop.
-                unsafe { out.get().add((y * width + x) as usize).write(c) };
-            };
-            let mut coords = [(0u32, 0u32); BLOCK];
-            let mut px = [Vec3::ZERO; BLOCK];
-            for by in (y0..y1).step_by(8) {
-                for bx in (x0..x1).step_by(8) {
-                    let (bx1, by1) = ((bx + 8).min(x1), (by + 8).min(y1));
-                    let mask = cover.as_ref().map_or(u64::MAX, |c| c.block(bx / 8, by / 8));
-                    let (cols, rows) = (bx1 - bx, by1 - by);
-                    // The pixels of the block inside the tile (a partial block at the image's
-                    // right or bottom edge has fewer).
-                    let inside = if cols == 8 && rows == 8 {
-                        u64::MAX
-                    } else {
-                        (u64::MAX >> (64 - 8 * rows)) & ((0xffu64 >> (8 - cols)) * 0x0101_0101_0101_0101)
-                    };
-                    let trace = mask & inside;
-                    if trace != inside {
-                        // PERF: the background a row at a time (pixel by pixel, the background
-                        // of sparse REND3R frames was a tenth of their time); traced pixels
-                        // overwrite it below.
-                        let row = [bg; 8];
-                        for y in by..by1 {
-                            let dst = out.get().wrapping_add((y * width + bx) as usize);
-                            // SAFETY: the row's pixels bx..bx1 lie inside this tile and the
-                            // film's allocation, and no other tile writes them. PERF: a whole
-                            // row of a block as a copy of known size, which compiles to a few
-                            // vector stores (not a call to `memcpy`).
-                            unsafe {
-                                if cols == 8 {
-                                    dst.cast::<[Vec3; 8]>().write_unaligned(row);
-                                } else {
-                                    std::ptr::copy_nonoverlapping(row.as_ptr(), dst, cols as usize);
-                                }
+    let tile = |tx: u32, ty: u32, cover: Option<&BandCoverage>| -> u64 {
+        let (x0, y0) = (tx * TILE, ty * TILE);
+        let (x1, y1) = ((x0 + TILE).min(width), (y0 + TILE).min(height));
+        let before = crate::world::rays_traced_here();
+        let put = |x: u32, y: u32, c: Vec3| {
+            // SAFETY: (x, y) lies inside this tile and inside the film's allocation
+            // (`n_pixels` long), and no other tile writes this pixel; the buffer
+            // outlives the parallel loop.
+            unsafe { out.get().add((y * width + x) as usize).write(c) };
+        };
+        let mut coords = [(0u32, 0u32); BLOCK];
+        let mut px = [Vec3::ZERO; BLOCK];
+        for by in (y0..y1).step_by(8) {
+            for bx in (x0..x1).step_by(8) {
+                let (bx1, by1) = ((bx + 8).min(x1), (by + 8).min(y1));
+                let mask = cover.as_ref().map_or(u64::MAX, |c| c.block(bx / 8, by / 8));
+                let (cols, rows) = (bx1 - bx, by1 - by);
+                // The pixels of the block inside the tile (a partial block at the image's
+                // right or bottom edge has fewer).
+                let inside = if cols == 8 && rows == 8 {
+                    u64::MAX
+                } else {
+                    (u64::MAX >> (64 - 8 * rows)) & ((0xffu64 >> (8 - cols)) * 0x0101_0101_0101_0101)
+                };
+                let trace = mask & inside;
+                if trace != inside {
+                    // PERF: the background a row at a time (pixel by pixel, the background
+                    // of sparse REND3R frames was a tenth of their time); traced pixels
+                    // overwrite it below.
+                    let row = [bg; 8];
+                    for y in by..by1 {
+                        let dst = out.get().wrapping_add((y * width + bx) as usize);
+                        // SAFETY: the row's pixels bx..bx1 lie inside this tile and the
+                        // film's allocation, and no other tile writes them. PERF: a whole
+                        // row of a block as a copy of known size, which compiles to a few
+                        // vector stores (not a call to `memcpy`).
+                        unsafe {
+                            if cols == 8 {
+                                dst.cast::<[Vec3; 8]>().write_unaligned(row);
+                            } else {
+                                std::ptr::copy_nonoverlapping(row.as_ptr(), dst, cols as usize);
                             }
                         }
                     }
-                    if trace == 0 {
-                        continue;
-                    }
-                    let mut n = 0;
-                    let mut b = trace;
-                    while b != 0 {
-                        let i = b.trailing_zeros();
-                        b &= b - 1;
-                        coords[n] = (bx + i % 8, by + i / 8);
-                        n += 1;
-                    }
-                    if n == 0 {
-                        continue;
-                    }
-                    let among = cover.as_ref().and_then(|c| c.candidates(bx / 8, by / 8));
-                    block(&coords[..n], among, &mut px[..n]);
-                    for (&(x, y), c) in coords[..n].iter().zip(&px) {
-                        put(x, y, *c);
-                    }
+                }
+                if trace == 0 {
+                    continue;
+                }
+                let mut n = 0;
+                let mut b = trace;
+                while b != 0 {
+                    let i = b.trailing_zeros();
+                    b &= b - 1;
+                    coords[n] = (bx + i % 8, by + i / 8);
+                    n += 1;
+                }
+                if n == 0 {
+                    continue;
+                }
+                let among = cover.as_ref().and_then(|c| c.candidates(bx / 8, by / 8));
+                block(&coords[..n], among, &mut px[..n]);
+                for (&(x, y), c) in coords[..n].iter().zip(&px) {
+                    put(x, y, *c);
                 }
             }
-            progress(1);
-            crate::world::rays_traced_here() - before
+        }
+        progress(1);
+        crate::world::rays_traced_here() - before
+    };
+    let rays = (0..th)
+        .into_par_iter()
+        .map(|ty| {
+            let cover = prep.as_ref().map(|p| p.band(ty as usize));
+            (0..tw).into_par_iter().map(|tx| tile(tx, ty, cover.as_ref())).sum::<u64>()
         })
         .sum();
     // SAFETY: every pixel lies in exactly one tile and one of its blocks, and each block
