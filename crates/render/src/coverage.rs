@@ -36,6 +36,10 @@ const MARGIN: f64 = 0.25;
 /// projecting them would cost more than it saves.
 const MAX_INSTANCES: usize = 1 << 16;
 
+/// Wider images are not covered (every pixel is traced): the row kernels' pixel
+/// coordinates are 32-bit signed integers.
+const MAX_WIDTH: u32 = 1 << 24;
+
 /// Up to this many instances, their regions are found on the calling thread.
 const SERIAL_MAX: usize = 1024;
 
@@ -201,6 +205,8 @@ pub struct Prepared {
     blocks_x: u32,
     height: u32,
     centres: bool,
+    /// Ellipses are filled with the AVX2 row kernel.
+    simd: bool,
     /// The instances' regions (instance id, region), in instance order.
     fills: Vec<(u32, Fill)>,
     /// Band `b`'s regions: `list[start[b]..start[b + 1]]` (indices into `fills`).
@@ -223,6 +229,9 @@ impl Prepared {
             return None;
         }
         let (width, height) = cam.size();
+        if width == 0 || height == 0 || width > MAX_WIDTH {
+            return None;
+        }
         let blocks_x = width.div_ceil(BLOCK_EDGE);
         // First what each instance covers (its rows, and how to find each row's span);
         // the rows are filled band by band, each band owning its masks: no merging.
@@ -282,7 +291,11 @@ impl Prepared {
                 next[b] += 1;
             }
         }
-        Some(Self { blocks_x, height, centres, fills, start, list })
+        #[cfg(target_arch = "x86_64")]
+        let simd = std::is_x86_feature_detected!("avx2");
+        #[cfg(not(target_arch = "x86_64"))]
+        let simd = false;
+        Some(Self { blocks_x, height, centres, simd, fills, start, list })
     }
 
     /// Blocks in the whole image.
@@ -309,7 +322,7 @@ impl Prepared {
             }
             match f {
                 Fill::Rect { xa, xb, .. } => band.fill_rows(ya, yb, *xa, *xb, *id),
-                Fill::Ellipse(e) => e.fill(&mut band, ya, yb, *id, self.centres),
+                Fill::Ellipse(e) => e.fill(&mut band, ya, yb, *id, self.centres, self.simd),
             }
         }
     }
@@ -492,6 +505,7 @@ fn pixel_range(a: f64, b: f64, n: u32, centres: bool) -> Option<(u32, u32)> {
 /// symmetric matrix `K` over `(1, sx, sy)`. The chord at screen height `y` has its centre
 /// at `−(k12 y + k01)/k11` and half-width `sqrt(D(y))/k11` with `D(y) = a y² + 2 b y + c`
 /// (`a < 0` for an ellipse).
+#[derive(Clone, Copy, Debug)]
 struct EllipseRows {
     /// Image rows covered.
     ya: u32,
@@ -560,47 +574,195 @@ impl EllipseRows {
 
     /// Fills rows `ya..=yb` (within the ellipse's rows and the band's) of `band`: the
     /// pixels whose squares (or, with `centres`, whose centres) come within [`MARGIN`].
-    fn fill(&self, band: &mut Band, ya: u32, yb: u32, id: u32, centres: bool) {
-        let e = self;
-        // The image rows' extent that counts: the square, or the centre.
-        let (above, below) = if centres { (-0.5 + MARGIN, 0.5 + MARGIN) } else { (MARGIN, 1.0 + MARGIN) };
-        // The spans of the rows of the current block row (those with a bit in `live`).
+    /// `simd`: with the AVX2 row kernel (the same spans as the scalar one, bit for bit).
+    fn fill(&self, band: &mut Band, ya: u32, yb: u32, id: u32, centres: bool, simd: bool) {
+        #[cfg(target_arch = "x86_64")]
+        if simd {
+            // SAFETY: `simd` is set only where AVX2 was detected.
+            return unsafe { self.fill_avx2(band, ya, yb, id, centres) };
+        }
+        let _ = simd;
+        self.fill_with::<ScalarRows>(band, ya, yb, id, centres);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn fill_avx2(&self, band: &mut Band, ya: u32, yb: u32, id: u32, centres: bool) {
+        self.fill_with::<Avx2Rows>(band, ya, yb, id, centres);
+    }
+
+    /// [`EllipseRows::fill`] with the row kernel `K`: four rows at a time (aligned to four,
+    /// so each group lies in one block row), each block row's spans handed over together
+    /// (PERF: one mask update per block; row by row, the updates were a third of the fill).
+    #[inline(always)]
+    fn fill_with<K: RowKernel>(&self, band: &mut Band, ya: u32, yb: u32, id: u32, centres: bool) {
         let mut spans = [(0u32, 0u32); BLOCK_EDGE as usize];
         let mut live = 0u8;
-        for y in ya..=yb {
-            // The row's band in sy (sy falls as the image row grows), within the ellipse.
-            let top = (e.sy0 + e.sy1 * (f64::from(y) - above)).min(e.y_hi);
-            let bottom = (e.sy0 + e.sy1 * (f64::from(y) + below)).max(e.y_lo);
-            if bottom > top {
-                if y % BLOCK_EDGE == BLOCK_EDGE - 1 || y == yb {
-                    band.fill_block_row(y / BLOCK_EDGE, &spans, live, id);
-                    live = 0;
+        let mut y = ya & !3;
+        while y <= yb {
+            let r = K::rows4(self, y, centres);
+            for i in 0..4u32 {
+                let row = y + i;
+                if (r.ok >> i) & 1 != 0 && (ya..=yb).contains(&row) {
+                    let k = (row % BLOCK_EDGE) as usize;
+                    spans[k] = (r.lo[i as usize], r.hi[i as usize]);
+                    live |= 1 << k;
                 }
-                continue;
             }
-            // The chords at both ends of the band, their square roots side by side.
-            let d = |y: f64| (e.a * y * y + 2.0 * e.b * y + e.c).max(0.0);
+            let last = y + 3;
+            if last % BLOCK_EDGE == BLOCK_EDGE - 1 || last >= yb {
+                band.fill_block_row(y / BLOCK_EDGE, &spans, live, id);
+                live = 0;
+            }
+            y += 4;
+        }
+    }
+
+    /// The spans of image rows `y..y + 4`, in scalar code (the reference for the AVX2
+    /// kernel, which does the same operations in the same order; `min`/`max` are written as
+    /// the SIMD instructions behave: the second operand unless the first is smaller or
+    /// larger, so NaNs go the same way in both).
+    fn rows4_scalar(&self, y: u32, centres: bool) -> Rows4 {
+        let e = self;
+        let min = |a: f64, b: f64| if a < b { a } else { b };
+        let max = |a: f64, b: f64| if a > b { a } else { b };
+        // The image rows' extent that counts: the square, or the centre.
+        let (above, below) = if centres { (-0.5 + MARGIN, 0.5 + MARGIN) } else { (MARGIN, 1.0 + MARGIN) };
+        let shift = if centres { 0.5 } else { 0.0 };
+        let n = f64::from(e.width);
+        let mut out = Rows4 { lo: [0; 4], hi: [0; 4], ok: 0 };
+        for i in 0..4 {
+            let yf = f64::from(y + i as u32);
+            // The row's band in sy (sy falls as the image row grows), within the ellipse.
+            let top = min(e.sy0 + e.sy1 * (yf - above), e.y_hi);
+            let bottom = max(e.sy0 + e.sy1 * (yf + below), e.y_lo);
+            // The chords at both ends of the band.
+            let d = |y: f64| max(e.a * y * y + 2.0 * e.b * y + e.c, 0.0);
             let (h0, h1) = (d(bottom).sqrt() * e.r11, d(top).sqrt() * e.r11);
             let (m0, m1) = (-(e.k12 * bottom + e.k01) * e.r11, -(e.k12 * top + e.k01) * e.r11);
             let (l0, r0) = (e.px0 + e.px1 * (m0 - h0), e.px0 + e.px1 * (m0 + h0));
             let (l1, r1) = (e.px0 + e.px1 * (m1 - h1), e.px0 + e.px1 * (m1 + h1));
             // The left edge is convex and the right edge concave in sy: over the band they
             // reach out furthest at the extreme points, or else at the band's ends.
-            let left = if bottom <= e.yl && e.yl <= top { e.left_most } else { l0.min(l1) };
-            let right = if bottom <= e.yr && e.yr <= top { e.right_most } else { r0.max(r1) };
-            let span = pixel_range(left, right, e.width, centres);
-            if let Some(span) = span {
-                let r = (y % BLOCK_EDGE) as usize;
-                spans[r] = span;
-                live |= 1 << r;
-            }
-            // PERF: a block row's spans go in together, one update per block (row by
-            // row, the updates were a third of the fill).
-            if y % BLOCK_EDGE == BLOCK_EDGE - 1 || y == yb {
-                band.fill_block_row(y / BLOCK_EDGE, &spans, live, id);
-                live = 0;
-            }
+            let left = if bottom <= e.yl && e.yl <= top { e.left_most } else { min(l0, l1) };
+            let right = if bottom <= e.yr && e.yr <= top { e.right_most } else { max(r0, r1) };
+            // `pixel_range`, as the kernel computes it.
+            let (a, b) = (left - MARGIN - shift, right + MARGIN - shift);
+            let lo = min(max(a, 0.0), n);
+            let hi = min(b, n - 1.0);
+            let (lo_t, hi_t) = (trunc_i32(lo), trunc_i32(hi));
+            let lo_i = if centres && f64::from(lo_t) < lo { lo_t + 1 } else { lo_t };
+            let nan = left.is_nan() || right.is_nan();
+            // (A NaN bound keeps the row, as the kernel's unordered compare does.)
+            let rows = bottom.partial_cmp(&top) != Some(std::cmp::Ordering::Greater);
+            let ok = rows && (nan || (b >= 0.0 && lo_i <= hi_t));
+            let (lo_i, hi_t) = if nan { (0, e.width as i32 - 1) } else { (lo_i, hi_t) };
+            out.lo[i] = lo_i as u32;
+            out.hi[i] = hi_t as u32;
+            out.ok |= u8::from(ok) << i;
         }
+        out
+    }
+
+    /// [`EllipseRows::rows4_scalar`] on four lanes.
+    #[cfg(target_arch = "x86_64")]
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn rows4_avx2(&self, y: u32, centres: bool) -> Rows4 {
+        use std::arch::x86_64::*;
+        let e = self;
+        let s = _mm256_set1_pd;
+        let (above, below) = if centres { (-0.5 + MARGIN, 0.5 + MARGIN) } else { (MARGIN, 1.0 + MARGIN) };
+        let shift = if centres { 0.5 } else { 0.0 };
+        let n = f64::from(e.width);
+        let yf = _mm256_add_pd(s(f64::from(y)), _mm256_set_pd(3.0, 2.0, 1.0, 0.0));
+        let (add, sub, mul) = (_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd);
+        let top = _mm256_min_pd(add(s(e.sy0), mul(s(e.sy1), sub(yf, s(above)))), s(e.y_hi));
+        let bottom = _mm256_max_pd(add(s(e.sy0), mul(s(e.sy1), add(yf, s(below)))), s(e.y_lo));
+        let d = |y: __m256d| _mm256_max_pd(add(add(mul(mul(s(e.a), y), y), mul(s(2.0 * e.b), y)), s(e.c)), _mm256_setzero_pd());
+        let (h0, h1) = (mul(_mm256_sqrt_pd(d(bottom)), s(e.r11)), mul(_mm256_sqrt_pd(d(top)), s(e.r11)));
+        let neg = |v: __m256d| _mm256_xor_pd(v, s(-0.0));
+        let (m0, m1) = (mul(neg(add(mul(s(e.k12), bottom), s(e.k01))), s(e.r11)), mul(neg(add(mul(s(e.k12), top), s(e.k01))), s(e.r11)));
+        let (l0, r0) = (add(s(e.px0), mul(s(e.px1), sub(m0, h0))), add(s(e.px0), mul(s(e.px1), add(m0, h0))));
+        let (l1, r1) = (add(s(e.px0), mul(s(e.px1), sub(m1, h1))), add(s(e.px0), mul(s(e.px1), add(m1, h1))));
+        let le = |a: __m256d, b: __m256d| _mm256_cmp_pd::<_CMP_LE_OQ>(a, b);
+        let at_l = _mm256_and_pd(le(bottom, s(e.yl)), le(s(e.yl), top));
+        let at_r = _mm256_and_pd(le(bottom, s(e.yr)), le(s(e.yr), top));
+        let left = _mm256_blendv_pd(_mm256_min_pd(l0, l1), s(e.left_most), at_l);
+        let right = _mm256_blendv_pd(_mm256_max_pd(r0, r1), s(e.right_most), at_r);
+        let (a, b) = (sub(sub(left, s(MARGIN)), s(shift)), sub(add(right, s(MARGIN)), s(shift)));
+        let lo = _mm256_min_pd(_mm256_max_pd(a, _mm256_setzero_pd()), s(n));
+        let hi = _mm256_min_pd(b, s(n - 1.0));
+        let (lo_t, hi_t) = (_mm256_cvttpd_epi32(lo), _mm256_cvttpd_epi32(hi));
+        // (The comparison's 64-bit lanes narrowed to 32 bits: its low halves, in order.)
+        let narrow = |m: __m256d| {
+            let m = _mm256_castpd_si256(m);
+            _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(m, _mm256_set_epi32(7, 5, 3, 1, 6, 4, 2, 0)))
+        };
+        let lo_i = if centres {
+            // `lo_t + 1` where the truncation fell below `lo` (all ones is −1).
+            _mm_sub_epi32(lo_t, narrow(_mm256_cmp_pd::<_CMP_LT_OQ>(_mm256_cvtepi32_pd(lo_t), lo)))
+        } else {
+            lo_t
+        };
+        let nan = _mm256_cmp_pd::<_CMP_UNORD_Q>(left, right);
+        let nan32 = narrow(nan);
+        let fits = _mm_andnot_si128(_mm_cmpgt_epi32(lo_i, hi_t), narrow(_mm256_cmp_pd::<_CMP_GE_OQ>(b, _mm256_setzero_pd())));
+        let rows = _mm256_cmp_pd::<_CMP_NGT_UQ>(bottom, top);
+        let ok = _mm_and_si128(narrow(rows), _mm_or_si128(nan32, fits));
+        let lo_i = _mm_blendv_epi8(lo_i, _mm_setzero_si128(), nan32);
+        let hi_t = _mm_blendv_epi8(hi_t, _mm_set1_epi32(e.width as i32 - 1), nan32);
+        let mut out = Rows4 { lo: [0; 4], hi: [0; 4], ok: _mm_movemask_ps(_mm_castsi128_ps(ok)) as u8 };
+        // SAFETY: each array holds four u32 (16 bytes); unaligned stores.
+        unsafe {
+            _mm_storeu_si128(out.lo.as_mut_ptr().cast(), lo_i);
+            _mm_storeu_si128(out.hi.as_mut_ptr().cast(), hi_t);
+        }
+        out
+    }
+}
+
+/// The spans of four image rows: row `i` covers pixels `lo[i]..=hi[i]` when bit `i` of `ok`
+/// is set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Rows4 {
+    lo: [u32; 4],
+    hi: [u32; 4],
+    ok: u8,
+}
+
+/// A way to compute [`Rows4`].
+trait RowKernel {
+    fn rows4(e: &EllipseRows, y: u32, centres: bool) -> Rows4;
+}
+
+/// The scalar row kernel.
+struct ScalarRows;
+impl RowKernel for ScalarRows {
+    #[inline(always)]
+    fn rows4(e: &EllipseRows, y: u32, centres: bool) -> Rows4 {
+        e.rows4_scalar(y, centres)
+    }
+}
+
+/// The AVX2 row kernel (only called from `target_feature(enable = "avx2")` code).
+#[cfg(target_arch = "x86_64")]
+struct Avx2Rows;
+#[cfg(target_arch = "x86_64")]
+impl RowKernel for Avx2Rows {
+    #[inline(always)]
+    fn rows4(e: &EllipseRows, y: u32, centres: bool) -> Rows4 {
+        // SAFETY: only `EllipseRows::fill_avx2` uses this kernel, and it runs with AVX2.
+        unsafe { e.rows4_avx2(y, centres) }
+    }
+}
+
+/// `x` truncated toward zero, as `cvttpd2dq` does (`i32::MIN` out of range or NaN).
+fn trunc_i32(x: f64) -> i32 {
+    if !(-2_147_483_648.0..2_147_483_648.0).contains(&x) {
+        i32::MIN
+    } else {
+        x as i32
     }
 }
 
@@ -790,5 +952,110 @@ mod tests {
         assert_eq!(pixel_range(3.75, 3.75, 20, true), Some((3, 3)));
         assert_eq!(pixel_range(3.76, 4.0, 20, true), None);
         assert_eq!(pixel_range(-9.0, 50.0, 20, true), Some((0, 19)));
+    }
+
+    /// Random spheres (ellipsoids under translate·rotate·scale) seen by random cameras at
+    /// a few image sizes, as prepared ellipses.
+    fn random_ellipses(seed: u64) -> Vec<(EllipseRows, Projection)> {
+        use glam::{Affine3A, Quat, Vec3};
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        let mut out = Vec::new();
+        for k in 0..600 {
+            let (w, h) = [(512, 384), (37, 23), (1024, 768), (1, 1)][k % 4];
+            let eye = Vec3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), rng.random_range(5.0..30.0));
+            let desc = lucent_scene::CameraDesc {
+                eye,
+                look_at: Vec3::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), 0.0),
+                up: Vec3::Y,
+                vfov_deg: rng.random_range(10.0..120.0),
+                ortho_height: None,
+            };
+            let Some(proj) = projection(&Camera::new(&desc, w, h)) else { continue };
+            let scale = Vec3::new(rng.random_range(0.01..4.0), rng.random_range(0.01..4.0), rng.random_range(0.01..4.0));
+            let q =
+                Quat::from_euler(glam::EulerRot::XYZ, rng.random_range(0.0..6.3), rng.random_range(0.0..6.3), rng.random_range(0.0..6.3));
+            let t = Vec3::new(rng.random_range(-12.0..12.0), rng.random_range(-12.0..12.0), rng.random_range(-12.0..12.0));
+            let inst = lucent_accel::Instance::new(0, Affine3A::from_scale_rotation_translation(scale, q, t));
+            if let Some(Region::Ellipse(k)) = ellipse(&inst, &proj) {
+                if let Some(e) = EllipseRows::new(&k, &proj) {
+                    out.push((e, proj));
+                }
+            }
+        }
+        out
+    }
+
+    /// The AVX2 row kernel gives the scalar kernel's spans bit for bit, on every row of
+    /// random ellipses and a few rows past them, for squares and centres, and on ellipses
+    /// whose numbers are not finite.
+    #[test]
+    fn row_kernels_agree() {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if !std::is_x86_feature_detected!("avx2") {
+                eprintln!("no AVX2 here: only the scalar kernel runs");
+                return;
+            }
+            let mut ellipses: Vec<EllipseRows> = random_ellipses(11).into_iter().map(|(e, _)| e).collect();
+            assert!(ellipses.len() > 300, "{} ellipses", ellipses.len());
+            let (e0, _) = random_ellipses(12).into_iter().next().expect("an ellipse");
+            for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e300] {
+                ellipses.push(EllipseRows { a: bad, ..e0 });
+                ellipses.push(EllipseRows { k12: bad, y_hi: bad, ..e0 });
+                ellipses.push(EllipseRows { px1: bad, yl: bad, ..e0 });
+                ellipses.push(EllipseRows { r11: bad, left_most: bad, right_most: -bad, ..e0 });
+            }
+            let mut rows = 0;
+            for e in &ellipses {
+                for centres in [false, true] {
+                    let mut y = e.ya.saturating_sub(8) & !3;
+                    while y <= e.yb.saturating_add(8) {
+                        // SAFETY: AVX2 was detected above.
+                        let simd = unsafe { e.rows4_avx2(y, centres) };
+                        assert_eq!(simd, e.rows4_scalar(y, centres), "rows {y}.. of {e:?}, centres {centres}");
+                        y += 4;
+                        rows += 4;
+                    }
+                }
+            }
+            assert!(rows > 10_000, "{rows} rows");
+        }
+    }
+
+    /// Both row kernels fill the same masks and candidates, and what the fill marks holds
+    /// every pixel whose centre (or square) the ellipse's span reaches: a NaN span covers
+    /// the whole row.
+    #[test]
+    fn ellipse_fills_agree_and_nan_rows_cover_everything() {
+        for (e, proj) in random_ellipses(13).iter().take(150) {
+            let (w, h) = (proj.width as u32, proj.height as u32);
+            let bx = w.div_ceil(BLOCK_EDGE);
+            let n = (bx * h.div_ceil(BLOCK_EDGE)) as usize;
+            for centres in [false, true] {
+                let mut got = Vec::new();
+                for simd in [false, cfg!(target_arch = "x86_64") && std::is_x86_feature_detected!("avx2")] {
+                    let mut c = Coverage { blocks_x: bx, masks: vec![0; n], cands: vec![Candidates::default(); n] };
+                    e.fill(&mut c.all(), e.ya, e.yb, 3, centres, simd);
+                    got.push(c);
+                }
+                assert_eq!(got[0].masks, got[1].masks);
+                assert_eq!(
+                    got[0].cands.iter().map(|c| (c.count, c.ids)).collect::<Vec<_>>(),
+                    got[1].cands.iter().map(|c| (c.count, c.ids)).collect::<Vec<_>>()
+                );
+            }
+        }
+        let (e0, proj) = random_ellipses(14).into_iter().next().expect("an ellipse");
+        let e = EllipseRows { px1: f64::NAN, ya: 0, yb: proj.height as u32 - 1, y_lo: f64::NEG_INFINITY, y_hi: f64::INFINITY, ..e0 };
+        for simd in [false, true] {
+            let (w, h) = (proj.width as u32, proj.height as u32);
+            let bx = w.div_ceil(BLOCK_EDGE);
+            let n = (bx * h.div_ceil(BLOCK_EDGE)) as usize;
+            let mut c = Coverage { blocks_x: bx, masks: vec![0; n], cands: vec![Candidates::default(); n] };
+            let simd = simd && cfg!(target_arch = "x86_64") && std::is_x86_feature_detected!("avx2");
+            e.fill(&mut c.all(), 0, h - 1, 1, true, simd);
+            assert_eq!(c.count(), u64::from(w * h), "simd {simd}");
+        }
     }
 }
