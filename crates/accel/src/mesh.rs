@@ -120,6 +120,9 @@ pub struct MeshBvh {
     built_cost: f32,
 }
 
+/// Triangles past a leaf whose unit-triangle maps the leaf fill asks for in advance.
+const PREFETCH_AHEAD: usize = 8;
+
 impl MeshBvh {
     /// Builds the BVH of triangles `indices` over `positions`. Triangles with non-finite
     /// vertices or zero area are left out (no ray can hit them).
@@ -208,6 +211,14 @@ impl MeshBvh {
             }
             jobs.into_par_iter().for_each(|(first, count, out)| {
                 let refs = &bin.prims[first as usize..(first + count) as usize];
+                // PERF: the maps are read in tree order, scattered over the mesh's order: ask
+                // for those a few triangles ahead (the next leaves' ranges follow this one's),
+                // or each read waits on memory (on the 111k-triangle kitchen, this fill
+                // took a tenth of the build).
+                let ahead = bin.prims.get((first + count) as usize..).unwrap_or(&[]);
+                for p in ahead.iter().take(PREFETCH_AHEAD) {
+                    crate::traverse::prefetch(&units[p.id() as usize]);
+                }
                 for (slot, chunk) in out.iter_mut().zip(refs.chunks(4)) {
                     let mut t4 = Tri4::EMPTY;
                     for (lane, p) in chunk.iter().enumerate() {
