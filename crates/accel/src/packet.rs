@@ -453,8 +453,9 @@ impl Packet {
             tmin: lo(tmin),
             narrow: true,
         };
-        // The length of one ray's direction, taken for all (PERF: lengths ray by ray cost a
-        // tenth of the 8-ray packets' speed).
+        // The length of one ray's direction, taken for all (PERF: lengths ray by ray, each
+        // with a square root and a division, cost more; even so, this check costs 8-ray
+        // packets of primary rays 7-10%, and 64-ray packets nothing measurable).
         let q = {
             let g = (0..self.groups).find(|&g| active[g].bits() != 0).unwrap_or(0);
             let l = active[g].bits().trailing_zeros() as usize % LANES;

@@ -49,9 +49,9 @@ impl UnitTriangle {
             return None;
         }
         // Rows of [e1 e2 n]^-1 (n is orthogonal to e1 and e2). PERF: one division, then
-        // products (nine f64 divisions were a third of the triangles' preparation); the
-        // rounding differs from dividing by at most an f64 ulp, far below the f32 the
-        // rows are stored in.
+        // products, not nine f64 divisions (2-3% of a 12k-triangle build); the rounding
+        // differs from dividing by at most an f64 ulp, far below the f32 the rows are
+        // stored in.
         let inv = 1.0 / det;
         let r0 = e2.cross(n) * inv;
         let r1 = n.cross(e1) * inv;
