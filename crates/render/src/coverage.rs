@@ -79,8 +79,11 @@ impl Candidates {
 /// Which pixels' primary rays may meet an instance, as one 64-bit mask per 8×8 block (bit
 /// `8·row + column` within the block), and which instances those can be, per block (when
 /// there are few).
+/// It covers the whole image, or one band of rows ([`Prepared::band`]).
 #[derive(Clone, Debug)]
 pub struct Coverage {
+    /// The first block row held (0 for the whole image).
+    by0: u32,
     blocks_x: u32,
     masks: Vec<u64>,
     cands: Vec<Candidates>,
@@ -144,8 +147,12 @@ impl Coverage {
 
     fn with(w: &World, cam: &Camera, centres: bool) -> Option<Self> {
         let prep = Prepared::new(w, cam, centres)?;
-        let mut c =
-            Coverage { blocks_x: prep.blocks_x, masks: vec![0; prep.n_blocks()], cands: vec![Candidates::default(); prep.n_blocks()] };
+        let mut c = Coverage {
+            by0: 0,
+            blocks_x: prep.blocks_x,
+            masks: vec![0; prep.n_blocks()],
+            cands: vec![Candidates::default(); prep.n_blocks()],
+        };
         let per_band = prep.blocks_per_band();
         let band = |(bi, (masks, cands)): (usize, (&mut [u64], &mut [Candidates]))| prep.fill_band(bi, masks, cands);
         if prep.fills.len() <= SERIAL_FILLS {
@@ -155,25 +162,25 @@ impl Coverage {
         }
         Some(c)
     }
-    /// The mask of block (`bx`, `by`) (in blocks); zero outside the image.
+
+    /// Where block (`bx`, `by`) (in blocks, image coordinates) is kept, if it is.
+    fn index(&self, bx: u32, by: u32) -> Option<usize> {
+        (bx < self.blocks_x && by >= self.by0).then(|| ((by - self.by0) * self.blocks_x + bx) as usize)
+    }
+
+    /// The mask of block (`bx`, `by`) (in blocks); zero outside the image (or the band).
     #[must_use]
     pub fn block(&self, bx: u32, by: u32) -> u64 {
-        if bx >= self.blocks_x {
-            return 0;
-        }
-        self.masks.get((by * self.blocks_x + bx) as usize).copied().unwrap_or(0)
+        self.index(bx, by).and_then(|i| self.masks.get(i)).copied().unwrap_or(0)
     }
 
     /// The instances that block (`bx`, `by`)'s covered pixels may meet, when there are at
     /// most [`MAX_CANDIDATES`] (in the order they were found); `None` when there are more
-    /// (or outside the image). A ray of a covered pixel meets nothing else, so its closest
-    /// hit is the closest among these.
+    /// (or outside the image or the band). A ray of a covered pixel meets nothing else, so
+    /// its closest hit is the closest among these.
     #[must_use]
     pub fn candidates(&self, bx: u32, by: u32) -> Option<&[u32]> {
-        if bx >= self.blocks_x {
-            return None;
-        }
-        let c = self.cands.get((by * self.blocks_x + bx) as usize)?;
+        let c = self.cands.get(self.index(bx, by)?)?;
         (c.count as usize <= MAX_CANDIDATES).then(|| &c.ids[..c.count as usize])
     }
 
@@ -330,9 +337,9 @@ impl Prepared {
     /// The coverage of band `bi`: the blocks of image rows `bi·BAND_ROWS ..` (block rows
     /// `bi·BAND_ROWS/8 ..`).
     #[must_use]
-    pub fn band(&self, bi: usize) -> BandCoverage {
+    pub fn band(&self, bi: usize) -> Coverage {
         let n = self.blocks_per_band();
-        let mut b = BandCoverage {
+        let mut b = Coverage {
             by0: bi as u32 * (BAND_ROWS / BLOCK_EDGE),
             blocks_x: self.blocks_x,
             masks: vec![0; n],
@@ -340,34 +347,6 @@ impl Prepared {
         };
         self.fill_band(bi, &mut b.masks, &mut b.cands);
         b
-    }
-}
-
-/// The coverage of one band of image rows ([`Prepared::band`]), read as [`Coverage`] is.
-pub struct BandCoverage {
-    /// The band's first block row.
-    by0: u32,
-    blocks_x: u32,
-    masks: Vec<u64>,
-    cands: Vec<Candidates>,
-}
-
-impl BandCoverage {
-    fn index(&self, bx: u32, by: u32) -> Option<usize> {
-        (bx < self.blocks_x && by >= self.by0).then(|| ((by - self.by0) * self.blocks_x + bx) as usize)
-    }
-
-    /// The mask of block (`bx`, `by`) (in blocks, image coordinates); zero outside the band.
-    #[must_use]
-    pub fn block(&self, bx: u32, by: u32) -> u64 {
-        self.index(bx, by).and_then(|i| self.masks.get(i)).copied().unwrap_or(0)
-    }
-
-    /// As [`Coverage::candidates`], within the band.
-    #[must_use]
-    pub fn candidates(&self, bx: u32, by: u32) -> Option<&[u32]> {
-        let c = self.cands.get(self.index(bx, by)?)?;
-        (c.count as usize <= MAX_CANDIDATES).then(|| &c.ids[..c.count as usize])
     }
 }
 
@@ -621,15 +600,14 @@ impl EllipseRows {
     /// The spans of image rows `y..y + 4`, in scalar code (the reference for the AVX2
     /// kernel, which does the same operations in the same order; `min`/`max` are written as
     /// the SIMD instructions behave: the second operand unless the first is smaller or
-    /// larger, so NaNs go the same way in both).
+    /// larger, so NaNs go the same way in both). Each row's span is [`pixel_range`] of its
+    /// extent, as for every other region.
     fn rows4_scalar(&self, y: u32, centres: bool) -> Rows4 {
         let e = self;
         let min = |a: f64, b: f64| if a < b { a } else { b };
         let max = |a: f64, b: f64| if a > b { a } else { b };
         // The image rows' extent that counts: the square, or the centre.
         let (above, below) = if centres { (-0.5 + MARGIN, 0.5 + MARGIN) } else { (MARGIN, 1.0 + MARGIN) };
-        let shift = if centres { 0.5 } else { 0.0 };
-        let n = f64::from(e.width);
         let mut out = Rows4 { lo: [0; 4], hi: [0; 4], ok: 0 };
         for i in 0..4 {
             let yf = f64::from(y + i as u32);
@@ -646,20 +624,13 @@ impl EllipseRows {
             // reach out furthest at the extreme points, or else at the band's ends.
             let left = if bottom <= e.yl && e.yl <= top { e.left_most } else { min(l0, l1) };
             let right = if bottom <= e.yr && e.yr <= top { e.right_most } else { max(r0, r1) };
-            // `pixel_range`, as the kernel computes it.
-            let (a, b) = (left - MARGIN - shift, right + MARGIN - shift);
-            let lo = min(max(a, 0.0), n);
-            let hi = min(b, n - 1.0);
-            let (lo_t, hi_t) = (trunc_i32(lo), trunc_i32(hi));
-            let lo_i = if centres && f64::from(lo_t) < lo { lo_t + 1 } else { lo_t };
-            let nan = left.is_nan() || right.is_nan();
             // (A NaN bound keeps the row, as the kernel's unordered compare does.)
             let rows = bottom.partial_cmp(&top) != Some(std::cmp::Ordering::Greater);
-            let ok = rows && (nan || (b >= 0.0 && lo_i <= hi_t));
-            let (lo_i, hi_t) = if nan { (0, e.width as i32 - 1) } else { (lo_i, hi_t) };
-            out.lo[i] = lo_i as u32;
-            out.hi[i] = hi_t as u32;
-            out.ok |= u8::from(ok) << i;
+            if let Some((lo, hi)) = rows.then(|| pixel_range(left, right, e.width, centres)).flatten() {
+                out.lo[i] = lo;
+                out.hi[i] = hi;
+                out.ok |= 1 << i;
+            }
         }
         out
     }
@@ -710,8 +681,9 @@ impl EllipseRows {
         let fits = _mm_andnot_si128(_mm_cmpgt_epi32(lo_i, hi_t), narrow(_mm256_cmp_pd::<_CMP_GE_OQ>(b, _mm256_setzero_pd())));
         let rows = _mm256_cmp_pd::<_CMP_NGT_UQ>(bottom, top);
         let ok = _mm_and_si128(narrow(rows), _mm_or_si128(nan32, fits));
-        let lo_i = _mm_blendv_epi8(lo_i, _mm_setzero_si128(), nan32);
-        let hi_t = _mm_blendv_epi8(hi_t, _mm_set1_epi32(e.width as i32 - 1), nan32);
+        // Rows without a span read as (0, 0), as the scalar kernel leaves them.
+        let lo_i = _mm_and_si128(_mm_blendv_epi8(lo_i, _mm_setzero_si128(), nan32), ok);
+        let hi_t = _mm_and_si128(_mm_blendv_epi8(hi_t, _mm_set1_epi32(e.width as i32 - 1), nan32), ok);
         let mut out = Rows4 { lo: [0; 4], hi: [0; 4], ok: _mm_movemask_ps(_mm_castsi128_ps(ok)) as u8 };
         // SAFETY: each array holds four u32 (16 bytes); unaligned stores.
         unsafe {
@@ -754,15 +726,6 @@ impl RowKernel for Avx2Rows {
     fn rows4(e: &EllipseRows, y: u32, centres: bool) -> Rows4 {
         // SAFETY: only `EllipseRows::fill_avx2` uses this kernel, and it runs with AVX2.
         unsafe { e.rows4_avx2(y, centres) }
-    }
-}
-
-/// `x` truncated toward zero, as `cvttpd2dq` does (`i32::MIN` out of range or NaN).
-fn trunc_i32(x: f64) -> i32 {
-    if !(-2_147_483_648.0..2_147_483_648.0).contains(&x) {
-        i32::MIN
-    } else {
-        x as i32
     }
 }
 
@@ -918,7 +881,7 @@ mod tests {
 
     #[test]
     fn block_masks_cover_exactly_the_filled_pixels() {
-        let mut c = Coverage { blocks_x: 3, masks: vec![0; 6], cands: vec![Candidates::default(); 6] };
+        let mut c = Coverage { by0: 0, blocks_x: 3, masks: vec![0; 6], cands: vec![Candidates::default(); 6] };
         c.all().fill_rows(3, 10, 6, 17, 7);
         c.all().fill_row(12, 0, 0, 9);
         for y in 0..13 {
@@ -1035,7 +998,7 @@ mod tests {
             for centres in [false, true] {
                 let mut got = Vec::new();
                 for simd in [false, cfg!(target_arch = "x86_64") && std::is_x86_feature_detected!("avx2")] {
-                    let mut c = Coverage { blocks_x: bx, masks: vec![0; n], cands: vec![Candidates::default(); n] };
+                    let mut c = Coverage { by0: 0, blocks_x: bx, masks: vec![0; n], cands: vec![Candidates::default(); n] };
                     e.fill(&mut c.all(), e.ya, e.yb, 3, centres, simd);
                     got.push(c);
                 }
@@ -1052,7 +1015,7 @@ mod tests {
             let (w, h) = (proj.width as u32, proj.height as u32);
             let bx = w.div_ceil(BLOCK_EDGE);
             let n = (bx * h.div_ceil(BLOCK_EDGE)) as usize;
-            let mut c = Coverage { blocks_x: bx, masks: vec![0; n], cands: vec![Candidates::default(); n] };
+            let mut c = Coverage { by0: 0, blocks_x: bx, masks: vec![0; n], cands: vec![Candidates::default(); n] };
             let simd = simd && cfg!(target_arch = "x86_64") && std::is_x86_feature_detected!("avx2");
             e.fill(&mut c.all(), 0, h - 1, 1, true, simd);
             assert_eq!(c.count(), u64::from(w * h), "simd {simd}");

@@ -1,7 +1,7 @@
 //! The tile renderer: tiles on all cores (rayon), samples deterministic per (pixel, sample).
 
 use crate::camera::Camera;
-use crate::coverage::{BandCoverage, Prepared};
+use crate::coverage::{Coverage, Prepared};
 use crate::film::Film;
 use crate::integrator::{li, li_packet_among, radiance, Integrator, WhittedSettings, NO_RAYS};
 use crate::world::World;
@@ -182,7 +182,7 @@ fn render_tiles(
     // PERF: every tile writes its pixels straight into the film (tiles are disjoint);
     // gathering per-tile buffers and copying them in afterwards, one thread, took half of a
     // one-sphere REND3R frame.
-    let tile = |tx: u32, ty: u32, cover: Option<&BandCoverage>| -> u64 {
+    let tile = |tx: u32, ty: u32, cover: Option<&Coverage>| -> u64 {
         let (x0, y0) = (tx * TILE, ty * TILE);
         let (x1, y1) = ((x0 + TILE).min(width), (y0 + TILE).min(height));
         let before = crate::world::rays_traced_here();
@@ -197,7 +197,7 @@ fn render_tiles(
         for by in (y0..y1).step_by(8) {
             for bx in (x0..x1).step_by(8) {
                 let (bx1, by1) = ((bx + 8).min(x1), (by + 8).min(y1));
-                let mask = cover.as_ref().map_or(u64::MAX, |c| c.block(bx / 8, by / 8));
+                let mask = cover.map_or(u64::MAX, |c| c.block(bx / 8, by / 8));
                 let (cols, rows) = (bx1 - bx, by1 - by);
                 // The pixels of the block inside the tile (a partial block at the image's
                 // right or bottom edge has fewer).
@@ -230,6 +230,7 @@ fn render_tiles(
                 if trace == 0 {
                     continue;
                 }
+                // (`trace` is not zero, so `n` is at least one below.)
                 let mut n = 0;
                 let mut b = trace;
                 while b != 0 {
@@ -238,10 +239,7 @@ fn render_tiles(
                     coords[n] = (bx + i % 8, by + i / 8);
                     n += 1;
                 }
-                if n == 0 {
-                    continue;
-                }
-                let among = cover.as_ref().and_then(|c| c.candidates(bx / 8, by / 8));
+                let among = cover.and_then(|c| c.candidates(bx / 8, by / 8));
                 block(&coords[..n], among, &mut px[..n]);
                 for (&(x, y), c) in coords[..n].iter().zip(&px) {
                     put(x, y, *c);
