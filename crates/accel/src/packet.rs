@@ -358,8 +358,7 @@ impl Packet {
     /// The origin every valid ray shares, bit for bit, if there is one.
     #[inline(always)]
     fn find_common_origin(&self) -> Option<[f32; 3]> {
-        let g0 = (0..self.groups).find(|&g| self.valid[g].bits() != 0)?;
-        let l0 = self.valid[g0].bits().trailing_zeros() as usize;
+        let (g0, l0) = self.first_lane(&self.valid)?;
         let first: [u32; 3] = std::array::from_fn(|k| self.o[g0][k].0[l0].to_bits());
         let mut differ = 0u32;
         for g in g0..self.groups {
@@ -374,15 +373,23 @@ impl Packet {
         (differ == 0).then(|| first.map(f32::from_bits))
     }
 
+    /// The first lane of `set` (group, lane), if it has any.
+    #[inline(always)]
+    fn first_lane(&self, set: &Masks) -> Option<(usize, usize)> {
+        let g = (0..self.groups).find(|&g| set[g].bits() != 0)?;
+        Some((g, set[g].bits().trailing_zeros() as usize))
+    }
+
+    /// The direction of the ray in lane `l` of group `g`.
+    #[inline(always)]
+    fn dir(&self, g: usize, l: usize) -> Vec3 {
+        Vec3::new(self.d[g][0].0[l], self.d[g][1].0[l], self.d[g][2].0[l])
+    }
+
     /// The ray in lane `l` of group `g`, its range ending at `tmax`.
     #[inline(always)]
     pub(crate) fn ray(&self, g: usize, l: usize, tmax: f32) -> Ray {
-        Ray {
-            org: Vec3::new(self.o[g][0].0[l], self.o[g][1].0[l], self.o[g][2].0[l]),
-            dir: Vec3::new(self.d[g][0].0[l], self.d[g][1].0[l], self.d[g][2].0[l]),
-            tmin: self.tmin[g].0[l],
-            tmax,
-        }
+        Ray { org: Vec3::new(self.o[g][0].0[l], self.o[g][1].0[l], self.o[g][2].0[l]), dir: self.dir(g, l), tmin: self.tmin[g].0[l], tmax }
     }
 
     /// The rays of `active` carried by `m` (object space of an instance), computed as
@@ -456,12 +463,7 @@ impl Packet {
         // The length of one ray's direction, taken for all (PERF: lengths ray by ray, each
         // with a square root and a division, cost more; even so, this check costs 8-ray
         // packets of primary rays 7-10%, and 64-ray packets nothing measurable).
-        let q = {
-            let g = (0..self.groups).find(|&g| active[g].bits() != 0).unwrap_or(0);
-            let l = active[g].bits().trailing_zeros() as usize % LANES;
-            let d = Vec3::new(self.d[g][0].0[l], self.d[g][1].0[l], self.d[g][2].0[l]);
-            d.length()
-        };
+        let q = self.first_lane(active).map_or(f32::NAN, |(g, l)| self.dir(g, l).length());
         for k in 0..3 {
             iv.olo[k] = lo(olo[k]);
             iv.ohi[k] = ohi[k].hmax();
@@ -1745,9 +1747,8 @@ impl TwoLevel {
         if self.shadow_grids.is_empty() {
             return None;
         }
-        let g0 = (0..p.groups).find(|&g| p.valid[g].bits() != 0)?;
-        let l0 = p.valid[g0].bits().trailing_zeros() as usize;
-        let d = [p.d[g0][0].0[l0], p.d[g0][1].0[l0], p.d[g0][2].0[l0]];
+        let (g0, l0) = p.first_lane(&p.valid)?;
+        let d = p.dir(g0, l0).to_array();
         let grid = self.shadow_grids.iter().find(|gr| gr.dir.to_array().map(f32::to_bits) == d.map(f32::to_bits))?;
         // Every valid ray along exactly that direction.
         for g in 0..p.groups {
@@ -2296,8 +2297,8 @@ mod tests {
     }
 
     /// Rays whose unit directions lie close together are worth a packet, however long
-    /// their directions; rays scattered over an octant (diffuse bounces) are not; a zero
-    /// direction never is.
+    /// their directions; rays scattered over an octant (diffuse bounces) are not; a lane
+    /// with a zero direction holds no ray and does not count.
     #[test]
     fn scattered_directions_are_not_worth_a_packet() {
         let worth = |p: &Packet| p.interval(&p.valid).is_some_and(|iv| iv.worth(lane_count(&p.valid), 1.0));

@@ -129,8 +129,9 @@ impl World {
     }
 
     /// Gives the top level the directions toward the directional lights, for its
-    /// shadow-ray grids (exactly as the shading makes the rays). Rays along any other direction take the walk, so a light
-    /// changed afterwards costs speed, never correctness.
+    /// shadow-ray grids (exactly as the shading makes the rays). Rays along any other
+    /// direction take the walk, so a light changed afterwards costs speed, never
+    /// correctness.
     fn sync_shadow_grids(&mut self) {
         let dirs: Vec<Vec3> = self
             .lights
