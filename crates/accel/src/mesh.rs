@@ -608,3 +608,61 @@ impl Leaves for WtLeaves<'_> {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The SIMD box tests must visit exactly the nodes (and leaf groups) the scalar one
+    /// visits, ray by ray: same hits is not enough (a looser test finds the same hits
+    /// while doing more work).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn simd_traversal_visits_the_nodes_of_the_scalar_one() {
+        if !Kernel::simd_available() {
+            return;
+        }
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let mut p = Vec::new();
+        let mut idx = Vec::new();
+        for i in 0..3000u32 {
+            let c = Vec3::new(rng.random(), rng.random(), rng.random()) * 10.0;
+            for _ in 0..3 {
+                p.push(c + Vec3::new(rng.random::<f32>() - 0.5, rng.random::<f32>() - 0.5, rng.random::<f32>() - 0.5));
+            }
+            idx.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        for width in [Width::W4, Width::W8] {
+            let m = MeshBvh::build(&p, &idx, MeshOptions { width, ..MeshOptions::default() }).expect("build");
+            for _ in 0..2000 {
+                let o = Vec3::new(rng.random(), rng.random(), rng.random()) * 14.0 - Vec3::splat(2.0);
+                let d = Vec3::new(rng.random::<f32>() - 0.5, rng.random::<f32>() - 0.5, rng.random::<f32>() - 0.5).normalize_or(Vec3::X);
+                let pre = RayPre::new(&Ray::new(o, d));
+                let (mut a, mut b) = (TraversalStats::default(), TraversalStats::default());
+                let (mut ha, mut hb) = (Hit::none(f32::INFINITY), Hit::none(f32::INFINITY));
+                m.intersect_k::<ScalarSet, _>(&pre, &mut ha, &mut a);
+                // SAFETY: AVX2 and FMA were detected above.
+                unsafe { simd_stats(&m, &pre, &mut hb, &mut b) };
+                assert_eq!((a, ha.prim), (b, hb.prim), "{width:?}: ray {o} {d}");
+                let (mut a, mut b) = (TraversalStats::default(), TraversalStats::default());
+                let oa = m.occluded_k::<ScalarSet, _>(&pre, 8.0, &mut a);
+                // SAFETY: as above.
+                let ob = unsafe { simd_occluded_stats(&m, &pre, 8.0, &mut b) };
+                assert_eq!((a, oa), (b, ob), "{width:?}: shadow ray {o} {d}");
+            }
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn simd_stats(m: &MeshBvh, pre: &RayPre, hit: &mut Hit, c: &mut TraversalStats) {
+        m.intersect_k::<crate::kernel::SimdSet, _>(pre, hit, c);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn simd_occluded_stats(m: &MeshBvh, pre: &RayPre, tmax: f32, c: &mut TraversalStats) -> bool {
+        m.occluded_k::<crate::kernel::SimdSet, _>(pre, tmax, c)
+    }
+}
