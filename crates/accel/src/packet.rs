@@ -1518,8 +1518,12 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
         let inst = &self.tl.instances()[id as usize];
         if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
             // The rays carried into object space exactly as the single-ray path does.
-            let lp = p.transformed(&inst.object_from_world, m);
-            mesh.packet_intersect_k::<K, _>(&lp, m, h, id, false, &mut ());
+            if inst.is_identity() {
+                mesh.packet_intersect_k::<K, _>(p, m, h, id, false, &mut ());
+            } else {
+                let lp = p.transformed(&inst.object_from_world, m);
+                mesh.packet_intersect_k::<K, _>(&lp, m, h, id, false, &mut ());
+            }
             return;
         }
         if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
@@ -1565,8 +1569,12 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
     fn occludes_here(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
         let inst = &self.tl.instances()[id as usize];
         if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
-            let lp = p.transformed(&inst.object_from_world, m);
-            mesh.packet_occluded_k::<K, _>(&lp, m, h, false, &mut ());
+            if inst.is_identity() {
+                mesh.packet_occluded_k::<K, _>(p, m, h, false, &mut ());
+            } else {
+                let lp = p.transformed(&inst.object_from_world, m);
+                mesh.packet_occluded_k::<K, _>(&lp, m, h, false, &mut ());
+            }
             return;
         }
         if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
@@ -1668,9 +1676,27 @@ impl<K: KernelSet> PacketLeaves for InstPacketLeaves<'_, K> {
 }
 
 impl TwoLevel {
+    /// The mesh of a top level that holds one mesh instance in world space (a scene from
+    /// one OBJ or PLY file): packets go straight to it, without the top-level walk and its
+    /// packet set-up.
+    #[inline(always)]
+    fn only_mesh(&self) -> Option<&MeshBvh> {
+        match self.instances() {
+            [only] if only.is_identity() => match &self.geometries()[only.geometry as usize] {
+                Geometry::Mesh(m) => Some(m),
+                Geometry::Shape(_) => None,
+            },
+            _ => None,
+        }
+    }
+
     #[inline(always)]
     fn packet_intersect_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
         let active = p.valid;
+        if let Some(mesh) = self.only_mesh() {
+            mesh.packet_intersect_k::<K, _>(p, &active, h, 0, true, &mut ());
+            return;
+        }
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
         let ext = max_spread(&self.bounds());
         coherent_parts!(
@@ -1706,6 +1732,10 @@ impl TwoLevel {
     #[inline(always)]
     fn packet_occluded_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
         let active = p.valid;
+        if let Some(mesh) = self.only_mesh() {
+            mesh.packet_occluded_k::<K, _>(p, &active, h, true, &mut ());
+            return;
+        }
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
         // Rays toward a directional light: the few instances near their origins, seen
         // from the light, without the walk.

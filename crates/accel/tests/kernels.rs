@@ -650,3 +650,29 @@ fn clustered_top_level_gives_every_instance_its_own_slot() {
         }
     }
 }
+
+/// A scene of one mesh in world space (one OBJ file) skips the object-space transform and
+/// the top-level walk: its two-level answers, ray by ray and in packets, are the mesh's own.
+#[test]
+fn one_world_space_mesh_answers_like_the_mesh_itself() {
+    let (mesh, rays) = soup_and_tile(11, 0.0);
+    for kernel in Kernel::available() {
+        let mut m = mesh.clone();
+        m.set_kernel(kernel);
+        let mut tl = TwoLevel::new(vec![Geometry::Mesh(m.clone())], vec![Instance::new(0, Affine3A::IDENTITY)]).expect("tlas");
+        tl.set_kernel(kernel);
+        let mut packet = vec![None; rays.len()];
+        tl.intersect_packet(&rays, &mut packet);
+        let mut blocked = vec![false; rays.len()];
+        tl.occluded_packet(&rays, &mut blocked);
+        for (i, r) in rays.iter().enumerate() {
+            let want = m.intersect(r).map(|h| (h.t, h.prim));
+            let single = tl.intersect(r);
+            assert_eq!(single.map(|h| (h.t, h.prim)), want, "{kernel:?} ray {i}");
+            assert!(single.is_none_or(|h| h.inst == 0));
+            assert_eq!(packet[i].map(|h| h.t), want.map(|w| w.0), "{kernel:?} packet ray {i}");
+            assert_eq!(tl.occluded(r), m.occluded(r), "{kernel:?} ray {i}");
+            assert_eq!(blocked[i], m.occluded(r), "{kernel:?} packet ray {i}");
+        }
+    }
+}
