@@ -108,6 +108,15 @@ impl F8 {
         }
         F8(r)
     }
+    /// `self·a + b` rounded once, lane by lane.
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        let mut r = [0f32; LANES];
+        for i in 0..LANES {
+            r[i] = self.0[i].mul_add(a.0[i], b.0[i]);
+        }
+        F8(r)
+    }
     /// Flips the sign of the lanes whose `s` has its sign bit set.
     #[inline(always)]
     fn xor_sign(self, s: Self) -> Self {
@@ -931,16 +940,12 @@ fn tri_eval(t4: &Tri4, lane: usize, p: &Packet, g: usize, tmax: F8) -> (M8, [F8;
     let m = |c: usize| F8::splat(t4.m[c][lane]);
     let [ox, oy, oz] = p.o[g];
     let [dx, dy, dz] = p.d[g];
-    let dot = |r: usize, x: F8, y: F8, z: F8| m(r).mul(x).add(m(r + 1).mul(y)).add(m(r + 2).mul(z));
-    let dzp = dot(8, dx, dy, dz);
-    let ozp = dot(8, ox, oy, oz).add(m(11));
-    let dxp = dot(0, dx, dy, dz);
-    let oxp = dot(0, ox, oy, oz).add(m(3));
-    let dyp = dot(4, dx, dy, dz);
-    let oyp = dot(4, ox, oy, oz).add(m(7));
+    let dir = |r: usize| m(r).mul_add(dx, m(r + 1).mul_add(dy, m(r + 2).mul(dz)));
+    let org = |r: usize| m(r).mul_add(ox, m(r + 1).mul_add(oy, m(r + 2).mul_add(oz, m(r + 3))));
+    let (dzp, ozp, dxp, oxp, dyp, oyp) = (dir(8), org(8), dir(0), org(0), dir(4), org(4));
     let adz = dzp.xor_sign(dzp);
-    let uu = oxp.mul(dzp).sub(ozp.mul(dxp)).xor_sign(dzp);
-    let vv = oyp.mul(dzp).sub(ozp.mul(dyp)).xor_sign(dzp);
+    let uu = oxp.mul_add(dzp, ozp.mul(dxp).neg()).xor_sign(dzp);
+    let vv = oyp.mul_add(dzp, ozp.mul(dyp).neg()).xor_sign(dzp);
     let tt = ozp.neg().xor_sign(dzp);
     let z = F8::splat(0.0);
     let ok = uu.ge(z).and(vv.ge(z)).and(uu.add(vv).le(adz)).and(tt.ge(p.tmin[g].mul(adz))).and(tt.lt(tmax.mul(adz)));
@@ -2081,25 +2086,24 @@ mod avx {
     fn eval(t4: &Tri4, lane: usize, p: &Packet, g: usize, tmax: __m256, org: Option<&[[f32; 4]; 3]>) -> (__m256, [__m256; 4]) {
         let m = |c: usize| _mm256_set1_ps(t4.m[c][lane]);
         let (dx, dy, dz) = (ld(&p.d[g][0]), ld(&p.d[g][1]), ld(&p.d[g][2]));
-        let dot = |r: usize, x, y, z| {
-            _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(m(r), x), _mm256_mul_ps(m(r + 1), y)), _mm256_mul_ps(m(r + 2), z))
-        };
-        let dzp = dot(8, dx, dy, dz);
-        let dxp = dot(0, dx, dy, dz);
-        let dyp = dot(4, dx, dy, dz);
+        let dir = |r: usize| _mm256_fmadd_ps(m(r), dx, _mm256_fmadd_ps(m(r + 1), dy, _mm256_mul_ps(m(r + 2), dz)));
+        let dzp = dir(8);
+        let dxp = dir(0);
+        let dyp = dir(4);
         let (oxp, oyp, ozp) = match org {
             // The origin's terms, computed once per triangle (`origin_terms`), broadcast.
             Some(o) => (_mm256_set1_ps(o[0][lane]), _mm256_set1_ps(o[1][lane]), _mm256_set1_ps(o[2][lane])),
             None => {
                 let (ox, oy, oz) = (ld(&p.o[g][0]), ld(&p.o[g][1]), ld(&p.o[g][2]));
-                (_mm256_add_ps(dot(0, ox, oy, oz), m(3)), _mm256_add_ps(dot(4, ox, oy, oz), m(7)), _mm256_add_ps(dot(8, ox, oy, oz), m(11)))
+                let org = |r: usize| _mm256_fmadd_ps(m(r), ox, _mm256_fmadd_ps(m(r + 1), oy, _mm256_fmadd_ps(m(r + 2), oz, m(r + 3))));
+                (org(0), org(4), org(8))
             }
         };
         let signbit = _mm256_set1_ps(-0.0);
         let s = _mm256_and_ps(dzp, signbit);
         let adz = _mm256_xor_ps(dzp, s);
-        let uu = _mm256_xor_ps(_mm256_sub_ps(_mm256_mul_ps(oxp, dzp), _mm256_mul_ps(ozp, dxp)), s);
-        let vv = _mm256_xor_ps(_mm256_sub_ps(_mm256_mul_ps(oyp, dzp), _mm256_mul_ps(ozp, dyp)), s);
+        let uu = _mm256_xor_ps(_mm256_fmsub_ps(oxp, dzp, _mm256_mul_ps(ozp, dxp)), s);
+        let vv = _mm256_xor_ps(_mm256_fmsub_ps(oyp, dzp, _mm256_mul_ps(ozp, dyp)), s);
         let tt = _mm256_xor_ps(_mm256_xor_ps(ozp, signbit), s);
         let zero = _mm256_setzero_ps();
         let ok = _mm256_and_ps(
@@ -2126,10 +2130,7 @@ mod avx {
         let mut out = [[0f32; 4]; 3];
         for (r, slot) in out.iter_mut().enumerate() {
             let b = 4 * r;
-            let v = _mm_add_ps(
-                _mm_add_ps(_mm_add_ps(_mm_mul_ps(row(b), ox), _mm_mul_ps(row(b + 1), oy)), _mm_mul_ps(row(b + 2), oz)),
-                row(b + 3),
-            );
+            let v = _mm_fmadd_ps(row(b), ox, _mm_fmadd_ps(row(b + 1), oy, _mm_fmadd_ps(row(b + 2), oz, row(b + 3))));
             // SAFETY: `slot` is 16 bytes.
             unsafe { _mm_storeu_ps(slot.as_mut_ptr(), v) };
         }

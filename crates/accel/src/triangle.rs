@@ -17,9 +17,13 @@
 //! PERF: the test is evaluated without a division: with `s = sign(D'z)` the conditions are
 //! multiplied through by `|D'z|` (`U = (O'x D'z − O'z D'x)·s ≥ 0`, `V = (O'y D'z − O'z D'y)·s ≥ 0`,
 //! `U + V ≤ |D'z|`, `tmin |D'z| ≤ −O'z s < tmax |D'z|`), and `t, u, v` are divided out only
-//! when a lane hits. `t = (−O'z s)/|D'z|` equals `−O'z/D'z` to the bit. The scalar and SSE
-//! versions evaluate exactly the same operations in the same order without fused
-//! multiply-adds, so they return bit-identical answers (tested).
+//! when a lane hits. `t = (−O'z s)/|D'z|` equals `−O'z/D'z` to the bit.
+//!
+//! The products are fused multiply-adds, in one fixed order
+//! (`D'r = fma(m_r0, dx, fma(m_r1, dy, m_r2·dz))`, `O'r = fma(m_r0, ox, fma(m_r1, oy,
+//! fma(m_r2, oz, m_r3)))`, `U = fma(O'x, D'z, −O'z·D'x)`), which every version (scalar, SSE,
+//! the packet kernels) follows, so all return bit-identical answers (tested). PERF: the
+//! fused form is 21 operations per triangle instead of 36 in the 4-wide single-ray test.
 
 use glam::{DVec3, Vec3};
 
@@ -81,17 +85,14 @@ impl UnitTriangle {
 #[inline(always)]
 #[must_use]
 pub fn unit_triangle_hit(m: &[f32; 12], o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<(f32, f32, f32)> {
-    let dz = m[8] * d.x + m[9] * d.y + m[10] * d.z;
-    let oz = m[8] * o.x + m[9] * o.y + m[10] * o.z + m[11];
-    let dx = m[0] * d.x + m[1] * d.y + m[2] * d.z;
-    let ox = m[0] * o.x + m[1] * o.y + m[2] * o.z + m[3];
-    let dy = m[4] * d.x + m[5] * d.y + m[6] * d.z;
-    let oy = m[4] * o.x + m[5] * o.y + m[6] * o.z + m[7];
+    let dir = |r: usize| m[r].mul_add(d.x, m[r + 1].mul_add(d.y, m[r + 2] * d.z));
+    let org = |r: usize| m[r].mul_add(o.x, m[r + 1].mul_add(o.y, m[r + 2].mul_add(o.z, m[r + 3])));
+    let (dz, oz, dx, ox, dy, oy) = (dir(8), org(8), dir(0), org(0), dir(4), org(4));
     let s = dz.to_bits() & 0x8000_0000;
     let sgn = |x: f32| f32::from_bits(x.to_bits() ^ s);
     let adz = sgn(dz);
-    let uu = sgn(ox * dz - oz * dx);
-    let vv = sgn(oy * dz - oz * dy);
+    let uu = sgn(ox.mul_add(dz, -(oz * dx)));
+    let vv = sgn(oy.mul_add(dz, -(oz * dy)));
     let tt = sgn(-oz);
     let ok = uu >= 0.0 && vv >= 0.0 && uu + vv <= adz && tt >= tmin * adz && tt < tmax * adz;
     ok.then(|| (tt / adz, uu / adz, vv / adz))
@@ -170,32 +171,36 @@ pub fn tri4_occluded_scalar(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -
 
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod sse {
-    //! SSE2 version of the four-triangle test (SSE2 is part of x86-64, so no detection).
+    //! The four-triangle test in SSE registers with FMA (run only where FMA was detected).
     use super::{LaneHit, Tri4};
     use glam::Vec3;
     use std::arch::x86_64::*;
 
+    // PERF: these are `inline(always)` without `target_feature`: they inline into the AVX2
+    // kernels, and the FMA intrinsics then inline there. With `target_feature(enable =
+    // "fma")` and a plain `inline`, LLVM kept `intersect` out of line, one call per
+    // triangle group, and single primary rays were 15% slower.
+
     /// The lane mask of hits and the scaled `T, U, V` and `|D'z|` of all lanes.
+    ///
+    /// # Safety
+    /// The CPU must support FMA.
     #[inline(always)]
-    fn eval(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> (i32, [__m128; 4]) {
-        // SAFETY: SSE2 is always available on x86-64; `Tri4` is 16-byte aligned so the
-        // aligned loads are in bounds and aligned.
+    unsafe fn eval(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> (i32, [__m128; 4]) {
+        // SAFETY: `Tri4` is 16-byte aligned so the aligned loads are in bounds and aligned;
+        // the caller guarantees FMA.
         unsafe {
             let ld = |c: usize| _mm_load_ps(t4.m[c].as_ptr());
             let (ox, oy, oz) = (_mm_set1_ps(o.x), _mm_set1_ps(o.y), _mm_set1_ps(o.z));
             let (dx, dy, dz) = (_mm_set1_ps(d.x), _mm_set1_ps(d.y), _mm_set1_ps(d.z));
-            let dot3 = |r: usize, x, y, z| _mm_add_ps(_mm_add_ps(_mm_mul_ps(ld(r), x), _mm_mul_ps(ld(r + 1), y)), _mm_mul_ps(ld(r + 2), z));
-            let dzp = dot3(8, dx, dy, dz);
-            let ozp = _mm_add_ps(dot3(8, ox, oy, oz), ld(11));
-            let dxp = dot3(0, dx, dy, dz);
-            let oxp = _mm_add_ps(dot3(0, ox, oy, oz), ld(3));
-            let dyp = dot3(4, dx, dy, dz);
-            let oyp = _mm_add_ps(dot3(4, ox, oy, oz), ld(7));
+            let dir = |r: usize| _mm_fmadd_ps(ld(r), dx, _mm_fmadd_ps(ld(r + 1), dy, _mm_mul_ps(ld(r + 2), dz)));
+            let org = |r: usize| _mm_fmadd_ps(ld(r), ox, _mm_fmadd_ps(ld(r + 1), oy, _mm_fmadd_ps(ld(r + 2), oz, ld(r + 3))));
+            let (dzp, ozp, dxp, oxp, dyp, oyp) = (dir(8), org(8), dir(0), org(0), dir(4), org(4));
             let signbit = _mm_set1_ps(-0.0);
             let s = _mm_and_ps(dzp, signbit);
             let adz = _mm_xor_ps(dzp, s);
-            let uu = _mm_xor_ps(_mm_sub_ps(_mm_mul_ps(oxp, dzp), _mm_mul_ps(ozp, dxp)), s);
-            let vv = _mm_xor_ps(_mm_sub_ps(_mm_mul_ps(oyp, dzp), _mm_mul_ps(ozp, dyp)), s);
+            let uu = _mm_xor_ps(_mm_fmsub_ps(oxp, dzp, _mm_mul_ps(ozp, dxp)), s);
+            let vv = _mm_xor_ps(_mm_fmsub_ps(oyp, dzp, _mm_mul_ps(ozp, dyp)), s);
             let tt = _mm_xor_ps(_mm_xor_ps(ozp, signbit), s);
             let zero = _mm_setzero_ps();
             let m = _mm_and_ps(
@@ -209,9 +214,12 @@ pub(crate) mod sse {
         }
     }
 
+    /// # Safety
+    /// The CPU must support FMA.
     #[inline(always)]
-    pub(crate) fn intersect(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<LaneHit> {
-        let (mask, [tt, uu, vv, adz]) = eval(t4, o, d, tmin, tmax);
+    pub(crate) unsafe fn intersect(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<LaneHit> {
+        // SAFETY: the caller guarantees FMA.
+        let (mask, [tt, uu, vv, adz]) = unsafe { eval(t4, o, d, tmin, tmax) };
         if mask == 0 {
             return None;
         }
@@ -237,38 +245,37 @@ pub(crate) mod sse {
         Some(LaneHit { t: ts[best], u: us[best], v: vs[best], lane: best })
     }
 
+    /// # Safety
+    /// The CPU must support FMA.
     #[inline(always)]
-    pub(crate) fn occluded(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
-        eval(t4, o, d, tmin, tmax).0 != 0
+    pub(crate) unsafe fn occluded(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
+        // SAFETY: the caller guarantees FMA.
+        unsafe { eval(t4, o, d, tmin, tmax).0 != 0 }
     }
 }
 
 /// Four-triangle closest-hit test with the fastest code this CPU has (identical answers).
-#[inline(always)]
+#[inline]
 #[must_use]
 pub fn tri4_intersect(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<LaneHit> {
     #[cfg(target_arch = "x86_64")]
-    {
-        sse::intersect(t4, o, d, tmin, tmax)
+    if std::is_x86_feature_detected!("fma") {
+        // SAFETY: FMA was just detected.
+        return unsafe { sse::intersect(t4, o, d, tmin, tmax) };
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        tri4_intersect_scalar(t4, o, d, tmin, tmax)
-    }
+    tri4_intersect_scalar(t4, o, d, tmin, tmax)
 }
 
 /// Four-triangle any-hit test with the fastest code this CPU has.
-#[inline(always)]
+#[inline]
 #[must_use]
 pub fn tri4_occluded(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
     #[cfg(target_arch = "x86_64")]
-    {
-        sse::occluded(t4, o, d, tmin, tmax)
+    if std::is_x86_feature_detected!("fma") {
+        // SAFETY: FMA was just detected.
+        return unsafe { sse::occluded(t4, o, d, tmin, tmax) };
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        tri4_occluded_scalar(t4, o, d, tmin, tmax)
-    }
+    tri4_occluded_scalar(t4, o, d, tmin, tmax)
 }
 
 /// Per-ray constants of the watertight test (Woop, Benthin & Wald 2013, §3).
