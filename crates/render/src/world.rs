@@ -59,6 +59,21 @@ pub struct World {
     /// Diagonal of the world bounds (for ray offsets).
     pub scale: f32,
     opts: MeshOptions,
+    /// Per mesh, per triangle: `(b − a) × (c − a)` in object space, the geometric normal
+    /// before it is normalised. PERF: `surface` reads this one vector instead of three
+    /// vertex indices and three vertices scattered over the mesh (12 bytes per triangle).
+    faces: Vec<Vec<Vec3>>,
+}
+
+/// `(b − a) × (c − a)` of every triangle (zero for one whose indices are out of range).
+fn face_vectors(positions: &[Vec3], indices: &[[u32; 3]]) -> Vec<Vec3> {
+    indices
+        .par_iter()
+        .map(|idx| match idx.map(|i| positions.get(i as usize).copied()) {
+            [Some(a), Some(b), Some(c)] => (b - a).cross(c - a),
+            _ => Vec3::ZERO,
+        })
+        .collect()
 }
 
 /// A surface point rebuilt from a hit.
@@ -122,7 +137,8 @@ impl World {
         let accel = TwoLevel::new(geoms, insts).map_err(WorldError::Top)?;
         let bounds = scene.bounds();
         let scale = bounds.map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
-        let mut w = Self { scene, accel, info, lights: Vec::new(), scale, opts };
+        let faces = scene.meshes.iter().map(|m| face_vectors(&m.positions, &m.indices)).collect();
+        let mut w = Self { scene, accel, info, lights: Vec::new(), scale, opts, faces };
         w.lights = if w.scene.lights.is_empty() { w.emitter_lights(bounds) } else { w.scene.lights.clone() };
         w.sync_shadow_grids();
         Ok(w)
@@ -156,6 +172,9 @@ impl World {
         for (m, positions) in pose.meshes {
             let Some(mesh) = self.scene.meshes.get_mut(m as usize) else { continue };
             mesh.positions = positions;
+            if let Some(f) = self.faces.get_mut(m as usize) {
+                *f = face_vectors(&mesh.positions, &mesh.indices);
+            }
             // Shading normals follow the deformation: a skinned mesh's own normals are skinned
             // with it; a morphing mesh that came with normals gets smooth ones from its posed
             // triangles (vertices split at hard edges stay split); one without stays faceted.
@@ -261,11 +280,17 @@ impl World {
             Geom::Mesh(m) => {
                 let mesh = &self.scene.meshes[m as usize];
                 let tri = h.prim as usize;
-                let idx = mesh.indices[tri];
-                let [a, b, c] = idx.map(|i| mesh.positions[i as usize]);
-                let ng_obj = (b - a).cross(c - a);
+                let ng_obj = match self.faces.get(m as usize).and_then(|f| f.get(tri)) {
+                    Some(f) => *f,
+                    None => {
+                        let [a, b, c] = mesh.indices[tri].map(|i| mesh.positions[i as usize]);
+                        (b - a).cross(c - a)
+                    }
+                };
                 let ng = (inst.normal_to_world * glam::Vec3A::from(ng_obj)).normalize_or_zero().into();
                 let w = Vec3::new(1.0 - h.u - h.v, h.u, h.v);
+                // The vertex indices only for per-vertex normals or texture coordinates.
+                let idx = if mesh.normals.values.is_empty() && mesh.uvs.values.is_empty() { [0; 3] } else { mesh.indices[tri] };
                 let ns = match mesh.normals.corners(tri, &idx) {
                     Some([n0, n1, n2]) => {
                         let n: Vec3 = (inst.normal_to_world * glam::Vec3A::from(n0 * w.x + n1 * w.y + n2 * w.z)).into();

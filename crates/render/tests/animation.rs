@@ -214,8 +214,15 @@ fn cesium_man_is_skinned_and_walks() {
         (p1 - p0).cross(p2 - p0).normalize_or_zero().y.abs() > 0.3
     };
     let top = mesh.indices.iter().filter(|i| up(i)).map(centre).fold(Vec3::NEG_INFINITY, |m, p| if p.y > m.y { p } else { m });
-    let h = w.intersect(&Ray::new(top + Vec3::Y, -Vec3::Y)).expect("the head");
+    let ray = Ray::new(top + Vec3::Y, -Vec3::Y);
+    let h = w.intersect(&ray).expect("the head");
     assert!((h.t - 1.0).abs() < 0.05, "t = {}", h.t);
+    // Its geometric normal is the posed triangle's (the world keeps the triangles' normal
+    // vectors, and they must follow the pose).
+    let [p0, p1, p2] = mesh.indices[h.prim as usize].map(|i| b[i as usize]);
+    let posed_normal = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+    let ng = w.surface(&ray, &h).ng;
+    assert!(ng.dot(posed_normal) > 0.9999, "surface normal {ng} against the posed triangle's {posed_normal}");
 }
 
 /// The BART kitchen at t = 16.67 s: coplanar parts of different instances meet some
