@@ -1681,20 +1681,6 @@ impl<K: KernelSet> PacketLeaves for InstPacketLeaves<'_, K> {
 }
 
 impl TwoLevel {
-    /// The mesh of a top level that holds one mesh instance in world space (a scene from
-    /// one OBJ or PLY file): packets go straight to it, without the top-level walk and its
-    /// packet set-up.
-    #[inline(always)]
-    fn only_mesh(&self) -> Option<&MeshBvh> {
-        match self.instances() {
-            [only] if only.is_identity() => match &self.geometries()[only.geometry as usize] {
-                Geometry::Mesh(m) => Some(m),
-                Geometry::Shape(_) => None,
-            },
-            _ => None,
-        }
-    }
-
     #[inline(always)]
     fn packet_intersect_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
         let active = p.valid;

@@ -346,8 +346,28 @@ impl TwoLevel {
         }
     }
 
+    /// The mesh of a top level that holds one mesh instance in world space (a scene from
+    /// one OBJ or PLY file): queries go straight to it, without the top-level walk (and,
+    /// for packets, its packet set-up).
+    #[inline(always)]
+    pub(crate) fn only_mesh(&self) -> Option<&MeshBvh> {
+        match self.instances.as_slice() {
+            [only] if only.is_identity() => match self.geometries.get(only.geometry as usize) {
+                Some(Geometry::Mesh(m)) => Some(m),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+
     #[inline(always)]
     pub(crate) fn intersect_k<K: KernelSet>(&self, pre: &RayPre, hit: &mut Hit) {
+        if let Some(mesh) = self.only_mesh() {
+            if mesh.intersect_k::<K, ()>(pre, hit, &mut ()) {
+                hit.inst = 0;
+            }
+            return;
+        }
         let leaves = InstLeaves::<K> { tl: self, k: std::marker::PhantomData };
         // SAFETY: the caller selected K for this CPU.
         unsafe { traverse::intersect::<8, K::B8, _, _>(&self.nodes, &leaves, pre, hit, &mut ()) };
@@ -358,6 +378,9 @@ impl TwoLevel {
 
     #[inline(always)]
     pub(crate) fn occluded_k<K: KernelSet>(&self, pre: &RayPre, tmax: f32) -> bool {
+        if let Some(mesh) = self.only_mesh() {
+            return mesh.occluded_k::<K, ()>(pre, tmax, &mut ());
+        }
         let leaves = InstLeaves::<K> { tl: self, k: std::marker::PhantomData };
         // SAFETY: the caller selected K for this CPU.
         self.unbounded.iter().any(|&i| leaves.occludes(i, pre, tmax))
