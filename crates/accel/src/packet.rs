@@ -401,6 +401,18 @@ impl Packet {
         Ray { org: Vec3::new(self.o[g][0].0[l], self.o[g][1].0[l], self.o[g][2].0[l]), dir: self.dir(g, l), tmin: self.tmin[g].0[l], tmax }
     }
 
+    /// The rays of `active` in the object space of `inst`, as the single-ray path sees
+    /// them: the packet itself for an instance whose transform is the identity (see
+    /// [`crate::tlas::Instance::is_identity`]), else [`Packet::transformed`].
+    #[inline(always)]
+    fn in_object_space(&self, inst: &crate::tlas::Instance, active: &Masks) -> std::borrow::Cow<'_, Self> {
+        if inst.is_identity() {
+            std::borrow::Cow::Borrowed(self)
+        } else {
+            std::borrow::Cow::Owned(self.transformed(&inst.object_from_world, active))
+        }
+    }
+
     /// The rays of `active` carried by `m` (object space of an instance), computed as
     /// `Ray::transformed` does, so the single-ray kernels see the same rays.
     #[inline(always)]
@@ -1523,12 +1535,7 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
         let inst = &self.tl.instances()[id as usize];
         if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
             // The rays carried into object space exactly as the single-ray path does.
-            if inst.is_identity() {
-                mesh.packet_intersect_k::<K, _>(p, m, h, id, false, &mut ());
-            } else {
-                let lp = p.transformed(&inst.object_from_world, m);
-                mesh.packet_intersect_k::<K, _>(&lp, m, h, id, false, &mut ());
-            }
+            mesh.packet_intersect_k::<K, _>(&p.in_object_space(inst, m), m, h, id, false, &mut ());
             return;
         }
         if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
@@ -1574,12 +1581,7 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
     fn occludes_here(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
         let inst = &self.tl.instances()[id as usize];
         if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
-            if inst.is_identity() {
-                mesh.packet_occluded_k::<K, _>(p, m, h, false, &mut ());
-            } else {
-                let lp = p.transformed(&inst.object_from_world, m);
-                mesh.packet_occluded_k::<K, _>(&lp, m, h, false, &mut ());
-            }
+            mesh.packet_occluded_k::<K, _>(&p.in_object_space(inst, m), m, h, false, &mut ());
             return;
         }
         if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {

@@ -65,15 +65,17 @@ pub struct World {
     faces: Vec<Vec<Vec3>>,
 }
 
-/// `(b − a) × (c − a)` of every triangle (zero for one whose indices are out of range).
+/// `(b − a) × (c − a)` of triangle `idx` (zero when an index is out of range).
+fn face_vector(positions: &[Vec3], idx: &[u32; 3]) -> Vec3 {
+    match idx.map(|i| positions.get(i as usize).copied()) {
+        [Some(a), Some(b), Some(c)] => (b - a).cross(c - a),
+        _ => Vec3::ZERO,
+    }
+}
+
+/// [`face_vector`] of every triangle.
 fn face_vectors(positions: &[Vec3], indices: &[[u32; 3]]) -> Vec<Vec3> {
-    indices
-        .par_iter()
-        .map(|idx| match idx.map(|i| positions.get(i as usize).copied()) {
-            [Some(a), Some(b), Some(c)] => (b - a).cross(c - a),
-            _ => Vec3::ZERO,
-        })
-        .collect()
+    indices.par_iter().map(|idx| face_vector(positions, idx)).collect()
 }
 
 /// A surface point rebuilt from a hit.
@@ -282,10 +284,7 @@ impl World {
                 let tri = h.prim as usize;
                 let ng_obj = match self.faces.get(m as usize).and_then(|f| f.get(tri)) {
                     Some(f) => *f,
-                    None => {
-                        let [a, b, c] = mesh.indices[tri].map(|i| mesh.positions[i as usize]);
-                        (b - a).cross(c - a)
-                    }
+                    None => face_vector(&mesh.positions, &mesh.indices[tri]),
                 };
                 let ng = (inst.normal_to_world * glam::Vec3A::from(ng_obj)).normalize_or_zero().into();
                 let w = Vec3::new(1.0 - h.u - h.v, h.u, h.v);
