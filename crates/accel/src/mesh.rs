@@ -4,7 +4,7 @@ use crate::build::{build_binary, BuildConfig, PrimRef};
 use crate::geom::{Aabb, Hit, Ray, INVALID};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::traverse::{self, Counters, Leaves, RayPre, TraversalStats};
-use crate::triangle::{tri4_intersect_scalar, tri4_occluded_scalar, Tri4, UnitTriangle, WatertightRay, NEVER_HIT};
+use crate::triangle::{tri4_intersect_scalar, tri4_occluded_scalar, unit_maps, Tri4, UnitTriangle, WatertightRay, NEVER_HIT};
 use crate::wide::{collapse, leaf_code, leaf_range, WideNode, EMPTY, LEAF};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -121,6 +121,9 @@ pub struct MeshBvh {
 /// Triangles past a leaf whose unit-triangle maps the leaf fill asks for in advance.
 const PREFETCH_AHEAD: usize = 8;
 
+/// Triangles per task of the build's first pass (maps and boxes).
+const PREP_CHUNK: usize = 512;
+
 impl MeshBvh {
     /// Builds the BVH of triangles `indices` over `positions`. Triangles with non-finite
     /// vertices or zero area are left out (no ray can hit them).
@@ -133,24 +136,45 @@ impl MeshBvh {
             return Err(BuildError::TooLarge(indices.len()));
         }
         let verts = |t: &[u32; 3]| [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
-        // One indexed parallel pass (an unindexed `filter` would collect by concatenating
-        // chunks), then a sequential `retain` of the triangles that can be hit.
-        // PERF: `unzip_into_vecs` writes both vectors in place (a plain `unzip` gathers
-        // chunk lists and copies them).
-        let (mut units, mut prims): (Vec<Option<[f32; 12]>>, Vec<PrimRef>) = (Vec::new(), Vec::new());
-        indices
-            .par_iter()
+        // One indexed parallel pass over chunks of triangles, writing the maps (four at a
+        // time, `unit_maps`) and the primitive references in place; then a sequential
+        // `retain` of the triangles that can be hit.
+        let n = indices.len();
+        let mut units: Vec<[f32; 12]> = Vec::with_capacity(n);
+        let mut prims: Vec<PrimRef> = Vec::with_capacity(n);
+        let refittable = opts.refittable;
+        units.spare_capacity_mut()[..n]
+            .par_chunks_mut(PREP_CHUNK)
+            .zip(prims.spare_capacity_mut()[..n].par_chunks_mut(PREP_CHUNK))
+            .zip(indices.par_chunks(PREP_CHUNK))
             .enumerate()
-            .map(|(i, t)| {
-                let v = verts(t);
-                (UnitTriangle::new(v[0], v[1], v[2]).map(|u| u.m), PrimRef::new(Aabb::from_points(&v), i as u32))
-            })
-            .unzip_into_vecs(&mut units, &mut prims);
-        if opts.refittable {
-            prims.retain(|p| p.min().is_finite() && p.max().is_finite());
-        } else {
-            prims.retain(|p| units[p.id() as usize].is_some());
+            .for_each(|(c, ((u_out, p_out), idx))| {
+                let mut v = [[Vec3::ZERO; 3]; 16];
+                let mut m = [NEVER_HIT; 16];
+                let mut ok = [false; 16];
+                for (k, ((u_out, p_out), idx)) in u_out.chunks_mut(16).zip(p_out.chunks_mut(16)).zip(idx.chunks(16)).enumerate() {
+                    let first = c * PREP_CHUNK + k * 16;
+                    let len = idx.len();
+                    for (vv, t) in v.iter_mut().zip(idx) {
+                        *vv = verts(t);
+                    }
+                    unit_maps(&v[..len], &mut m[..len], &mut ok[..len]);
+                    for j in 0..len {
+                        u_out[j].write(m[j]);
+                        // A triangle no ray can hit gets no box (and is left out below),
+                        // unless a refit may move it.
+                        let b = if ok[j] || refittable { Aabb::from_points(&v[j]) } else { Aabb::EMPTY };
+                        p_out[j].write(PrimRef::new(b, (first + j) as u32));
+                    }
+                }
+            });
+        // SAFETY: the chunks above tile `[0, n)` of both spare capacities (`indices` has `n`
+        // entries, chunked alike) and every slot of every chunk was written.
+        unsafe {
+            units.set_len(n);
+            prims.set_len(n);
         }
+        prims.retain(|p| p.min().is_finite() && p.max().is_finite());
         let cfg = BuildConfig {
             max_leaf: 8,
             leaf_block: if opts.test == TriangleTest::UnitTriangle { 4 } else { 1 },
@@ -221,7 +245,7 @@ impl MeshBvh {
                     let mut t4 = Tri4::EMPTY;
                     for (lane, p) in chunk.iter().enumerate() {
                         let id = p.id();
-                        t4.set(lane, &units[id as usize].unwrap_or(NEVER_HIT), id);
+                        t4.set(lane, &units[id as usize], id);
                     }
                     slot.write(t4);
                 }

@@ -80,6 +80,85 @@ impl UnitTriangle {
     }
 }
 
+/// The unit-triangle maps of many triangles at once: `out[i]` is the map of
+/// `UnitTriangle::new(tris[i])` (bit for bit) and `ok[i]` is true, or, for a degenerate
+/// triangle, [`NEVER_HIT`] and false. PERF: four triangles per AVX register of f64 (the
+/// build computed every map alone: 30 ns a triangle, a tenth of a 12k-triangle build).
+pub fn unit_maps(tris: &[[Vec3; 3]], out: &mut [[f32; 12]], ok: &mut [bool]) {
+    assert!(tris.len() == out.len() && tris.len() == ok.len(), "one output per triangle");
+    let mut done = 0;
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx") {
+        for ((t, o), k) in tris.chunks_exact(4).zip(out.chunks_exact_mut(4)).zip(ok.chunks_exact_mut(4)) {
+            // SAFETY: AVX is available (checked above); the chunks hold four entries.
+            unsafe { unit_maps4_avx(t, o, k) };
+            done += 4;
+        }
+    }
+    for ((t, o), k) in tris[done..].iter().zip(&mut out[done..]).zip(&mut ok[done..]) {
+        let m = UnitTriangle::new(t[0], t[1], t[2]);
+        *k = m.is_some();
+        *o = m.map_or(NEVER_HIT, |u| u.m);
+    }
+}
+
+/// [`UnitTriangle::new`] for four triangles (every slice holds at least four), lane by
+/// lane with the same f64 operations in the same order, so the maps are the same bits.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn unit_maps4_avx(tris: &[[Vec3; 3]], out: &mut [[f32; 12]], ok: &mut [bool]) {
+    use std::arch::x86_64::*;
+    // Component `k` of vertex `v` of the four triangles.
+    let comp = |v: usize, k: usize| _mm256_setr_pd(tris[0][v][k] as f64, tris[1][v][k] as f64, tris[2][v][k] as f64, tris[3][v][k] as f64);
+    let a = [comp(0, 0), comp(0, 1), comp(0, 2)];
+    let b = [comp(1, 0), comp(1, 1), comp(1, 2)];
+    let c = [comp(2, 0), comp(2, 1), comp(2, 2)];
+    let sub = |x: [__m256d; 3], y: [__m256d; 3]| [_mm256_sub_pd(x[0], y[0]), _mm256_sub_pd(x[1], y[1]), _mm256_sub_pd(x[2], y[2])];
+    // glam's `cross`: (s.y r.z − r.y s.z, s.z r.x − r.z s.x, s.x r.y − r.x s.y).
+    let cross = |s: [__m256d; 3], r: [__m256d; 3]| {
+        [
+            _mm256_sub_pd(_mm256_mul_pd(s[1], r[2]), _mm256_mul_pd(r[1], s[2])),
+            _mm256_sub_pd(_mm256_mul_pd(s[2], r[0]), _mm256_mul_pd(r[2], s[0])),
+            _mm256_sub_pd(_mm256_mul_pd(s[0], r[1]), _mm256_mul_pd(r[0], s[1])),
+        ]
+    };
+    // glam's `dot`: (s.x r.x + s.y r.y) + s.z r.z.
+    let dot = |s: [__m256d; 3], r: [__m256d; 3]| {
+        _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(s[0], r[0]), _mm256_mul_pd(s[1], r[1])), _mm256_mul_pd(s[2], r[2]))
+    };
+    let e1 = sub(b, a);
+    let e2 = sub(c, a);
+    let n = cross(e1, e2);
+    let det = dot(n, n);
+    let inv = _mm256_div_pd(_mm256_set1_pd(1.0), det);
+    let scale = |r: [__m256d; 3]| [_mm256_mul_pd(r[0], inv), _mm256_mul_pd(r[1], inv), _mm256_mul_pd(r[2], inv)];
+    let rows = [scale(cross(e2, n)), scale(cross(n, e1)), scale(n)];
+    let neg = _mm256_set1_pd(-0.0);
+    let mut m = [[0.0f32; 4]; 12]; // m[entry][lane]
+    for (r, row) in rows.iter().enumerate() {
+        let w = _mm256_xor_pd(dot(*row, a), neg);
+        for (k, v) in [row[0], row[1], row[2], w].into_iter().enumerate() {
+            // Round to nearest, as `as f32` does.
+            // SAFETY: `m[4r + k]` holds four f32.
+            unsafe { _mm_storeu_ps(m[4 * r + k].as_mut_ptr(), _mm256_cvtpd_ps(v)) };
+        }
+    }
+    let mut dets = [0.0f64; 4];
+    // SAFETY: `dets` holds four f64.
+    unsafe { _mm256_storeu_pd(dets.as_mut_ptr(), det) };
+    for l in 0..4 {
+        let mut good = dets[l] > 0.0 && dets[l].is_finite() && tris[l][0].is_finite();
+        for (e, col) in m.iter().enumerate() {
+            out[l][e] = col[l];
+            good &= col[l].is_finite();
+        }
+        ok[l] = good;
+        if !good {
+            out[l] = NEVER_HIT;
+        }
+    }
+}
+
 /// Unit-triangle test of one ray against one map: `Some((t, u, v))` when `t` is in
 /// `[tmin, tmax)` and the point lies inside the triangle.
 #[inline(always)]
@@ -361,6 +440,40 @@ impl WatertightRay {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The batched maps (AVX, four at a time) are the bits of `UnitTriangle::new`, on
+    /// ordinary, tiny, huge, degenerate and non-finite triangles.
+    #[test]
+    fn batched_unit_maps_match_one_by_one() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        let mut tris = Vec::new();
+        for i in 0..4000 {
+            let scale = [1.0f32, 1e-3, 1e-19, 1e-30, 1e19, 1e37][i % 6];
+            let mut v =
+                [0; 3].map(|_| Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)) * scale);
+            match i % 11 {
+                0 => v[2] = v[1],
+                1 => v[2] = v[0] * 2.0 - v[1], // collinear up to rounding
+                2 => v[1].x = f32::NAN,
+                3 => v[0].y = f32::INFINITY,
+                _ => {}
+            }
+            tris.push(v);
+        }
+        let mut out = vec![[0.0; 12]; tris.len()];
+        let mut ok = vec![false; tris.len()];
+        unit_maps(&tris, &mut out, &mut ok);
+        let mut valid = 0;
+        for ((t, o), k) in tris.iter().zip(&out).zip(&ok) {
+            let want = UnitTriangle::new(t[0], t[1], t[2]);
+            assert_eq!(*k, want.is_some(), "{t:?}");
+            let want = want.map_or(NEVER_HIT, |u| u.m);
+            assert_eq!(o.map(f32::to_bits), want.map(f32::to_bits), "{t:?}");
+            valid += usize::from(*k);
+        }
+        assert!(valid > 2000 && valid < 3900, "{valid} valid: the cases should mix");
+    }
 
     #[test]
     fn unit_triangle_maps_vertices() {
