@@ -140,20 +140,25 @@ impl MeshBvh {
         // time, `unit_maps`) and the primitive references in place; then a sequential
         // `retain` of the triangles that can be hit.
         let n = indices.len();
-        let mut units: Vec<[f32; 12]> = Vec::with_capacity(n);
-        let mut prims: Vec<PrimRef> = Vec::with_capacity(n);
         let refittable = opts.refittable;
+        // Two indexed parallel passes over chunks of triangles. The first writes the maps
+        // (four at a time, `unit_maps`) and which triangles are kept (those a ray can hit,
+        // or with a refit every finite one), and counts them per chunk; the second writes
+        // the kept triangles' references, each chunk at its place in the packed array.
+        // PERF: a sequential `retain` of the references was 2 ms of Conference's 50 ms.
+        let mut units: Vec<[f32; 12]> = Vec::with_capacity(n);
+        let mut keep: Vec<bool> = Vec::with_capacity(n);
+        let mut kept: Vec<usize> = Vec::new();
         units.spare_capacity_mut()[..n]
             .par_chunks_mut(PREP_CHUNK)
-            .zip(prims.spare_capacity_mut()[..n].par_chunks_mut(PREP_CHUNK))
+            .zip(keep.spare_capacity_mut()[..n].par_chunks_mut(PREP_CHUNK))
             .zip(indices.par_chunks(PREP_CHUNK))
-            .enumerate()
-            .for_each(|(c, ((u_out, p_out), idx))| {
+            .map(|((u_out, k_out), idx)| {
                 let mut v = [[Vec3::ZERO; 3]; 16];
                 let mut m = [NEVER_HIT; 16];
                 let mut ok = [false; 16];
-                for (k, ((u_out, p_out), idx)) in u_out.chunks_mut(16).zip(p_out.chunks_mut(16)).zip(idx.chunks(16)).enumerate() {
-                    let first = c * PREP_CHUNK + k * 16;
+                let mut count = 0;
+                for ((u_out, k_out), idx) in u_out.chunks_mut(16).zip(k_out.chunks_mut(16)).zip(idx.chunks(16)) {
                     let len = idx.len();
                     for (vv, t) in v.iter_mut().zip(idx) {
                         *vv = verts(t);
@@ -161,20 +166,38 @@ impl MeshBvh {
                     unit_maps(&v[..len], &mut m[..len], &mut ok[..len]);
                     for j in 0..len {
                         u_out[j].write(m[j]);
-                        // A triangle no ray can hit gets no box (and is left out below),
-                        // unless a refit may move it.
-                        let b = if ok[j] || refittable { Aabb::from_points(&v[j]) } else { Aabb::EMPTY };
-                        p_out[j].write(PrimRef::new(b, (first + j) as u32));
+                        let k = ok[j] || refittable && v[j].iter().all(|p| p.is_finite());
+                        k_out[j].write(k);
+                        count += usize::from(k);
                     }
                 }
-            });
+                count
+            })
+            .collect_into_vec(&mut kept);
         // SAFETY: the chunks above tile `[0, n)` of both spare capacities (`indices` has `n`
         // entries, chunked alike) and every slot of every chunk was written.
         unsafe {
             units.set_len(n);
-            prims.set_len(n);
+            keep.set_len(n);
         }
-        prims.retain(|p| p.min().is_finite() && p.max().is_finite());
+        let total: usize = kept.iter().sum();
+        let mut prims: Vec<PrimRef> = Vec::with_capacity(total);
+        let mut rest = &mut prims.spare_capacity_mut()[..total];
+        let mut outs = Vec::with_capacity(kept.len());
+        for &k in &kept {
+            let (mine, tail) = rest.split_at_mut(k);
+            outs.push(mine);
+            rest = tail;
+        }
+        outs.into_par_iter().zip(keep.par_chunks(PREP_CHUNK)).enumerate().for_each(|(c, (out, keep))| {
+            let ids = (c * PREP_CHUNK..).zip(keep).filter(|(_, k)| **k).map(|(i, _)| i);
+            for (slot, i) in out.iter_mut().zip(ids) {
+                slot.write(PrimRef::new(Aabb::from_points(&verts(&indices[i])), i as u32));
+            }
+        });
+        // SAFETY: the chunk outputs tile `[0, total)`, and chunk `c` has exactly `kept[c]`
+        // kept triangles (counted above from the same `keep` flags), so every slot was written.
+        unsafe { prims.set_len(total) };
         let cfg = BuildConfig {
             max_leaf: 8,
             leaf_block: if opts.test == TriangleTest::UnitTriangle { 4 } else { 1 },
