@@ -136,9 +136,6 @@ impl MeshBvh {
             return Err(BuildError::TooLarge(indices.len()));
         }
         let verts = |t: &[u32; 3]| [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
-        // One indexed parallel pass over chunks of triangles, writing the maps (four at a
-        // time, `unit_maps`) and the primitive references in place; then a sequential
-        // `retain` of the triangles that can be hit.
         let n = indices.len();
         let refittable = opts.refittable;
         // Two indexed parallel passes over chunks of triangles. The first writes the maps
