@@ -42,7 +42,7 @@ pub use geom::{Aabb, Hit, Ray, INVALID};
 pub use glam;
 pub use kernel::Kernel;
 pub use mesh::{BuildError, BvhStats, MeshBvh, MeshOptions, Quality, TriangleTest, Width};
-pub use packet::{RayBlock, MAX_PACKET};
+pub use packet::{prefetch_blocks, RayBlock, MAX_PACKET};
 pub use shape::{Shape, ShapeHit};
 pub use tlas::{Geometry, Instance, TopBuilder, TwoLevel};
 pub use traverse::TraversalStats;

@@ -1141,15 +1141,44 @@ fn with_spare_packet(body: impl FnOnce(&mut Packet, &mut PacketHits)) {
     SPARE_PACKET.with(|s| s.set(Some(spare)));
 }
 
-/// Runs `body` on every run of at most [`GROUPS`] blocks, with the packet loaded.
+/// Runs `body` on every run of at most [`GROUPS`] blocks, with the packet loaded. The next
+/// packet's blocks are asked for before a packet is traced, so a long stream of blocks
+/// does not wait on memory at every load. PERF: 64-ray shadow packets in the BART kitchen
+/// mostly end at their first leaf; without the hint a quarter of their time went to
+/// loading their 2 KB of rays.
 #[inline(always)]
 fn block_chunks(blocks: &[RayBlock], mut body: impl FnMut(usize, &Packet, &mut PacketHits)) {
     with_spare_packet(|p, h| {
         for (c, chunk) in blocks.chunks(GROUPS).enumerate() {
             p.load_blocks_into(chunk, h);
+            let next = (c + 1) * GROUPS;
+            prefetch_blocks(blocks.get(next..(next + GROUPS).min(blocks.len())).unwrap_or(&[]));
             body(c * MAX_PACKET, p, h);
         }
     });
+}
+
+/// Asks for the cache lines of `blocks` (a hint: nothing changes but how soon they can be
+/// read; no effect off x86-64). A caller streaming blocks to [`MeshBvh::intersect_blocks`]
+/// or [`MeshBvh::occluded_blocks`] in several calls can hand the next call's first blocks
+/// here before the current call: each call already asks for its own later packets.
+#[inline(always)]
+pub fn prefetch_blocks(blocks: &[RayBlock]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // Every line the slice touches (blocks are aligned to 32 bytes, not to lines).
+        let base = blocks.as_ptr().cast::<i8>();
+        let bytes = std::mem::size_of_val(blocks);
+        let mut at = 0;
+        while at < bytes + (base as usize & 63) {
+            // SAFETY: a prefetch hint (it never faults), at lines that overlap the slice;
+            // SSE is part of x86-64.
+            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(base.wrapping_add(at)) };
+            at += 64;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = blocks;
 }
 
 /// How many times a packet whose origins spread too far may be halved (up to 16 parts).

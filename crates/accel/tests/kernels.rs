@@ -676,3 +676,68 @@ fn one_world_space_mesh_answers_like_the_mesh_itself() {
         }
     }
 }
+
+/// Rays streamed as SoA blocks (a run of many packets, starting at an odd block so the
+/// slice is not line-aligned, with a short last packet and some empty lanes) give the
+/// answers of the same rays one by one, with every kernel and width.
+#[test]
+fn streamed_blocks_match_single_rays() {
+    let mut rng = Pcg64::seed_from_u64(41);
+    let (p, idx) = soup(&mut rng, 3000, 1.0);
+    let eye = Vec3::new(0.5, 0.5, -1.0);
+    // 8x8 tiles of a 48x40 image (30 tiles, 240 blocks), then 3 blocks of random rays.
+    let mut rays = Vec::new();
+    for tile in 0..30 {
+        let (tx, ty) = (tile % 6, tile / 6);
+        for k in 0..64 {
+            let (x, y) = (tx * 8 + k % 8, ty * 8 + k / 8);
+            rays.push(Ray::new(eye, Vec3::new(x as f32 / 48.0 - 0.5, y as f32 / 40.0 - 0.5, 1.0).normalize()));
+        }
+    }
+    for _ in 0..24 {
+        rays.push(random_ray(&mut rng, 1.0));
+    }
+    let mut blocks: Vec<lucent_accel::RayBlock> = rays
+        .chunks(8)
+        .enumerate()
+        .map(|(i, eight)| {
+            let mut b = lucent_accel::RayBlock::EMPTY;
+            for (l, r) in eight.iter().enumerate() {
+                for k in 0..3 {
+                    b.org[k][l] = r.org[k];
+                    b.dir[k][l] = r.dir[k];
+                }
+                // Every thirteenth lane is left empty.
+                b.tmin[l] = 0.0;
+                b.tmax[l] = if (i * 8 + l) % 13 == 5 { f32::NEG_INFINITY } else { f32::INFINITY };
+            }
+            b
+        })
+        .collect();
+    blocks.insert(0, lucent_accel::RayBlock::EMPTY);
+    let stream = &blocks[1..];
+    for (width, kernel) in all_variants() {
+        let mut bvh = MeshBvh::build(&p, &idx, MeshOptions { width, ..MeshOptions::default() }).expect("build");
+        bvh.set_kernel(kernel);
+        let mut hits = vec![None; stream.len() * 8];
+        let mut occ = vec![false; stream.len() * 8];
+        bvh.intersect_blocks(stream, &mut hits);
+        bvh.occluded_blocks(stream, &mut occ);
+        let mut live = 0;
+        for (i, b) in stream.iter().enumerate() {
+            for l in 0..8 {
+                let s = i * 8 + l;
+                if b.tmax[l] < b.tmin[l] {
+                    assert!(hits[s].is_none() && !occ[s], "{width:?} {kernel:?}: empty lane {s} answered");
+                    continue;
+                }
+                live += 1;
+                let r = Ray::new(Vec3::new(b.org[0][l], b.org[1][l], b.org[2][l]), Vec3::new(b.dir[0][l], b.dir[1][l], b.dir[2][l]));
+                let want = bvh.intersect(&r);
+                assert_eq!(hits[s].map(|h| h.t), want.map(|h| h.t), "{width:?} {kernel:?}: ray {s}");
+                assert_eq!(occ[s], want.is_some(), "{width:?} {kernel:?}: ray {s}");
+            }
+        }
+        assert!(live > stream.len() * 6, "most lanes carry rays");
+    }
+}

@@ -222,44 +222,56 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
                 let pass = || {
                     let next = std::sync::atomic::AtomicUsize::new(0);
                     let nchunks = batch.blocks.len().div_ceil(CHUNK_BLOCKS);
-                    rayon::broadcast(|_| loop {
-                        let c = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        if c >= nchunks {
-                            break;
-                        }
-                        let b0 = c * CHUNK_BLOCKS;
-                        let b1 = (b0 + CHUNK_BLOCKS).min(batch.blocks.len());
-                        if per == 1 {
-                            for bi in b0..b1 {
-                                let b = &batch.blocks[bi];
-                                for l in 0..8 {
-                                    if b.valid[l] == 0 {
-                                        continue;
+                    rayon::broadcast(|_| {
+                        let mut claimed = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        loop {
+                            let c = claimed;
+                            if c >= nchunks {
+                                break;
+                            }
+                            // The next chunk is claimed before this one is traced, so its first
+                            // packet's rays can be asked for from memory while this one runs.
+                            claimed = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            let b0 = c * CHUNK_BLOCKS;
+                            let b1 = (b0 + CHUNK_BLOCKS).min(batch.blocks.len());
+                            if per == 1 {
+                                for bi in b0..b1 {
+                                    let b = &batch.blocks[bi];
+                                    for l in 0..8 {
+                                        if b.valid[l] == 0 {
+                                            continue;
+                                        }
+                                        let r = b.ray(l);
+                                        let v =
+                                            if shadow { bvh.occluded(&r) as i32 } else { bvh.intersect(&r).map_or(-1, |h| h.prim as i32) };
+                                        out_cells[bi * 8 + l].store(v, std::sync::atomic::Ordering::Relaxed);
                                     }
-                                    let r = b.ray(l);
-                                    let v = if shadow { bvh.occluded(&r) as i32 } else { bvh.intersect(&r).map_or(-1, |h| h.prim as i32) };
-                                    out_cells[bi * 8 + l].store(v, std::sync::atomic::Ordering::Relaxed);
                                 }
+                                continue;
                             }
-                            continue;
-                        }
-                        // Packets of `per` rays: consecutive blocks (a tile is 8 blocks), handed
-                        // over in the SoA layout they were dumped in; invalid lanes have an empty
-                        // range and are skipped by the kernel.
-                        let mut hits = [None; lucent_accel::MAX_PACKET];
-                        let mut occ = [false; lucent_accel::MAX_PACKET];
-                        let bpp = per / 8;
-                        for pb in (b0..b1).step_by(bpp) {
-                            let pe = (pb + bpp).min(b1);
-                            let n = (pe - pb) * 8;
-                            if shadow {
-                                bvh.occluded_blocks(&soa[pb..pe], &mut occ[..n]);
-                            } else {
-                                bvh.intersect_blocks(&soa[pb..pe], &mut hits[..n]);
-                            }
-                            for k in 0..n {
-                                let v = if shadow { occ[k] as i32 } else { hits[k].map_or(-1, |h| h.prim as i32) };
-                                out_cells[pb * 8 + k].store(v, std::sync::atomic::Ordering::Relaxed);
+                            // Packets of `per` rays: consecutive blocks (a tile is 8 blocks), handed
+                            // over in the SoA layout they were dumped in; invalid lanes have an empty
+                            // range and are skipped by the kernel.
+                            let mut hits = [None; lucent_accel::MAX_PACKET];
+                            let mut occ = [false; lucent_accel::MAX_PACKET];
+                            let bpp = per / 8;
+                            for pb in (b0..b1).step_by(bpp) {
+                                let pe = (pb + bpp).min(b1);
+                                let n = (pe - pb) * 8;
+                                // A stream of packets: the next packet's blocks are asked for
+                                // before this one is traced (else 64-ray shadow packets that end at
+                                // their first leaf spend a quarter of their time waiting on them).
+                                let ahead = if pe < b1 { pe } else { claimed.saturating_mul(CHUNK_BLOCKS) };
+                                lucent_accel::prefetch_blocks(soa.get(ahead..(ahead + bpp).min(soa.len())).unwrap_or(&[]));
+                                if shadow {
+                                    bvh.occluded_blocks(&soa[pb..pe], &mut occ[..n]);
+                                } else {
+                                    bvh.intersect_blocks(&soa[pb..pe], &mut hits[..n]);
+                                }
+                                for k in 0..n {
+                                    let v = if shadow { occ[k] as i32 } else { hits[k].map_or(-1, |h| h.prim as i32) };
+                                    out_cells[pb * 8 + k].store(v, std::sync::atomic::Ordering::Relaxed);
+                                }
                             }
                         }
                     });
