@@ -236,6 +236,7 @@ impl TwoLevel {
             leaves: 0,
             prims: self.instances.len(),
             sah: 0.0,
+            wide_sah: 0.0,
             bytes: std::mem::size_of_val(self.nodes.as_slice())
                 + 4 * (self.order.len() + self.unbounded.len())
                 + std::mem::size_of_val(self.instances.as_slice()),

@@ -177,12 +177,13 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
         }
         let st = bvh.as_ref().map(|b| b.stats()).unwrap_or_default();
         println!(
-            "{{\"kind\":\"build\",\"tracer\":\"lucent\",\"scene\":\"{}\",\"tris\":{tris},\"quality\":\"{}\",\"bvh\":\"{bvh_label}\",\"threads\":{threads},\"median_ms\":{:.2},\"nodes\":{},\"sah\":{:.2},\"bytes\":{},\"bytes_per_tri\":{:.1}}}",
+            "{{\"kind\":\"build\",\"tracer\":\"lucent\",\"scene\":\"{}\",\"tris\":{tris},\"quality\":\"{}\",\"bvh\":\"{bvh_label}\",\"threads\":{threads},\"median_ms\":{:.2},\"nodes\":{},\"sah\":{:.2},\"sah_embree_convention\":{:.2},\"bytes\":{},\"bytes_per_tri\":{:.1}}}",
             o.name,
             if o.quality == lucent_accel::Quality::High { "high" } else { "sah" },
             1e3 * crate::stats::median(&mut times),
             st.nodes,
             st.sah,
+            st.wide_sah,
             st.bytes,
             st.bytes as f64 / tris.max(1) as f64
         );
