@@ -17,7 +17,7 @@
 //! and Reshetov, Soupikov & Hurley ("Multi-Level Ray Tracing Algorithm", SIGGRAPH 2005): in
 //! the unit-triangle test the barycentric numerators are linear in the direction once the
 //! origin is fixed, so their ranges over the packet's direction box bound every ray's
-//! ([`avx::frustum_keep`]). A packet whose rays do not agree on the direction signs
+//! (`avx::frustum_keep`). A packet whose rays do not agree on the direction signs
 //! has no interval bound; it falls back to single-ray traversal, as Benthin et al. do
 //! ("Combining Single and Packet Ray Tracing for Arbitrary Ray Distributions on the Intel
 //! MIC Architecture", IEEE TVCG 2012).
