@@ -317,7 +317,18 @@ pub(crate) struct Interval {
     tmin: f32,
     /// The rays' unit directions spread at most [`MAX_DIR_SPREAD`] in every component.
     narrow: bool,
+    /// +inf on an axis where some ray runs parallel to the planes ([`PARALLEL_INV`]), else
+    /// 0: added to the exit bound, it keeps such a ray's slab open (branch-free).
+    pad: [f32; 3],
 }
+
+/// Reciprocal directions at least this large (|d| <= 2e-18, near the 1e-18 clamp of
+/// [`recip`]) count as parallel to the slab: such a ray lying in the slab never leaves it,
+/// but `(b - o)·(1/d)` with its origin at (or within 1e-18·t of) the far plane gives an
+/// exit near 0. When some ray of a packet is parallel to an axis, the box tests take every
+/// exit on that axis as +inf ([`Interval::pad`]; the single-ray test is saved by its
+/// `slack` instead). Only that axis's culling is lost, and only for such packets.
+const PARALLEL_INV: f32 = 5e17;
 
 /// Per-group lane masks.
 pub(crate) type Masks = [M8; GROUPS];
@@ -542,6 +553,7 @@ impl Packet {
             rhi: [0.0; 3],
             tmin: lo(tmin),
             narrow: true,
+            pad: [0.0; 3],
         };
         // The length of one ray's direction, taken for all (PERF: lengths ray by ray, each
         // with a square root and a division, cost more; even so, this check costs 8-ray
@@ -557,6 +569,7 @@ impl Packet {
                 return None; // mixed signs
             }
             iv.narrow &= iv.narrow_on(k, q);
+            iv.pad[k] = if iv.rlo[k].abs().max(iv.rhi[k].abs()) >= PARALLEL_INV { f32::INFINITY } else { 0.0 };
             iv.near[k] = k + 3 * neg as usize;
             iv.far[k] = k + 3 * (!neg) as usize;
             iv.inear[k] = iv.near[k];
@@ -812,7 +825,7 @@ fn interval_test(node: &WideNode<8>, iv: &Interval, tmax: f32, dist: &mut [f32; 
         let (n0, n1) = (bn.sub(olo), bn.sub(ohi));
         let lo = n0.mul(rlo).min(n0.mul(rhi)).min(n1.mul(rlo).min(n1.mul(rhi)));
         let (f0, f1) = (bf.sub(olo), bf.sub(ohi));
-        let hi = f0.mul(rlo).max(f0.mul(rhi)).max(f1.mul(rlo).max(f1.mul(rhi)));
+        let hi = f0.mul(rlo).max(f0.mul(rhi)).max(f1.mul(rlo).max(f1.mul(rhi))).add(F8::splat(iv.pad[k]));
         tn = lo.max(tn);
         tf = hi.min(tf);
     }
@@ -839,7 +852,7 @@ fn group_box(rows: &[f32; 6], p: &Packet, iv: &Interval, g: usize, t: F8) -> M8 
     let mut tf = t;
     for k in 0..3 {
         let a = F8::splat(rows[iv.near[k]]).sub(p.o[g][k]).mul(p.inv[g][k]);
-        let b = F8::splat(rows[iv.far[k]]).sub(p.o[g][k]).mul(p.inv[g][k]);
+        let b = F8::splat(rows[iv.far[k]]).sub(p.o[g][k]).mul(p.inv[g][k]).add(F8::splat(iv.pad[k]));
         tn = a.max(tn);
         tf = b.min(tf);
     }
@@ -2153,9 +2166,12 @@ mod avx {
                 _mm256_min_ps(_mm256_mul_ps(n1, rlo), _mm256_mul_ps(n1, rhi)),
             );
             let (f0, f1) = (_mm256_sub_ps(bf, olo), _mm256_sub_ps(bf, ohi));
-            let hi = _mm256_max_ps(
-                _mm256_max_ps(_mm256_mul_ps(f0, rlo), _mm256_mul_ps(f0, rhi)),
-                _mm256_max_ps(_mm256_mul_ps(f1, rlo), _mm256_mul_ps(f1, rhi)),
+            let hi = _mm256_add_ps(
+                _mm256_max_ps(
+                    _mm256_max_ps(_mm256_mul_ps(f0, rlo), _mm256_mul_ps(f0, rhi)),
+                    _mm256_max_ps(_mm256_mul_ps(f1, rlo), _mm256_mul_ps(f1, rhi)),
+                ),
+                _mm256_set1_ps(iv.pad[k]),
             );
             tn = _mm256_max_ps(lo, tn);
             tf = _mm256_min_ps(hi, tf);
@@ -2189,7 +2205,7 @@ mod avx {
         for k in 0..3 {
             let (o, inv) = (ld(&p.o[g][k]), ld(&p.inv[g][k]));
             let a = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(rows[iv.near[k]]), o), inv);
-            let b = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(rows[iv.far[k]]), o), inv);
+            let b = _mm256_add_ps(_mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(rows[iv.far[k]]), o), inv), _mm256_set1_ps(iv.pad[k]));
             tn = _mm256_max_ps(a, tn);
             tf = _mm256_min_ps(b, tf);
         }
