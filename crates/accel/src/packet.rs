@@ -395,8 +395,19 @@ impl Packet {
             h.inst[g] = [INVALID; LANES];
         }
         p.common = p.find_common_origin();
-        // (Not for packets too small to use them: the bounds cost 6% of an 8-ray packet.)
-        p.cull = if p.common.is_some() && p.groups >= CULL_GROUPS { p.dir_bounds(&p.valid) } else { None };
+        p.cull = p.cull_bounds(&p.valid);
+    }
+
+    /// [`Packet::cull`] for the rays of `set`: their direction bounds when they share an
+    /// origin and the packet is large enough to use them (PERF: the bounds cost 6% of an
+    /// 8-ray packet).
+    #[inline(always)]
+    fn cull_bounds(&self, set: &Masks) -> Option<DirBounds> {
+        if self.common.is_some() && self.groups >= CULL_GROUPS {
+            self.dir_bounds(set)
+        } else {
+            None
+        }
     }
 
     /// Bounds of the directions of the rays in `set` (and whether all their `tmin` are at
@@ -422,18 +433,8 @@ impl Packet {
         if any == 0 {
             return None;
         }
-        // PERF: as a tree of independent steps (a lane-by-lane fold is a chain of 7).
-        let hmin = |v: F8| {
-            let m = |a: f32, b: f32| if a < b { a } else { b };
-            let x = v.0;
-            m(m(m(x[0], x[1]), m(x[2], x[3])), m(m(x[4], x[5]), m(x[6], x[7])))
-        };
-        let hmax = |v: F8| {
-            let m = |a: f32, b: f32| if a > b { a } else { b };
-            let x = v.0;
-            m(m(m(x[0], x[1]), m(x[2], x[3])), m(m(x[4], x[5]), m(x[6], x[7])))
-        };
-        Some(DirBounds { lo: lo.map(hmin), hi: hi.map(hmax), forward: hmin(tmin) >= 0.0 })
+        let hmin = |v: F8| -(v.neg().hmax());
+        Some(DirBounds { lo: lo.map(hmin), hi: hi.map(F8::hmax), forward: hmin(tmin) >= 0.0 })
     }
 
     /// The origin every valid ray shares, bit for bit, if there is one.
@@ -510,7 +511,7 @@ impl Packet {
             let r = |k: usize| c[0][k] * o[0] + c[1][k] * o[1] + c[2][k] * o[2] + tr[k];
             [r(0), r(1), r(2)]
         });
-        p.cull = if p.common.is_some() && p.groups >= CULL_GROUPS { p.dir_bounds(active) } else { None };
+        p.cull = p.cull_bounds(active);
         p
     }
 
@@ -2289,29 +2290,29 @@ mod avx {
         let lo: [__m128; 3] = std::array::from_fn(|k| _mm_set1_ps(c.lo[k]));
         let hi: [__m128; 3] = std::array::from_fn(|k| _mm_set1_ps(c.hi[k]));
         let mag: [__m128; 3] = std::array::from_fn(|k| _mm_max_ps(abs(lo[k]), abs(hi[k])));
-        // Range of a·d over the box, and Σ|a_k|·max|d_k| (the scale of its rounding).
+        // Range of a·d over the box.
         let range = |a: [__m128; 3]| {
-            let (mut l, mut h, mut s) = (_mm_setzero_ps(), _mm_setzero_ps(), _mm_setzero_ps());
+            let (mut l, mut h) = (_mm_setzero_ps(), _mm_setzero_ps());
             for k in 0..3 {
                 let (x, y) = (_mm_mul_ps(a[k], lo[k]), _mm_mul_ps(a[k], hi[k]));
                 l = _mm_add_ps(l, _mm_min_ps(x, y));
                 h = _mm_add_ps(h, _mm_max_ps(x, y));
-                s = _mm_fmadd_ps(abs(a[k]), mag[k], s);
             }
-            (l, h, s)
+            (l, h)
         };
+        // Σ|a_k|·max|d_k|: the scale a·d's rounding goes with.
+        let scale = |a: [__m128; 3]| (0..3).fold(_mm_setzero_ps(), |s, k| _mm_fmadd_ps(abs(a[k]), mag[k], s));
         let mx = [row(0), row(1), row(2)];
         let my = [row(4), row(5), row(6)];
         let mz = [row(8), row(9), row(10)];
         let au: [__m128; 3] = std::array::from_fn(|k| _mm_fmsub_ps(ox, mz[k], _mm_mul_ps(oz, mx[k])));
         let av: [__m128; 3] = std::array::from_fn(|k| _mm_fmsub_ps(oy, mz[k], _mm_mul_ps(oz, my[k])));
         let aw: [__m128; 3] = std::array::from_fn(|k| _mm_sub_ps(_mm_add_ps(au[k], av[k]), mz[k]));
-        let (zl, zh, zs) = range(mz);
-        let (ul, uh, _) = range(au);
-        let (vl, vh, _) = range(av);
-        let (wl, wh, _) = range(aw);
-        let (_, _, xs) = range(mx);
-        let (_, _, ys) = range(my);
+        let (zl, zh) = range(mz);
+        let (ul, uh) = range(au);
+        let (vl, vh) = range(av);
+        let (wl, wh) = range(aw);
+        let (xs, ys, zs) = (scale(mx), scale(my), scale(mz));
         // One margin for all four forms: 1e-4 of the magnitudes their terms can reach.
         let e = _mm_mul_ps(
             _mm_set1_ps(1e-4),
