@@ -1068,14 +1068,13 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
         // at least two fifths of the triangles it is tried on. It drops 83% of those tried in
         // the museum, 54-58% in Conference, the kitchen and Sponza, but 31% of the Stanford
         // bunny's (triangles small next to the packet's footprint), where it cost 5-10%.
-        let [tried, dropped] = self.culled.get();
+        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
+        let [mut tried, mut dropped] = self.culled.get();
         let cull = p
             .cull
             .as_ref()
             .filter(|_| tried < CULL_TRIAL || 5 * dropped >= 2 * tried)
             .filter(|_| m[..p.groups].iter().filter(|mg| mg.bits() != 0).count() >= CULL_GROUPS);
-        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
-        let (mut tried, mut dropped) = (tried, dropped);
         #[cfg(not(target_arch = "x86_64"))]
         let _ = cull;
         for gi in first..first + count {

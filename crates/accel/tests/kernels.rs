@@ -762,11 +762,11 @@ fn packets_through_corners_and_edges_match_single_rays() {
             Quat::from_euler(glam::EulerRot::XYZ, rng.random::<f32>() * 6.3, rng.random::<f32>() * 6.3, rng.random::<f32>() * 6.3)
         };
         let eye = Vec3::new(rng.random(), rng.random(), rng.random()) * scale * 3.0;
-        // Grid point (x, y) seen from the eye, at distance factor `f`.
         // Without the quarter-cell shift, square boards put the rays toward the grid's
         // axes exactly parallel to box faces, some of them lying in one (the slab test's
         // `0·(1/0)` case).
         let shift = if case % 3 == 0 { 0.0 } else { 0.25 };
+        // Grid point (x, y) seen from the eye, at distance factor `f`.
         let place = |x: f32, y: f32, f: f32| eye + rot * (Vec3::new(x + shift, y + shift, 100.0) * scale) * f;
         let mut p = Vec::new();
         let mut idx = Vec::new();
@@ -791,8 +791,8 @@ fn packets_through_corners_and_edges_match_single_rays() {
         let (x0, y0) = (rng.random_range(-11..4) as f32, rng.random_range(-11..4) as f32);
         let rays: Vec<Ray> =
             (0..64).map(|k| Ray::new(eye, place(x0 + step * (k % 8) as f32, y0 + step * (k / 8) as f32, 1.0) - eye)).collect();
+        let mut bvh = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("build");
         for kernel in Kernel::available() {
-            let mut bvh = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("build");
             bvh.set_kernel(kernel);
             let mut got = vec![None; 64];
             bvh.intersect_packet(&rays, &mut got);
