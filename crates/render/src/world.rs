@@ -41,6 +41,8 @@ pub fn shape_of(k: ShapeKind) -> Shape {
 struct InstInfo {
     geom: Geom,
     normal_to_world: Mat3A,
+    /// `normal_to_world` is the identity: object normals are world normals as they are.
+    identity: bool,
 }
 
 /// A deforming mesh's BVH is refitted each frame and rebuilt when its SAH cost reaches
@@ -59,9 +61,12 @@ pub struct World {
     /// Diagonal of the world bounds (for ray offsets).
     pub scale: f32,
     opts: MeshOptions,
-    /// Per mesh, per triangle: `(b − a) × (c − a)` in object space, the geometric normal
-    /// before it is normalised. PERF: `surface` reads this one vector instead of three
-    /// vertex indices and three vertices scattered over the mesh (12 bytes per triangle).
+    /// Per mesh, per triangle: the unit geometric normal `(b − a) × (c − a)` in object
+    /// space (zero for a degenerate triangle). PERF: `surface` reads this one vector
+    /// instead of three vertex indices and three vertices scattered over the mesh (12
+    /// bytes per triangle), and for an instance with the identity transform does no
+    /// square root or division per hit (the normalisation's latency was a quarter of
+    /// `surface`'s samples in a Conference frame).
     faces: Vec<Vec<Vec3>>,
 }
 
@@ -73,9 +78,9 @@ fn face_vector(positions: &[Vec3], idx: &[u32; 3]) -> Vec3 {
     }
 }
 
-/// [`face_vector`] of every triangle.
+/// The unit [`face_vector`] of every triangle (zero where it has none).
 fn face_vectors(positions: &[Vec3], indices: &[[u32; 3]]) -> Vec<Vec3> {
-    indices.par_iter().map(|idx| face_vector(positions, idx)).collect()
+    indices.par_iter().map(|idx| face_vector(positions, idx).normalize_or_zero()).collect()
 }
 
 /// A surface point rebuilt from a hit.
@@ -133,7 +138,8 @@ impl World {
                 Geom::Shape { kind, .. } => shape_base + kinds.iter().position(|&k| k == kind).unwrap_or(0) as u32,
             };
             let inst = Instance::new(g, i.world_from_object);
-            info.push(InstInfo { geom: i.geom, normal_to_world: normal_matrix(&inst) });
+            let normal_to_world = normal_matrix(&inst);
+            info.push(InstInfo { geom: i.geom, normal_to_world, identity: normal_to_world == Mat3A::IDENTITY });
             insts.push(inst);
         }
         let accel = TwoLevel::new(geoms, insts).map_err(WorldError::Top)?;
@@ -204,6 +210,7 @@ impl World {
                 for ((inst, m), (info, si)) in insts.iter_mut().zip(&pose.instances).zip(info.iter_mut().zip(scene.instances.iter_mut())) {
                     *inst = Instance::new(inst.geometry, *m);
                     info.normal_to_world = normal_matrix(inst);
+                    info.identity = info.normal_to_world == Mat3A::IDENTITY;
                     si.world_from_object = *m;
                 }
             })
@@ -284,9 +291,9 @@ impl World {
                 let tri = h.prim as usize;
                 let ng_obj = match self.faces.get(m as usize).and_then(|f| f.get(tri)) {
                     Some(f) => *f,
-                    None => face_vector(&mesh.positions, &mesh.indices[tri]),
+                    None => face_vector(&mesh.positions, &mesh.indices[tri]).normalize_or_zero(),
                 };
-                let ng = (inst.normal_to_world * glam::Vec3A::from(ng_obj)).normalize_or_zero().into();
+                let ng = if inst.identity { ng_obj } else { (inst.normal_to_world * glam::Vec3A::from(ng_obj)).normalize_or_zero().into() };
                 let w = Vec3::new(1.0 - h.u - h.v, h.u, h.v);
                 // The vertex indices only for per-vertex normals or texture coordinates.
                 let idx = if mesh.normals.values.is_empty() && mesh.uvs.values.is_empty() { [0; 3] } else { mesh.indices[tri] };
