@@ -4,7 +4,9 @@ use crate::build::{build_binary, BuildConfig, PrimRef};
 use crate::geom::{Aabb, Hit, Ray, INVALID};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::traverse::{self, Counters, Leaves, RayPre, TraversalStats};
-use crate::triangle::{tri4_intersect_scalar, tri4_occluded_scalar, unit_maps, Tri4, UnitTriangle, WatertightRay, NEVER_HIT};
+use crate::triangle::{
+    tri4_intersect_scalar, tri4_occluded_scalar, unit_map_possible, unit_maps, Tri4, UnitTriangle, WatertightRay, NEVER_HIT,
+};
 use crate::wide::{collapse, leaf_code, leaf_range, WideNode, EMPTY, LEAF};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -123,7 +125,7 @@ pub struct MeshBvh {
     built_cost: f32,
 }
 
-/// Triangles past a leaf whose unit-triangle maps the leaf fill asks for in advance.
+/// Triangles past a leaf whose vertex indices the leaf fill asks for in advance.
 const PREFETCH_AHEAD: usize = 8;
 
 /// Triangles per task of the build's first pass (maps and boxes).
@@ -143,45 +145,33 @@ impl MeshBvh {
         let verts = |t: &[u32; 3]| [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
         let n = indices.len();
         let refittable = opts.refittable;
-        // Two indexed parallel passes over chunks of triangles. The first writes the maps
-        // (four at a time, `unit_maps`) and which triangles are kept (those a ray can hit,
-        // or with a refit every finite one), and counts them per chunk; the second writes
-        // the kept triangles' references, each chunk at its place in the packed array.
-        // PERF: a sequential `retain` of the references was 2 ms of Conference's 50 ms.
-        let mut units: Vec<[f32; 12]> = Vec::with_capacity(n);
+        // Two indexed parallel passes over chunks of triangles. The first finds which
+        // triangles are kept (those a ray can hit, or with a refit every finite one) and
+        // counts them per chunk; the second writes the kept triangles' references, each
+        // chunk at its place in the packed array. PERF: a sequential `retain` of the
+        // references was 2 ms of Conference's 50 ms. The unit-triangle maps are made
+        // later, leaf by leaf, from the vertices: made here in mesh order, they were
+        // copied into the leaves in tree order, a scattered read of 48 bytes per triangle
+        // from an array larger than the cache (a tenth of the kitchen's build).
         let mut keep: Vec<bool> = Vec::with_capacity(n);
         let mut kept: Vec<usize> = Vec::new();
-        units.spare_capacity_mut()[..n]
+        keep.spare_capacity_mut()[..n]
             .par_chunks_mut(PREP_CHUNK)
-            .zip(keep.spare_capacity_mut()[..n].par_chunks_mut(PREP_CHUNK))
             .zip(indices.par_chunks(PREP_CHUNK))
-            .map(|((u_out, k_out), idx)| {
-                let mut v = [[Vec3::ZERO; 3]; 16];
-                let mut m = [NEVER_HIT; 16];
-                let mut ok = [false; 16];
+            .map(|(k_out, idx)| {
                 let mut count = 0;
-                for ((u_out, k_out), idx) in u_out.chunks_mut(16).zip(k_out.chunks_mut(16)).zip(idx.chunks(16)) {
-                    let len = idx.len();
-                    for (vv, t) in v.iter_mut().zip(idx) {
-                        *vv = verts(t);
-                    }
-                    unit_maps(&v[..len], &mut m[..len], &mut ok[..len]);
-                    for j in 0..len {
-                        u_out[j].write(m[j]);
-                        let k = ok[j] || refittable && v[j].iter().all(|p| p.is_finite());
-                        k_out[j].write(k);
-                        count += usize::from(k);
-                    }
+                for (k_out, t) in k_out.iter_mut().zip(idx) {
+                    let v = verts(t);
+                    let k = unit_map_possible(v[0], v[1], v[2]) || refittable && v.iter().all(|p| p.is_finite());
+                    k_out.write(k);
+                    count += usize::from(k);
                 }
                 count
             })
             .collect_into_vec(&mut kept);
-        // SAFETY: the chunks above tile `[0, n)` of both spare capacities (`indices` has `n`
+        // SAFETY: the chunks above tile `[0, n)` of the spare capacity (`indices` has `n`
         // entries, chunked alike) and every slot of every chunk was written.
-        unsafe {
-            units.set_len(n);
-            keep.set_len(n);
-        }
+        unsafe { keep.set_len(n) };
         let total: usize = kept.iter().sum();
         let mut prims: Vec<PrimRef> = Vec::with_capacity(total);
         let mut rest = &mut prims.spare_capacity_mut()[..total];
@@ -258,19 +248,26 @@ impl MeshBvh {
             }
             jobs.into_par_iter().for_each(|(first, count, out)| {
                 let refs = &bin.prims[first as usize..(first + count) as usize];
-                // PERF: the maps are read in tree order, scattered over the mesh's order: ask
-                // for those a few triangles ahead (the next leaves' ranges follow this one's),
-                // or each read waits on memory (on the 111k-triangle kitchen, this fill
-                // took a tenth of the build).
+                // PERF: the triangles are read in tree order, scattered over the mesh's
+                // order: ask for the vertex indices of those a few triangles ahead (the
+                // next leaves' ranges follow this one's).
                 let ahead = bin.prims.get((first + count) as usize..).unwrap_or(&[]);
                 for p in ahead.iter().take(PREFETCH_AHEAD) {
-                    crate::traverse::prefetch(&units[p.id() as usize]);
+                    crate::traverse::prefetch(&indices[p.id() as usize]);
                 }
                 for (slot, chunk) in out.iter_mut().zip(refs.chunks(4)) {
+                    // Four maps at once (`unit_maps`); a short chunk repeats its first
+                    // triangle in the unused lanes, whose maps are not stored.
+                    let mut v = [verts(&indices[chunk[0].id() as usize]); 4];
+                    for (vv, p) in v.iter_mut().zip(chunk).skip(1) {
+                        *vv = verts(&indices[p.id() as usize]);
+                    }
+                    let mut m = [NEVER_HIT; 4];
+                    let mut ok = [false; 4];
+                    unit_maps(&v, &mut m, &mut ok);
                     let mut t4 = Tri4::EMPTY;
                     for (lane, p) in chunk.iter().enumerate() {
-                        let id = p.id();
-                        t4.set(lane, &units[id as usize], id);
+                        t4.set(lane, &m[lane], p.id());
                     }
                     slot.write(t4);
                 }

@@ -80,6 +80,18 @@ impl UnitTriangle {
     }
 }
 
+/// Whether [`UnitTriangle::new`] finds the triangle non-degenerate: the same f64
+/// arithmetic up to its determinant, which must be positive and finite, with a finite
+/// first corner. (`new` also refuses maps that overflow f32, which only triangles of
+/// extreme size make; the build keeps such a triangle as a lane that never hits.)
+#[inline]
+#[must_use]
+pub fn unit_map_possible(v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
+    let (a, b, c) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
+    let det = (b - a).cross(c - a).length_squared();
+    det > 0.0 && det.is_finite() && a.is_finite()
+}
+
 /// The unit-triangle maps of many triangles at once: `out[i]` is the map of
 /// `UnitTriangle::new(tris[i])` (bit for bit) and `ok[i]` is true, or, for a degenerate
 /// triangle, [`NEVER_HIT`] and false. PERF: four triangles per AVX register of f64 (the
