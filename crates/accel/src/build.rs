@@ -14,6 +14,8 @@ use glam::{Vec3, Vec4};
 pub const BINS: usize = 32;
 /// Subtrees with more primitives than this are built as separate rayon tasks.
 pub const PARALLEL_MIN: usize = 1024;
+/// Nodes per parallel task of [`BinaryBvh::cost_of`].
+const COST_CHUNK: usize = 8192;
 /// Nodes with more primitives than this are binned in parallel.
 const PARALLEL_BIN_MIN: usize = 1 << 14;
 /// Beyond this depth the builder splits at the object median, which bounds the depth
@@ -176,16 +178,22 @@ impl BinaryBvh {
             return 0.0;
         };
         let ra = root.bounds.half_area().max(f32::MIN_POSITIVE);
-        let mut c = 0.0f64;
-        for n in nodes {
-            let a = (n.bounds.half_area() / ra) as f64;
-            if n.is_leaf() {
-                c += a * blocks(n.count as usize, cfg.leaf_block) as f64;
-            } else {
-                c += a * cfg.cost_traverse as f64;
+        let part = |nodes: &[BinNode]| {
+            let mut c = 0.0f64;
+            for n in nodes {
+                let a = (n.bounds.half_area() / ra) as f64;
+                if n.is_leaf() {
+                    c += a * blocks(n.count as usize, cfg.leaf_block) as f64;
+                } else {
+                    c += a * cfg.cost_traverse as f64;
+                }
             }
-        }
-        c as f32
+            c
+        };
+        // Chunks summed in parallel, then in order: the same sum on any number of threads.
+        use rayon::prelude::*;
+        let parts: Vec<f64> = nodes.par_chunks(COST_CHUNK).map(part).collect();
+        parts.iter().sum::<f64>() as f32
     }
 
     /// Checks the tree's invariants: children inside parents, every primitive in exactly
@@ -248,14 +256,23 @@ pub fn build_binary(mut prims: Vec<PrimRef>, cfg: &BuildConfig) -> BinaryBvh {
 }
 
 fn bounds_of(prims: &[PrimRef]) -> (Box4, Box4) {
+    // PERF: two sets of accumulators, alternate primitives: with one, each min and max
+    // waited on the previous one's result (a latency-bound loop).
     let fold = |s: &[PrimRef]| {
-        let mut b = Box4::EMPTY;
-        let mut c = Box4::EMPTY;
-        for p in s {
-            b.add(p);
-            c.grow(p.centroid2());
+        let mut b = [Box4::EMPTY; 2];
+        let mut c = [Box4::EMPTY; 2];
+        let mut pairs = s.chunks_exact(2);
+        for pair in &mut pairs {
+            b[0].add(&pair[0]);
+            c[0].grow(pair[0].centroid2());
+            b[1].add(&pair[1]);
+            c[1].grow(pair[1].centroid2());
         }
-        (b, c)
+        for p in pairs.remainder() {
+            b[0].add(p);
+            c[0].grow(p.centroid2());
+        }
+        (b[0].union(b[1]), c[0].union(c[1]))
     };
     if prims.len() > PARALLEL_BIN_MIN {
         use rayon::prelude::*;
@@ -450,21 +467,35 @@ fn partition_on<const AXIS: usize>(prims: &mut [PrimRef], binner: &Binner, bin: 
     (nl, [bounds_of(l), bounds_of(r)])
 }
 
-/// Elements per block of [`block_partition`].
-const PART_BLOCK: usize = 64;
-
 /// Moves the elements for which `right` is false before those for which it is true, in
 /// place; returns how many are false. The block partition of Edelkamp & Weiß
 /// ("BlockQuicksort: Avoiding Branch Mispredictions in Quicksort", ESA 2016): a block at
 /// each end is classified without branches into a list of the offsets that must move,
-/// and pairs from the two lists are swapped. PERF: the side of a primitive is a coin
-/// toss near the middle of a node, and the two-pointer loop's branch on it mispredicted
-/// about half the time.
+/// and pairs from the two lists are swapped. Blocks of 64, then of 8 for what is left,
+/// then a plain loop for the last few. PERF: the side of a primitive is a coin toss near
+/// the middle of a node, and the two-pointer loop's branch on it mispredicted about half
+/// the time.
 fn block_partition(v: &mut [PrimRef], right: impl Fn(&PrimRef) -> bool) -> usize {
-    const B: usize = PART_BLOCK;
-    // The unsettled range is [l, r): everything before l is left, everything from r on
-    // is right, except the listed offsets of the current blocks, which still must move.
-    let (mut l, mut r) = (0usize, v.len());
+    let (l, r) = block_pass::<64>(v, 0, v.len(), &right);
+    let (mut i, mut j) = block_pass::<8>(v, l, r, &right);
+    // The plain two-pointer loop settles any order of [i, j).
+    while i < j {
+        if right(&v[i]) {
+            j -= 1;
+            v.swap(i, j);
+        } else {
+            i += 1;
+        }
+    }
+    i
+}
+
+/// The block loop of [`block_partition`] over the unsettled range `[l, r)` of `v` (all
+/// before `l` is left, all from `r` on is right), while it holds two blocks of `B`
+/// (at most 256); returns the range still unsettled, in which elements may be in any order.
+#[inline(always)]
+fn block_pass<const B: usize>(v: &mut [PrimRef], mut l: usize, mut r: usize, right: &impl Fn(&PrimRef) -> bool) -> (usize, usize) {
+    // Besides [l, r), the listed offsets of the current blocks still must move.
     let mut offs_l = [0u8; B];
     let mut offs_r = [0u8; B];
     let (mut start_l, mut num_l, mut start_r, mut num_r) = (0usize, 0usize, 0usize, 0usize);
@@ -495,18 +526,7 @@ fn block_partition(v: &mut [PrimRef], right: impl Fn(&PrimRef) -> bool) -> usize
             r -= B;
         }
     }
-    // The rest (fewer than two blocks, and possibly a block with offsets left) with the
-    // plain two-pointer loop: it settles any order of [l, r).
-    let (mut i, mut j) = (l, r);
-    while i < j {
-        if right(&v[i]) {
-            j -= 1;
-            v.swap(i, j);
-        } else {
-            i += 1;
-        }
-    }
-    i
+    (l, r)
 }
 
 fn make_leaf(nodes: &mut Vec<BinNode>, bounds: Box4, offset: usize, n: usize) -> u32 {
@@ -835,7 +855,7 @@ mod tests {
             seed ^= seed << 17;
             seed
         };
-        let b = PART_BLOCK;
+        let b = 64;
         for n in (0..5 * b + 3).chain([16 * b, 16 * b + 1, 1000]) {
             for share in [0u64, 1, 10, 50, 90, 99, 100] {
                 let mut v: Vec<PrimRef> = (0..n)

@@ -244,7 +244,7 @@ impl TwoLevel {
         let mut bottom = BvhStats::default();
         for g in &self.geometries {
             if let Geometry::Mesh(m) = g {
-                let s = m.stats();
+                let s = m.stats_counts();
                 bottom.nodes += s.nodes;
                 bottom.leaves += s.leaves;
                 bottom.prims += s.prims;

@@ -119,6 +119,39 @@ pub fn unit_maps(tris: &[[Vec3; 3]], out: &mut [[f32; 12]], ok: &mut [bool]) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
 unsafe fn unit_maps4_avx(tris: &[[Vec3; 3]], out: &mut [[f32; 12]], ok: &mut [bool]) {
+    // SAFETY: AVX is enabled here (the caller's promise), and `tris` holds four triangles.
+    let (m, good) = unsafe { unit_maps4_soa_avx(&[tris[0], tris[1], tris[2], tris[3]]) };
+    for l in 0..4 {
+        out[l] = std::array::from_fn(|e| m[e][l]);
+        ok[l] = good[l];
+    }
+}
+
+/// The maps of four triangles in SoA form, as a [`Tri4`] holds them (`m[entry][lane]`),
+/// and which are proper: lane `l` is `UnitTriangle::new(tris[l])`'s map bit for bit, or
+/// [`NEVER_HIT`] (and false) for a degenerate triangle.
+#[must_use]
+pub fn unit_maps4_soa(tris: &[[Vec3; 3]; 4]) -> ([[f32; 4]; 12], [bool; 4]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx") {
+        // SAFETY: AVX was just detected.
+        return unsafe { unit_maps4_soa_avx(tris) };
+    }
+    let mut m = [[0.0f32; 4]; 12];
+    let mut ok = [false; 4];
+    for (l, t) in tris.iter().enumerate() {
+        let u = UnitTriangle::new(t[0], t[1], t[2]);
+        ok[l] = u.is_some();
+        for (e, v) in u.map_or(NEVER_HIT, |u| u.m).into_iter().enumerate() {
+            m[e][l] = v;
+        }
+    }
+    (m, ok)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn unit_maps4_soa_avx(tris: &[[Vec3; 3]; 4]) -> ([[f32; 4]; 12], [bool; 4]) {
     use std::arch::x86_64::*;
     // Component `k` of vertex `v` of the four triangles.
     let comp = |v: usize, k: usize| _mm256_setr_pd(tris[0][v][k] as f64, tris[1][v][k] as f64, tris[2][v][k] as f64, tris[3][v][k] as f64);
@@ -158,17 +191,17 @@ unsafe fn unit_maps4_avx(tris: &[[Vec3; 3]], out: &mut [[f32; 12]], ok: &mut [bo
     let mut dets = [0.0f64; 4];
     // SAFETY: `dets` holds four f64.
     unsafe { _mm256_storeu_pd(dets.as_mut_ptr(), det) };
+    let mut ok = [false; 4];
     for l in 0..4 {
-        let mut good = dets[l] > 0.0 && dets[l].is_finite() && tris[l][0].is_finite();
-        for (e, col) in m.iter().enumerate() {
-            out[l][e] = col[l];
-            good &= col[l].is_finite();
-        }
+        let good = dets[l] > 0.0 && dets[l].is_finite() && tris[l][0].is_finite() && m.iter().all(|col| col[l].is_finite());
         ok[l] = good;
         if !good {
-            out[l] = NEVER_HIT;
+            for (col, v) in m.iter_mut().zip(NEVER_HIT) {
+                col[l] = v;
+            }
         }
     }
+    (m, ok)
 }
 
 /// Unit-triangle test of one ray against one map: `Some((t, u, v))` when `t` is in
@@ -485,6 +518,23 @@ mod tests {
             valid += usize::from(*k);
         }
         assert!(valid > 2000 && valid < 3900, "{valid} valid: the cases should mix");
+        // The SoA form the leaves take, four at a time, holds the same bits.
+        for (t, (o, k)) in tris.chunks_exact(4).zip(out.chunks_exact(4).zip(ok.chunks_exact(4))) {
+            let (m, good) = unit_maps4_soa(&[t[0], t[1], t[2], t[3]]);
+            for l in 0..4 {
+                assert_eq!(good[l], k[l], "{:?}", t[l]);
+                assert_eq!(std::array::from_fn::<u32, 12, _>(|e| m[e][l].to_bits()), o[l].map(f32::to_bits), "{:?}", t[l]);
+            }
+        }
+        // The build's cheap test keeps every triangle that has a map; it may keep more
+        // (maps that overflow f32), never fewer.
+        let mut extra = 0;
+        for (t, k) in tris.iter().zip(&ok) {
+            let possible = unit_map_possible(t[0], t[1], t[2]);
+            assert!(possible || !k, "{t:?}");
+            extra += usize::from(possible && !k);
+        }
+        assert!(extra < 1000, "{extra} kept without a map");
     }
 
     #[test]
