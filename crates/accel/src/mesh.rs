@@ -204,90 +204,100 @@ impl MeshBvh {
         }
         let sah = bin.sah_cost(&cfg);
         let bounds = bin.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds);
-        // The collapse only assigns each leaf its range of 4-triangle groups; the groups are
-        // filled afterwards in parallel (PERF: that fill was ~15% of a sequential build).
-        let mut leaf_groups: Vec<(u32, u32, u32)> = Vec::new(); // (first prim, count, first group)
-        let mut next_group = 0u32;
+        let too_large = || BuildError::TooLarge(indices.len());
         let mut wt_verts = Vec::new();
         let mut wt_ids = Vec::new();
-        let mut make_leaf = |first: u32, count: u32| -> Result<u32, BuildError> {
-            match opts.test {
-                TriangleTest::UnitTriangle => {
-                    let start = next_group;
-                    let groups = count.div_ceil(4);
-                    next_group += groups;
-                    leaf_groups.push((first, count, start));
-                    leaf_code(start, groups).ok_or(BuildError::TooLarge(indices.len()))
+        let mut tris: Vec<Tri4> = Vec::new();
+        let (nodes, leaves) = match opts.test {
+            TriangleTest::UnitTriangle => {
+                // Every binary leaf becomes one wide leaf, so each gets its range of
+                // 4-triangle groups here, in the binary tree's order, before the collapse.
+                // The groups are then filled in parallel while the collapse (sequential)
+                // runs. PERF: filled after the collapse, they waited for it (5% of the
+                // kitchen's build on 2 threads); the fill was ~15% of a sequential build.
+                let mut start_of = vec![u32::MAX; bin.prims.len()]; // by the leaf's first prim
+                let mut leaf_groups: Vec<(u32, u32, u32)> = Vec::new(); // (first prim, count, first group)
+                let mut next_group = 0u32;
+                for n in bin.nodes.iter().filter(|n| n.is_leaf()) {
+                    if let Some(s) = start_of.get_mut(n.first as usize) {
+                        *s = next_group;
+                    }
+                    leaf_groups.push((n.first, n.count, next_group));
+                    next_group += n.count.div_ceil(4);
                 }
-                TriangleTest::Watertight => {
+                let total = next_group as usize;
+                tris.reserve_exact(total);
+                // Hand every leaf its own slice of the uninitialised storage (the leaves were
+                // numbered in order, so their group ranges tile [0, total)).
+                let mut rest = &mut tris.spare_capacity_mut()[..total];
+                let mut jobs = Vec::with_capacity(leaf_groups.len());
+                for &(first, count, _) in &leaf_groups {
+                    let (mine, tail) = rest.split_at_mut(count.div_ceil(4) as usize);
+                    jobs.push((first, count, mine));
+                    rest = tail;
+                }
+                let fill = |(first, count, out): (u32, u32, &mut [std::mem::MaybeUninit<Tri4>])| {
+                    let refs = &bin.prims[first as usize..(first + count) as usize];
+                    // PERF: the triangles are read in tree order, scattered over the mesh's
+                    // order, and each read waited on memory. Ask in two stages, for the
+                    // triangles past this leaf (the next leaves' ranges follow this one's):
+                    // the vertex indices of those PREFETCH_AHEAD to twice that ahead, and
+                    // the vertices of the nearer ones, whose indices were asked for earlier.
+                    let end = (first + count) as usize;
+                    for p in bin.prims.get(end + PREFETCH_AHEAD..).unwrap_or(&[]).iter().take(PREFETCH_AHEAD) {
+                        crate::traverse::prefetch(&indices[p.id() as usize]);
+                    }
+                    for p in bin.prims.get(end..).unwrap_or(&[]).iter().take(PREFETCH_AHEAD) {
+                        for &v in &indices[p.id() as usize] {
+                            crate::traverse::prefetch(&positions[v as usize]);
+                        }
+                    }
+                    for (slot, chunk) in out.iter_mut().zip(refs.chunks(4)) {
+                        // Four maps at once, already in the group's SoA form; a short chunk
+                        // repeats its first triangle in the unused lanes, which then get the
+                        // padding map.
+                        let mut v = [verts(&indices[chunk[0].id() as usize]); 4];
+                        for (vv, p) in v.iter_mut().zip(chunk).skip(1) {
+                            *vv = verts(&indices[p.id() as usize]);
+                        }
+                        let (m, _) = unit_maps4_soa(&v);
+                        let mut t4 = Tri4 { m, prim: [u32::MAX; 4] };
+                        for (lane, p) in chunk.iter().enumerate() {
+                            t4.prim[lane] = p.id();
+                        }
+                        for lane in chunk.len()..4 {
+                            t4.set(lane, &NEVER_HIT, u32::MAX);
+                        }
+                        slot.write(t4);
+                    }
+                };
+                let mut make_leaf = |first: u32, count: u32| -> Result<u32, BuildError> {
+                    let start = start_of.get(first as usize).copied().unwrap_or(u32::MAX);
+                    leaf_code(start, count.div_ceil(4)).ok_or_else(too_large)
+                };
+                let (nodes, ()) = rayon::join(|| collapse_to(opts.width, &bin, &mut make_leaf), || jobs.into_par_iter().for_each(fill));
+                // SAFETY: the leaves' group ranges tile [0, total) and every group of every
+                // leaf was written by `fill` (a leaf of `count` triangles has
+                // `count.div_ceil(4)` groups, one per chunk of 4), so all `total` elements
+                // are initialised.
+                unsafe { tris.set_len(total) };
+                (nodes?, leaf_groups.len())
+            }
+            TriangleTest::Watertight => {
+                let mut leaves = 0;
+                let mut make_leaf = |first: u32, count: u32| -> Result<u32, BuildError> {
                     let start = wt_ids.len() as u32;
                     for id in bin.prims[first as usize..(first + count) as usize].iter().map(|p| p.id()) {
                         wt_verts.push(verts(&indices[id as usize]));
                         wt_ids.push(id);
                     }
-                    leaf_groups.push((first, count, start));
-                    leaf_code(start, count).ok_or(BuildError::TooLarge(indices.len()))
-                }
+                    leaves += 1;
+                    leaf_code(start, count).ok_or_else(too_large)
+                };
+                let nodes = collapse_to(opts.width, &bin, &mut make_leaf)?;
+                (nodes, leaves)
             }
         };
-        let nodes = match opts.width {
-            Width::W4 => Nodes::W4(collapse::<4, _>(&bin, &mut make_leaf)?),
-            Width::W8 => Nodes::W8(collapse::<8, _>(&bin, &mut make_leaf)?),
-        };
-        let leaves = leaf_groups.len();
-        let mut tris: Vec<Tri4> = Vec::new();
-        if opts.test == TriangleTest::UnitTriangle {
-            let total = next_group as usize;
-            tris.reserve_exact(total);
-            // Hand every leaf its own slice of the uninitialised storage (the leaves were
-            // numbered in order, so their group ranges tile [0, total)).
-            let mut rest = &mut tris.spare_capacity_mut()[..total];
-            let mut jobs = Vec::with_capacity(leaf_groups.len());
-            for &(first, count, _) in &leaf_groups {
-                let (mine, tail) = rest.split_at_mut(count.div_ceil(4) as usize);
-                jobs.push((first, count, mine));
-                rest = tail;
-            }
-            jobs.into_par_iter().for_each(|(first, count, out)| {
-                let refs = &bin.prims[first as usize..(first + count) as usize];
-                // PERF: the triangles are read in tree order, scattered over the mesh's
-                // order, and each read waited on memory. Ask in two stages, for the
-                // triangles past this leaf (the next leaves' ranges follow this one's): the
-                // vertex indices of those PREFETCH_AHEAD to twice that ahead, and the
-                // vertices of the nearer ones, whose indices were asked for earlier.
-                let end = (first + count) as usize;
-                for p in bin.prims.get(end + PREFETCH_AHEAD..).unwrap_or(&[]).iter().take(PREFETCH_AHEAD) {
-                    crate::traverse::prefetch(&indices[p.id() as usize]);
-                }
-                for p in bin.prims.get(end..).unwrap_or(&[]).iter().take(PREFETCH_AHEAD) {
-                    for &v in &indices[p.id() as usize] {
-                        crate::traverse::prefetch(&positions[v as usize]);
-                    }
-                }
-                for (slot, chunk) in out.iter_mut().zip(refs.chunks(4)) {
-                    // Four maps at once, already in the group's SoA form; a short chunk
-                    // repeats its first triangle in the unused lanes, which then get the
-                    // padding map.
-                    let mut v = [verts(&indices[chunk[0].id() as usize]); 4];
-                    for (vv, p) in v.iter_mut().zip(chunk).skip(1) {
-                        *vv = verts(&indices[p.id() as usize]);
-                    }
-                    let (m, _) = unit_maps4_soa(&v);
-                    let mut t4 = Tri4 { m, prim: [u32::MAX; 4] };
-                    for (lane, p) in chunk.iter().enumerate() {
-                        t4.prim[lane] = p.id();
-                    }
-                    for lane in chunk.len()..4 {
-                        t4.set(lane, &NEVER_HIT, u32::MAX);
-                    }
-                    slot.write(t4);
-                }
-            });
-            // SAFETY: the leaves' group ranges tile [0, total) and every group of every leaf
-            // was written above (a leaf of `count` triangles has `count.div_ceil(4)` groups,
-            // one per chunk of 4), so all `total` elements are initialised.
-            unsafe { tris.set_len(total) };
-        }
         let (n_nodes, node_bytes) = match &nodes {
             Nodes::W4(n) => (n.len(), std::mem::size_of_val(n.as_slice())),
             Nodes::W8(n) => (n.len(), std::mem::size_of_val(n.as_slice())),
@@ -579,6 +589,18 @@ impl MeshBvh {
             Nodes::W8(n) => check(n, items),
         }
     }
+}
+
+/// The wide nodes of `bin` at `width` (see [`collapse`]).
+fn collapse_to(
+    width: Width,
+    bin: &crate::build::BinaryBvh,
+    make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, BuildError>,
+) -> Result<Nodes, BuildError> {
+    Ok(match width {
+        Width::W4 => Nodes::W4(collapse::<4, _>(bin, make_leaf)?),
+        Width::W8 => Nodes::W8(collapse::<8, _>(bin, make_leaf)?),
+    })
 }
 
 #[cfg(target_arch = "x86_64")]

@@ -99,7 +99,8 @@ pub fn collapse<const W: usize, E>(bin: &BinaryBvh, make_leaf: &mut impl FnMut(u
 }
 
 /// The up-to-`W` descendants of binary node `idx` that become the children of its wide
-/// node: inner children are opened, largest surface area first, until there are `W`.
+/// node: inner children are opened, largest surface area first, until there are `W`; the
+/// result is in the binary tree's node order.
 fn open<const W: usize>(bin: &BinaryBvh, idx: usize) -> ([usize; W], usize) {
     let n = &bin.nodes[idx];
     let mut kids = [0usize; W];
@@ -135,6 +136,11 @@ fn open<const W: usize>(bin: &BinaryBvh, idx: usize) -> ([usize; W], usize) {
         area[nk] = inner_area(kids[nk]);
         nk += 1;
     }
+    // In the binary tree's node order (depth first), so the wide tree meets its leaves in
+    // the order their triangle groups are laid out (`MeshBvh::build` numbers them before
+    // the collapse). PERF: single rays 3-5% faster on four of the five benchmark scenes
+    // than with the children in opening order; packets unchanged.
+    kids[..nk].sort_unstable();
     (kids, nk)
 }
 
