@@ -202,13 +202,12 @@ impl MeshBvh {
         if opts.quality == Quality::High {
             crate::reinsert::optimize(&mut bin, &cfg);
         }
-        let sah = bin.sah_cost(&cfg);
         let bounds = bin.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds);
         let too_large = || BuildError::TooLarge(indices.len());
         let mut wt_verts = Vec::new();
         let mut wt_ids = Vec::new();
         let mut tris: Vec<Tri4> = Vec::new();
-        let (nodes, leaves) = match opts.test {
+        let (nodes, leaves, sah) = match opts.test {
             TriangleTest::UnitTriangle => {
                 // Every binary leaf becomes one wide leaf, so each gets its range of
                 // 4-triangle groups here, in the binary tree's order, before the collapse.
@@ -275,13 +274,21 @@ impl MeshBvh {
                     let start = start_of.get(first as usize).copied().unwrap_or(u32::MAX);
                     leaf_code(start, count.div_ceil(4)).ok_or_else(too_large)
                 };
-                let (nodes, ()) = rayon::join(|| collapse_to(opts.width, &bin, &mut make_leaf), || jobs.into_par_iter().for_each(fill));
+                // The tree's SAH cost (a sequential walk) on the fill's side, too.
+                let (nodes, sah) = rayon::join(
+                    || collapse_to(opts.width, &bin, &mut make_leaf),
+                    || {
+                        let sah = bin.sah_cost(&cfg);
+                        jobs.into_par_iter().for_each(fill);
+                        sah
+                    },
+                );
                 // SAFETY: the leaves' group ranges tile [0, total) and every group of every
                 // leaf was written by `fill` (a leaf of `count` triangles has
                 // `count.div_ceil(4)` groups, one per chunk of 4), so all `total` elements
                 // are initialised.
                 unsafe { tris.set_len(total) };
-                (nodes?, leaf_groups.len())
+                (nodes?, leaf_groups.len(), sah)
             }
             TriangleTest::Watertight => {
                 let mut leaves = 0;
@@ -295,7 +302,7 @@ impl MeshBvh {
                     leaf_code(start, count).ok_or_else(too_large)
                 };
                 let nodes = collapse_to(opts.width, &bin, &mut make_leaf)?;
-                (nodes, leaves)
+                (nodes, leaves, bin.sah_cost(&cfg))
             }
         };
         let (n_nodes, node_bytes) = match &nodes {
