@@ -45,6 +45,13 @@ struct InstInfo {
     identity: bool,
 }
 
+impl InstInfo {
+    fn new(geom: Geom, inst: &Instance) -> Self {
+        let normal_to_world = normal_matrix(inst);
+        Self { geom, normal_to_world, identity: normal_to_world == Mat3A::IDENTITY }
+    }
+}
+
 /// A deforming mesh's BVH is refitted each frame and rebuilt when its SAH cost reaches
 /// this multiple of its cost when built (see `lucent bench dynamic` for the data).
 pub const REBUILD_RATIO: f32 = 1.5;
@@ -70,17 +77,18 @@ pub struct World {
     faces: Vec<Vec<Vec3>>,
 }
 
-/// `(b − a) × (c − a)` of triangle `idx` (zero when an index is out of range).
-fn face_vector(positions: &[Vec3], idx: &[u32; 3]) -> Vec3 {
+/// The unit normal `(b − a) × (c − a)` of triangle `idx` (zero when an index is out of
+/// range or the triangle has no normal).
+fn face_normal(positions: &[Vec3], idx: &[u32; 3]) -> Vec3 {
     match idx.map(|i| positions.get(i as usize).copied()) {
-        [Some(a), Some(b), Some(c)] => (b - a).cross(c - a),
+        [Some(a), Some(b), Some(c)] => (b - a).cross(c - a).normalize_or_zero(),
         _ => Vec3::ZERO,
     }
 }
 
-/// The unit [`face_vector`] of every triangle (zero where it has none).
-fn face_vectors(positions: &[Vec3], indices: &[[u32; 3]]) -> Vec<Vec3> {
-    indices.par_iter().map(|idx| face_vector(positions, idx).normalize_or_zero()).collect()
+/// [`face_normal`] of every triangle.
+fn face_normals(positions: &[Vec3], indices: &[[u32; 3]]) -> Vec<Vec3> {
+    indices.par_iter().map(|idx| face_normal(positions, idx)).collect()
 }
 
 /// A surface point rebuilt from a hit.
@@ -138,14 +146,13 @@ impl World {
                 Geom::Shape { kind, .. } => shape_base + kinds.iter().position(|&k| k == kind).unwrap_or(0) as u32,
             };
             let inst = Instance::new(g, i.world_from_object);
-            let normal_to_world = normal_matrix(&inst);
-            info.push(InstInfo { geom: i.geom, normal_to_world, identity: normal_to_world == Mat3A::IDENTITY });
+            info.push(InstInfo::new(i.geom, &inst));
             insts.push(inst);
         }
         let accel = TwoLevel::new(geoms, insts).map_err(WorldError::Top)?;
         let bounds = scene.bounds();
         let scale = bounds.map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
-        let faces = scene.meshes.iter().map(|m| face_vectors(&m.positions, &m.indices)).collect();
+        let faces = scene.meshes.iter().map(|m| face_normals(&m.positions, &m.indices)).collect();
         let mut w = Self { scene, accel, info, lights: Vec::new(), scale, opts, faces };
         w.lights = if w.scene.lights.is_empty() { w.emitter_lights(bounds) } else { w.scene.lights.clone() };
         w.sync_shadow_grids();
@@ -181,7 +188,7 @@ impl World {
             let Some(mesh) = self.scene.meshes.get_mut(m as usize) else { continue };
             mesh.positions = positions;
             if let Some(f) = self.faces.get_mut(m as usize) {
-                *f = face_vectors(&mesh.positions, &mesh.indices);
+                *f = face_normals(&mesh.positions, &mesh.indices);
             }
             // Shading normals follow the deformation: a skinned mesh's own normals are skinned
             // with it; a morphing mesh that came with normals gets smooth ones from its posed
@@ -209,8 +216,7 @@ impl World {
             .update_instances(|insts| {
                 for ((inst, m), (info, si)) in insts.iter_mut().zip(&pose.instances).zip(info.iter_mut().zip(scene.instances.iter_mut())) {
                     *inst = Instance::new(inst.geometry, *m);
-                    info.normal_to_world = normal_matrix(inst);
-                    info.identity = info.normal_to_world == Mat3A::IDENTITY;
+                    *info = InstInfo::new(info.geom, inst);
                     si.world_from_object = *m;
                 }
             })
@@ -291,7 +297,7 @@ impl World {
                 let tri = h.prim as usize;
                 let ng_obj = match self.faces.get(m as usize).and_then(|f| f.get(tri)) {
                     Some(f) => *f,
-                    None => face_vector(&mesh.positions, &mesh.indices[tri]).normalize_or_zero(),
+                    None => face_normal(&mesh.positions, &mesh.indices[tri]),
                 };
                 let ng = if inst.identity { ng_obj } else { (inst.normal_to_world * glam::Vec3A::from(ng_obj)).normalize_or_zero().into() };
                 let w = Vec3::new(1.0 - h.u - h.v, h.u, h.v);
