@@ -130,7 +130,7 @@ pub struct MeshBvh {
 /// Triangles past a leaf whose vertex indices the leaf fill asks for in advance.
 const PREFETCH_AHEAD: usize = 8;
 
-/// Triangles per task of the build's first pass (maps and boxes).
+/// Triangles per task of the build's first pass (which triangles are kept).
 const PREP_CHUNK: usize = 512;
 
 impl MeshBvh {

@@ -92,44 +92,11 @@ pub fn unit_map_possible(v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
     det > 0.0 && det.is_finite() && a.is_finite()
 }
 
-/// The unit-triangle maps of many triangles at once: `out[i]` is the map of
-/// `UnitTriangle::new(tris[i])` (bit for bit) and `ok[i]` is true, or, for a degenerate
-/// triangle, [`NEVER_HIT`] and false. PERF: four triangles per AVX register of f64 (the
-/// build computed every map alone: 30 ns a triangle, a tenth of a 12k-triangle build).
-pub fn unit_maps(tris: &[[Vec3; 3]], out: &mut [[f32; 12]], ok: &mut [bool]) {
-    assert!(tris.len() == out.len() && tris.len() == ok.len(), "one output per triangle");
-    let mut done = 0;
-    #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("avx") {
-        for ((t, o), k) in tris.chunks_exact(4).zip(out.chunks_exact_mut(4)).zip(ok.chunks_exact_mut(4)) {
-            // SAFETY: AVX is available (checked above); the chunks hold four entries.
-            unsafe { unit_maps4_avx(t, o, k) };
-            done += 4;
-        }
-    }
-    for ((t, o), k) in tris[done..].iter().zip(&mut out[done..]).zip(&mut ok[done..]) {
-        let m = UnitTriangle::new(t[0], t[1], t[2]);
-        *k = m.is_some();
-        *o = m.map_or(NEVER_HIT, |u| u.m);
-    }
-}
-
-/// [`UnitTriangle::new`] for four triangles (every slice holds at least four), lane by
-/// lane with the same f64 operations in the same order, so the maps are the same bits.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-unsafe fn unit_maps4_avx(tris: &[[Vec3; 3]], out: &mut [[f32; 12]], ok: &mut [bool]) {
-    // SAFETY: AVX is enabled here (the caller's promise), and `tris` holds four triangles.
-    let (m, good) = unsafe { unit_maps4_soa_avx(&[tris[0], tris[1], tris[2], tris[3]]) };
-    for l in 0..4 {
-        out[l] = std::array::from_fn(|e| m[e][l]);
-        ok[l] = good[l];
-    }
-}
-
 /// The maps of four triangles in SoA form, as a [`Tri4`] holds them (`m[entry][lane]`),
 /// and which are proper: lane `l` is `UnitTriangle::new(tris[l])`'s map bit for bit, or
-/// [`NEVER_HIT`] (and false) for a degenerate triangle.
+/// [`NEVER_HIT`] (and false) for a degenerate triangle. PERF: four triangles per AVX
+/// register of f64 (the build computed every map alone: 30 ns a triangle, a tenth of a
+/// 12k-triangle build).
 #[must_use]
 pub fn unit_maps4_soa(tris: &[[Vec3; 3]; 4]) -> ([[f32; 4]; 12], [bool; 4]) {
     #[cfg(target_arch = "x86_64")]
@@ -506,9 +473,17 @@ mod tests {
             }
             tris.push(v);
         }
+        // The maps four at a time, in the SoA form the leaves take, turned back to one per
+        // triangle.
         let mut out = vec![[0.0; 12]; tris.len()];
         let mut ok = vec![false; tris.len()];
-        unit_maps(&tris, &mut out, &mut ok);
+        for ((t, o), k) in tris.chunks_exact(4).zip(out.chunks_exact_mut(4)).zip(ok.chunks_exact_mut(4)) {
+            let (m, good) = unit_maps4_soa(&[t[0], t[1], t[2], t[3]]);
+            for l in 0..4 {
+                o[l] = std::array::from_fn(|e| m[e][l]);
+                k[l] = good[l];
+            }
+        }
         let mut valid = 0;
         for ((t, o), k) in tris.iter().zip(&out).zip(&ok) {
             let want = UnitTriangle::new(t[0], t[1], t[2]);
@@ -518,14 +493,6 @@ mod tests {
             valid += usize::from(*k);
         }
         assert!(valid > 2000 && valid < 3900, "{valid} valid: the cases should mix");
-        // The SoA form the leaves take, four at a time, holds the same bits.
-        for (t, (o, k)) in tris.chunks_exact(4).zip(out.chunks_exact(4).zip(ok.chunks_exact(4))) {
-            let (m, good) = unit_maps4_soa(&[t[0], t[1], t[2], t[3]]);
-            for l in 0..4 {
-                assert_eq!(good[l], k[l], "{:?}", t[l]);
-                assert_eq!(std::array::from_fn::<u32, 12, _>(|e| m[e][l].to_bits()), o[l].map(f32::to_bits), "{:?}", t[l]);
-            }
-        }
         // The build's cheap test keeps every triangle that has a map; it may keep more
         // (maps that overflow f32), never fewer.
         let mut extra = 0;
