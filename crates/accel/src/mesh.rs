@@ -520,13 +520,10 @@ impl MeshBvh {
         let before = hit.prim;
         hit.prim = INVALID;
         // SAFETY (all arms): the caller selected K for this CPU.
+        let unit = UnitLeaves::<K>::new(&self.tris);
         match (self.test, &self.nodes) {
-            (TriangleTest::UnitTriangle, Nodes::W8(n)) => unsafe {
-                traverse::intersect::<8, K::B8, _, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, hit, c)
-            },
-            (TriangleTest::UnitTriangle, Nodes::W4(n)) => unsafe {
-                traverse::intersect::<4, K::B4, _, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, hit, c)
-            },
+            (TriangleTest::UnitTriangle, Nodes::W8(n)) => unsafe { traverse::intersect::<8, K::B8, _, _>(n, &unit, pre, hit, c) },
+            (TriangleTest::UnitTriangle, Nodes::W4(n)) => unsafe { traverse::intersect::<4, K::B4, _, _>(n, &unit, pre, hit, c) },
             (TriangleTest::Watertight, Nodes::W8(n)) => unsafe { traverse::intersect::<8, K::B8, _, _>(n, &self.wt_leaves(), pre, hit, c) },
             (TriangleTest::Watertight, Nodes::W4(n)) => unsafe { traverse::intersect::<4, K::B4, _, _>(n, &self.wt_leaves(), pre, hit, c) },
         }
@@ -534,6 +531,7 @@ impl MeshBvh {
             hit.prim = before;
             false
         } else {
+            unit.finish(hit);
             true
         }
     }
@@ -543,10 +541,10 @@ impl MeshBvh {
         // SAFETY (all arms): the caller selected K for this CPU.
         match (self.test, &self.nodes) {
             (TriangleTest::UnitTriangle, Nodes::W8(n)) => unsafe {
-                traverse::occluded::<8, K::B8, _, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, tmax, c)
+                traverse::occluded::<8, K::B8, _, _>(n, &UnitLeaves::<K>::new(&self.tris), pre, tmax, c)
             },
             (TriangleTest::UnitTriangle, Nodes::W4(n)) => unsafe {
-                traverse::occluded::<4, K::B4, _, _>(n, &UnitLeaves::<K> { tris: &self.tris, k: std::marker::PhantomData }, pre, tmax, c)
+                traverse::occluded::<4, K::B4, _, _>(n, &UnitLeaves::<K>::new(&self.tris), pre, tmax, c)
             },
             (TriangleTest::Watertight, Nodes::W8(n)) => unsafe { traverse::occluded::<8, K::B8, _, _>(n, &self.wt_leaves(), pre, tmax, c) },
             (TriangleTest::Watertight, Nodes::W4(n)) => unsafe { traverse::occluded::<4, K::B4, _, _>(n, &self.wt_leaves(), pre, tmax, c) },
@@ -641,17 +639,18 @@ fn avx512_occluded(b: &MeshBvh, ray: &Ray) -> bool {
 }
 
 /// The four-triangle test of the SIMD kernel sets (which run only where AVX2 and FMA
-/// were detected), without a detection of its own.
+/// were detected), without a detection of its own; the barycentrics are left scaled (see
+/// `sse::intersect_scaled`).
 #[inline(always)]
-fn simd_tri4_intersect(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<crate::triangle::LaneHit> {
+fn simd_tri4_intersect_scaled(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<(f32, f32, f32, f32, usize)> {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: called only under `K::SIMD`, whose kernels run only where FMA was detected.
-    return unsafe { crate::triangle::sse::intersect(t4, o, d, tmin, tmax) };
+    return unsafe { crate::triangle::sse::intersect_scaled(t4, o, d, tmin, tmax) };
     #[cfg(not(target_arch = "x86_64"))]
-    crate::triangle::tri4_intersect(t4, o, d, tmin, tmax)
+    crate::triangle::tri4_intersect(t4, o, d, tmin, tmax).map(|h| (h.t, h.u, h.v, 1.0, h.lane))
 }
 
-/// The any-hit counterpart of [`simd_tri4_intersect`].
+/// The any-hit counterpart of [`simd_tri4_intersect_scaled`].
 #[inline(always)]
 fn simd_tri4_occluded(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
     #[cfg(target_arch = "x86_64")]
@@ -663,7 +662,25 @@ fn simd_tri4_occluded(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool
 
 struct UnitLeaves<'a, K> {
     tris: &'a [Tri4],
+    /// The divisor of the barycentrics in `hit.u`, `hit.v` (1 once divided): the SIMD test
+    /// leaves them scaled, and [`UnitLeaves::finish`] divides once, for the final hit.
+    den: std::cell::Cell<f32>,
     k: std::marker::PhantomData<K>,
+}
+
+impl<'a, K> UnitLeaves<'a, K> {
+    fn new(tris: &'a [Tri4]) -> Self {
+        Self { tris, den: std::cell::Cell::new(1.0), k: std::marker::PhantomData }
+    }
+    /// Divides the barycentrics of the hit the leaves found.
+    #[inline(always)]
+    fn finish(&self, hit: &mut Hit) {
+        let den = self.den.get();
+        if den != 1.0 {
+            hit.u /= den;
+            hit.v /= den;
+        }
+    }
 }
 
 impl<K: KernelSet> Leaves for UnitLeaves<'_, K> {
@@ -672,12 +689,15 @@ impl<K: KernelSet> Leaves for UnitLeaves<'_, K> {
         for g in first..first + count {
             // SAFETY: leaf ranges are checked against `tris` by `validate` (tests) and built in range.
             let t4 = unsafe { self.tris.get_unchecked(g as usize) };
-            let h = if K::SIMD {
-                simd_tri4_intersect(t4, r.org, r.dir, r.tmin, hit.t)
-            } else {
-                tri4_intersect_scalar(t4, r.org, r.dir, r.tmin, hit.t)
-            };
-            if let Some(h) = h {
+            if K::SIMD {
+                if let Some((t, u, v, den, lane)) = simd_tri4_intersect_scaled(t4, r.org, r.dir, r.tmin, hit.t) {
+                    hit.t = t;
+                    hit.u = u;
+                    hit.v = v;
+                    self.den.set(den);
+                    hit.prim = t4.prim[lane];
+                }
+            } else if let Some(h) = tri4_intersect_scalar(t4, r.org, r.dir, r.tmin, hit.t) {
                 hit.t = h.t;
                 hit.u = h.u;
                 hit.v = h.v;

@@ -242,12 +242,15 @@ pub struct LaneHit {
 #[inline(always)]
 #[must_use]
 pub fn tri4_intersect_scalar(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<LaneHit> {
+    // Every lane against the same range, as the SIMD test: narrowing the range lane by lane
+    // compared a later lane's scaled distance with the product of a divided-out one, and
+    // could take a later lane at the same distance (two copies of a triangle in a group).
     let mut best: Option<LaneHit> = None;
-    let mut limit = tmax;
     for lane in 0..4 {
-        if let Some((t, u, v)) = unit_triangle_hit(&t4.lane(lane), o, d, tmin, limit) {
-            limit = t;
-            best = Some(LaneHit { t, u, v, lane });
+        if let Some((t, u, v)) = unit_triangle_hit(&t4.lane(lane), o, d, tmin, tmax) {
+            if best.is_none_or(|b| t < b.t) {
+                best = Some(LaneHit { t, u, v, lane });
+            }
         }
     }
     best
@@ -302,6 +305,47 @@ pub(crate) mod sse {
                 ),
             );
             (_mm_movemask_ps(m), [tt, uu, vv, adz])
+        }
+    }
+
+    /// The nearest lane that hits (the first of equals), as `(t, U, V, |D'z|, lane)`: the
+    /// barycentrics still scaled by `|D'z|` (`U / |D'z|` is the `u` of [`intersect`]), for a
+    /// caller that divides once, for the final hit only.
+    ///
+    /// # Safety
+    /// The CPU must support FMA.
+    #[inline(always)]
+    pub(crate) unsafe fn intersect_scaled(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<(f32, f32, f32, f32, usize)> {
+        // SAFETY: the caller guarantees FMA.
+        let (mask, [tt, uu, vv, adz]) = unsafe { eval(t4, o, d, tmin, tmax) };
+        if mask == 0 {
+            return None;
+        }
+        // SAFETY: SSE/SSE4.1 are implied by the FMA the caller guarantees; the arrays hold
+        // exactly four f32.
+        unsafe {
+            let mut a = [[0f32; 4]; 4];
+            _mm_storeu_ps(a[1].as_mut_ptr(), uu);
+            _mm_storeu_ps(a[2].as_mut_ptr(), vv);
+            _mm_storeu_ps(a[3].as_mut_ptr(), adz);
+            // PERF: one lane hits (the common case): it is the lowest set bit, with no scan
+            // over the lanes (whose branches on the mask a random lane mispredicted).
+            let lane = if mask & (mask - 1) == 0 {
+                _mm_storeu_ps(a[0].as_mut_ptr(), tt);
+                let l = mask.trailing_zeros() as usize & 3;
+                a[0][l] /= a[3][l];
+                l
+            } else {
+                // Several: the nearest, the first of equals (a horizontal minimum).
+                let t = _mm_div_ps(tt, adz);
+                _mm_storeu_ps(a[0].as_mut_ptr(), t);
+                let lanes = _mm_castsi128_ps(_mm_set_epi32(-(mask >> 3 & 1), -(mask >> 2 & 1), -(mask >> 1 & 1), -(mask & 1)));
+                let ts = _mm_blendv_ps(_mm_set1_ps(f32::INFINITY), t, lanes);
+                let m = _mm_min_ps(ts, _mm_shuffle_ps::<0b10_11_00_01>(ts, ts));
+                let m = _mm_min_ps(m, _mm_shuffle_ps::<0b01_00_11_10>(m, m));
+                ((_mm_movemask_ps(_mm_cmpeq_ps(ts, m)) & mask) as u32).trailing_zeros() as usize & 3
+            };
+            Some((a[0][lane], a[1][lane], a[2][lane], a[3][lane], lane))
         }
     }
 
@@ -452,6 +496,49 @@ impl WatertightRay {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The SIMD test that leaves the barycentrics scaled picks the scalar test's lane, with
+    /// its `t`, `u`, `v` to the bit once divided: one lane, several lanes (nearest first),
+    /// and several at the same distance (the first of them).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn scaled_test_picks_the_scalar_lane() {
+        use rand::{Rng, SeedableRng};
+        if !std::is_x86_feature_detected!("fma") {
+            return;
+        }
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let (o, d) = (Vec3::new(0.1, 0.2, 10.0), Vec3::new(0.01, -0.02, -1.0));
+        let mut seen = [0usize; 5];
+        for i in 0..20_000 {
+            let mut t4 = Tri4::EMPTY;
+            let mut hits = 0;
+            for lane in 0..4 {
+                // Planes at a few depths (ties are common), each triangle shifted so that
+                // the ray passes through or beside it.
+                let z = [0.0f32, 1.0, 2.5, -3.0][rng.random_range(0..4usize)] + if i % 3 == 0 { rng.random::<f32>() } else { 0.0 };
+                let s = Vec3::new(rng.random_range(-1.5..0.5), rng.random_range(-1.5..0.5), z);
+                let (a, b, c) = (s, s + Vec3::new(2.0, 0.0, 0.3), s + Vec3::new(0.0, 2.0, -0.2));
+                // Sometimes an earlier lane's triangle again: the same distance exactly.
+                let m = if lane > 0 && rng.random_range(0..4) == 0 {
+                    Some(t4.lane(rng.random_range(0..lane)))
+                } else {
+                    UnitTriangle::new(a, b, c).map(|u| u.m)
+                };
+                if let Some(m) = m {
+                    t4.set(lane, &m, lane as u32);
+                    hits += unit_triangle_hit(&m, o, d, 0.0, f32::INFINITY).is_some() as usize;
+                }
+            }
+            seen[hits] += 1;
+            // SAFETY: FMA was detected above.
+            let got = unsafe { sse::intersect_scaled(&t4, o, d, 0.0, f32::INFINITY) };
+            let want = tri4_intersect_scalar(&t4, o, d, 0.0, f32::INFINITY);
+            let bits = |t: f32, u: f32, v: f32, l: usize| (t.to_bits(), u.to_bits(), v.to_bits(), l);
+            assert_eq!(got.map(|(t, u, v, den, l)| bits(t, u / den, v / den, l)), want.map(|h| bits(h.t, h.u, h.v, h.lane)), "case {i}");
+        }
+        assert!(seen.iter().all(|&n| n > 100), "every number of hit lanes is covered: {seen:?}");
+    }
 
     /// The batched maps (AVX, four at a time) are the bits of `UnitTriangle::new`, on
     /// ordinary, tiny, huge, degenerate and non-finite triangles.
