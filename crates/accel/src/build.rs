@@ -467,6 +467,9 @@ fn partition_on<const AXIS: usize>(prims: &mut [PrimRef], binner: &Binner, bin: 
     (nl, [bounds_of(l), bounds_of(r)])
 }
 
+/// Elements per block of [`block_partition`]'s first pass.
+const PART_BLOCK: usize = 64;
+
 /// Moves the elements for which `right` is false before those for which it is true, in
 /// place; returns how many are false. The block partition of Edelkamp & Weiß
 /// ("BlockQuicksort: Avoiding Branch Mispredictions in Quicksort", ESA 2016): a block at
@@ -476,7 +479,7 @@ fn partition_on<const AXIS: usize>(prims: &mut [PrimRef], binner: &Binner, bin: 
 /// the middle of a node, and the two-pointer loop's branch on it mispredicted about half
 /// the time.
 fn block_partition(v: &mut [PrimRef], right: impl Fn(&PrimRef) -> bool) -> usize {
-    let (l, r) = block_pass::<64>(v, 0, v.len(), &right);
+    let (l, r) = block_pass::<PART_BLOCK>(v, 0, v.len(), &right);
     let (mut i, mut j) = block_pass::<8>(v, l, r, &right);
     // The plain two-pointer loop settles any order of [i, j).
     while i < j {
@@ -855,7 +858,7 @@ mod tests {
             seed ^= seed << 17;
             seed
         };
-        let b = 64;
+        let b = PART_BLOCK;
         for n in (0..5 * b + 3).chain([16 * b, 16 * b + 1, 1000]) {
             for share in [0u64, 1, 10, 50, 90, 99, 100] {
                 let mut v: Vec<PrimRef> = (0..n)

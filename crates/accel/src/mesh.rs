@@ -676,10 +676,8 @@ impl<'a, K> UnitLeaves<'a, K> {
     #[inline(always)]
     fn finish(&self, hit: &mut Hit) {
         let den = self.den.get();
-        if den != 1.0 {
-            hit.u /= den;
-            hit.v /= den;
-        }
+        hit.u /= den;
+        hit.v /= den;
     }
 }
 

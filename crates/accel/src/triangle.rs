@@ -349,35 +349,15 @@ pub(crate) mod sse {
         }
     }
 
+    /// [`intersect_scaled`] with the barycentrics divided out.
+    ///
     /// # Safety
     /// The CPU must support FMA.
     #[inline(always)]
     pub(crate) unsafe fn intersect(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<LaneHit> {
         // SAFETY: the caller guarantees FMA.
-        let (mask, [tt, uu, vv, adz]) = unsafe { eval(t4, o, d, tmin, tmax) };
-        if mask == 0 {
-            return None;
-        }
-        let mut ts = [0f32; 4];
-        let mut us = [0f32; 4];
-        let mut vs = [0f32; 4];
-        // SAFETY: the arrays hold exactly four f32; unaligned stores allow any alignment.
-        // The divisions run only here, when some lane hits.
-        unsafe {
-            _mm_storeu_ps(ts.as_mut_ptr(), _mm_div_ps(tt, adz));
-            _mm_storeu_ps(us.as_mut_ptr(), _mm_div_ps(uu, adz));
-            _mm_storeu_ps(vs.as_mut_ptr(), _mm_div_ps(vv, adz));
-        }
-        let mut best = 4;
-        let mut bt = f32::INFINITY;
-        #[allow(clippy::needless_range_loop)] // lane index into three arrays and the mask
-        for lane in 0..4 {
-            if mask & (1 << lane) != 0 && (best == 4 || ts[lane] < bt) {
-                best = lane;
-                bt = ts[lane];
-            }
-        }
-        Some(LaneHit { t: ts[best], u: us[best], v: vs[best], lane: best })
+        let h = unsafe { intersect_scaled(t4, o, d, tmin, tmax) };
+        h.map(|(t, u, v, den, lane)| LaneHit { t, u: u / den, v: v / den, lane })
     }
 
     /// # Safety
