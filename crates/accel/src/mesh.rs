@@ -133,6 +133,9 @@ const PREFETCH_AHEAD: usize = 8;
 /// Triangles per task of the build's first pass (which triangles are kept).
 const PREP_CHUNK: usize = 512;
 
+/// Most triangles in one leaf of a mesh BVH.
+const MAX_LEAF: usize = 8;
+
 impl MeshBvh {
     /// Builds the BVH of triangles `indices` over `positions`. Triangles with non-finite
     /// vertices or zero area are left out (no ray can hit them).
@@ -193,7 +196,7 @@ impl MeshBvh {
         // kept triangles (counted above from the same `keep` flags), so every slot was written.
         unsafe { prims.set_len(total) };
         let cfg = BuildConfig {
-            max_leaf: 8,
+            max_leaf: MAX_LEAF,
             leaf_block: if opts.test == TriangleTest::UnitTriangle { 4 } else { 1 },
             cost_traverse: 1.0,
             median_max: 0,
@@ -236,7 +239,27 @@ impl MeshBvh {
                     rest = tail;
                 }
                 let fill = |(first, count, out): (u32, u32, &mut [std::mem::MaybeUninit<Tri4>])| {
-                    let refs = &bin.prims[first as usize..(first + count) as usize];
+                    // Largest first (by box area), so an any-hit query, which stops at the
+                    // first group that blocks it, meets the triangles most likely to block
+                    // first. PERF: the BART kitchen's shadow rays end in their first leaf
+                    // (1.3 nodes per ray), and its single shadow rays moved by -25% and +1%
+                    // between two arbitrary orders of the same leaves; this order is as
+                    // fast as the best of them there and neutral elsewhere.
+                    let mut sorted = [(0.0f32, bin.prims[first as usize]); MAX_LEAF];
+                    for (k, p) in bin.prims[first as usize..(first + count) as usize].iter().enumerate() {
+                        let a = Aabb { min: p.min(), max: p.max() }.half_area();
+                        let mut j = k;
+                        while j > 0 && sorted[j - 1].0 < a {
+                            sorted[j] = sorted[j - 1];
+                            j -= 1;
+                        }
+                        sorted[j] = (a, *p);
+                    }
+                    let mut by_area = [bin.prims[first as usize]; MAX_LEAF];
+                    for (d, s) in by_area.iter_mut().zip(&sorted) {
+                        *d = s.1;
+                    }
+                    let refs = &by_area[..count as usize];
                     // PERF: the triangles are read in tree order, scattered over the mesh's
                     // order, and each read waited on memory. Ask in two stages, for the
                     // triangles past this leaf (the next leaves' ranges follow this one's):
