@@ -245,6 +245,9 @@ impl MeshBvh {
                     // (1.3 nodes per ray), and its single shadow rays moved by -25% and +1%
                     // between two arbitrary orders of the same leaves; this order is as
                     // fast as the best of them there and neutral elsewhere.
+                    // (`count` is at most MAX_LEAF: the builder's `max_leaf`, which
+                    // `BinaryBvh::validate` checks.)
+                    debug_assert!(count as usize <= MAX_LEAF);
                     let mut sorted = [(0.0f32, bin.prims[first as usize]); MAX_LEAF];
                     for (k, p) in bin.prims[first as usize..(first + count) as usize].iter().enumerate() {
                         let a = Aabb { min: p.min(), max: p.max() }.half_area();
