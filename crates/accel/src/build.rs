@@ -352,44 +352,33 @@ impl Binner {
         };
         // PERF: a small node takes one set: for it, two sets cost more to set up and merge
         // than the stalls they avoid (copies of empty bins showed as 7% of a 12k-triangle
-        // build's profile; one set saved about 1.5% of that build).
-        if prims.len() < 64 {
-            let mut one = Bins::<N>::new();
-            for p in prims {
-                add(&mut one, p);
-            }
-            return one;
+        // build's profile; one set saved about 1.5% of that build). A large node takes
+        // four: its primitives are neighbours in space after the partitions above it, so
+        // two apart still often share a bin (14 cycles per primitive with two sets, 11
+        // with four; the merges are noise at this size).
+        match prims.len() {
+            0..64 => fill_sets::<N, 1>(prims, add),
+            64..1024 => fill_sets::<N, 2>(prims, add),
+            _ => fill_sets::<N, 4>(prims, add),
         }
-        // PERF: four sets for a large node: its primitives are neighbours in space after the
-        // partitions above it, so two apart still often share a bin (14 cycles per
-        // primitive with two sets, 11 with four; the merges are noise at this size).
-        if prims.len() >= 1024 {
-            let mut bins = [Bins::<N>::new(), Bins::<N>::new(), Bins::<N>::new(), Bins::<N>::new()];
-            let mut quads = prims.chunks_exact(4);
-            for q in &mut quads {
-                add(&mut bins[0], &q[0]);
-                add(&mut bins[1], &q[1]);
-                add(&mut bins[2], &q[2]);
-                add(&mut bins[3], &q[3]);
-            }
-            for p in quads.remainder() {
-                add(&mut bins[0], p);
-            }
-            let [a, b, c, d] = bins;
-            return a.merge(&b).merge(&c.merge(&d));
-        }
-        let mut bins = [Bins::<N>::new(), Bins::<N>::new()];
-        let mut pairs = prims.chunks_exact(2);
-        for pair in &mut pairs {
-            add(&mut bins[0], &pair[0]);
-            add(&mut bins[1], &pair[1]);
-        }
-        for p in pairs.remainder() {
-            add(&mut bins[0], p);
-        }
-        let [a, b] = bins;
-        a.merge(&b)
     }
+}
+
+/// Bins `prims` into `S` sets of bins, the primitives in turn, and merges the sets (min,
+/// max and counts: the same bins in any order).
+#[inline(always)]
+fn fill_sets<const N: usize, const S: usize>(prims: &[PrimRef], add: impl Fn(&mut Bins<N>, &PrimRef)) -> Bins<N> {
+    let mut sets = [Bins::<N>::new(); S];
+    let mut groups = prims.chunks_exact(S);
+    for g in &mut groups {
+        for (set, p) in sets.iter_mut().zip(g) {
+            add(set, p);
+        }
+    }
+    for p in groups.remainder() {
+        add(&mut sets[0], p);
+    }
+    sets[1..].iter().fold(sets[0], |a, b| a.merge(b))
 }
 
 struct Split {

@@ -248,21 +248,13 @@ impl MeshBvh {
                     // (`count` is at most MAX_LEAF: the builder's `max_leaf`, which
                     // `BinaryBvh::validate` checks.)
                     debug_assert!(count as usize <= MAX_LEAF);
-                    let mut sorted = [(0.0f32, bin.prims[first as usize]); MAX_LEAF];
-                    for (k, p) in bin.prims[first as usize..(first + count) as usize].iter().enumerate() {
-                        let a = Aabb { min: p.min(), max: p.max() }.half_area();
-                        let mut j = k;
-                        while j > 0 && sorted[j - 1].0 < a {
-                            sorted[j] = sorted[j - 1];
-                            j -= 1;
-                        }
-                        sorted[j] = (a, *p);
-                    }
                     let mut by_area = [bin.prims[first as usize]; MAX_LEAF];
-                    for (d, s) in by_area.iter_mut().zip(&sorted) {
-                        *d = s.1;
-                    }
-                    let refs = &by_area[..count as usize];
+                    let refs = &mut by_area[..count as usize];
+                    refs.copy_from_slice(&bin.prims[first as usize..(first + count) as usize]);
+                    // Stable (equal areas keep the tree's order); no allocation at this size.
+                    let area = |p: &crate::build::PrimRef| Aabb { min: p.min(), max: p.max() }.half_area();
+                    refs.sort_by(|a, b| area(b).total_cmp(&area(a)));
+                    let refs = &*refs;
                     // PERF: the triangles are read in tree order, scattered over the mesh's
                     // order, and each read waited on memory. Ask in two stages, for the
                     // triangles past this leaf (the next leaves' ranges follow this one's):
