@@ -113,6 +113,8 @@ pub struct RaysOptions {
     pub quality: lucent_accel::Quality,
     /// Kernels to time, one JSON line each.
     pub apis: Vec<Api>,
+    /// Pin each worker to its own CPU.
+    pub pin: bool,
     /// Write the per-pixel primary hit ids here (i32 little-endian, like `embree_bench --dump-ids`).
     pub dump_ids: Option<std::path::PathBuf>,
 }
@@ -147,10 +149,6 @@ impl Api {
     }
 }
 
-fn pool(threads: usize) -> Result<rayon::ThreadPool> {
-    rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start the thread pool")
-}
-
 /// Runs the benchmark and prints JSON lines.
 pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
     let mesh = read_mesh(&dir.join("mesh.bin"))?;
@@ -163,7 +161,7 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
     );
     let mut bvh = None;
     for &threads in &o.threads {
-        let p = pool(threads)?;
+        let p = crate::threads::pool(threads, o.pin)?;
         // One untimed warm-up build first, as the Embree harness does (on a fresh pool the
         // first builds of a small mesh read half again as slow: museum, 2 threads, median of
         // 9 builds without it 3.0 ms, with it 2.1 ms).
@@ -215,7 +213,7 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
         for (api, per) in o.apis.iter().map(|&a| (a, a.rays())) {
             let api = format!("{}-{kname}", api.name());
             for &threads in &o.threads {
-                let p = pool(threads)?;
+                let p = crate::threads::pool(threads, o.pin)?;
                 // Like the Embree harness: every worker pulls chunks of 32 blocks (4 tiles, 256
                 // rays) from an atomic counter, so both tracers pay the same scheduling cost.
                 let out_cells: Vec<std::sync::atomic::AtomicI32> =

@@ -62,6 +62,8 @@ pub struct FrameOptions {
     pub frames: usize,
     /// Also time ray-by-ray tracing.
     pub single: bool,
+    /// Pin each worker to its own CPU.
+    pub pin: bool,
 }
 
 pub fn run(o: &FrameOptions) -> Result<()> {
@@ -89,7 +91,7 @@ pub fn run(o: &FrameOptions) -> Result<()> {
         for &(w, h) in &o.sizes {
             let cam = Camera::new(&desc, w, h);
             for &threads in &o.threads {
-                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start the thread pool")?;
+                let pool = crate::threads::pool(threads, o.pin)?;
                 for (api, packets) in [("packet", true), ("single", false)].into_iter().take(1 + o.single as usize) {
                     let s =
                         RenderSettings { width: w, height: h, spp: 1, whitted: WhittedSettings { max_depth: 0, shadows: true, packets } };

@@ -13,6 +13,7 @@ mod rend3r_bench;
 mod render_cmd;
 mod run_cmd;
 mod stats;
+mod threads;
 mod view_cmd;
 
 #[derive(Parser)]
@@ -352,6 +353,10 @@ enum BenchCmd {
         /// Time packets only (by default ray-by-ray tracing is timed too, for comparison).
         #[arg(long)]
         packets_only: bool,
+        /// Leave the worker threads unpinned (by default each worker is kept on its own
+        /// CPU: short parallel jobs then scale steadily; see ARCHITECTURE.md).
+        #[arg(long)]
+        no_pin: bool,
     },
     /// Dynamic scenes: TLAS rebuild for 1k/10k/100k instances, BLAS refit (100k-triangle
     /// grid, the museum's animated mesh, and how its SAH cost decays), and whole animated
@@ -366,6 +371,10 @@ enum BenchCmd {
         /// Frame size.
         #[arg(long, default_value = "512x384", value_parser = render_cmd::parse_size)]
         size: (u32, u32),
+        /// Leave the worker threads unpinned (by default each worker is kept on its own
+        /// CPU: short parallel jobs then scale steadily; see ARCHITECTURE.md).
+        #[arg(long)]
+        no_pin: bool,
     },
     /// The network device: frames per second and latency (batch sent -> frame received) for
     /// 1 and 64 clients streaming moving-sphere programs, server memory, and words per
@@ -404,6 +413,10 @@ enum BenchCmd {
         /// Light counts of the rows to time (Table IV has 0 and 1).
         #[arg(long, value_delimiter = ',', default_value = "0,1")]
         lights: Vec<usize>,
+        /// Leave the worker threads unpinned (by default each worker is kept on its own
+        /// CPU: short parallel jobs then scale steadily; see ARCHITECTURE.md).
+        #[arg(long)]
+        no_pin: bool,
     },
     /// Trace the rays dumped by the Embree harness (shared/bench) and print JSON lines.
     Rays {
@@ -444,6 +457,10 @@ enum BenchCmd {
         /// optimization: a better tree for a longer build).
         #[arg(long, default_value = "sah", value_parser = ["sah", "high"])]
         quality: String,
+        /// Leave the worker threads unpinned (by default each worker is kept on its own
+        /// CPU: short parallel jobs then scale steadily; see ARCHITECTURE.md).
+        #[arg(long)]
+        no_pin: bool,
     },
 }
 
@@ -534,11 +551,17 @@ fn run() -> Result<()> {
             })
         }
         Cmd::Disasm { file, camera_table, triangles } => isa_cmd::disasm(&file, isa_cmd::table(camera_table == "old"), triangles),
-        Cmd::Bench(BenchCmd::Rend3r { frames, size, spheres, lights }) => rend3r_bench::run(frames, size, &spheres, &lights),
-        Cmd::Bench(BenchCmd::Frame { scenes, dir, sizes, threads, frames, packets_only }) => {
-            frame_bench::run(&frame_bench::FrameOptions { scenes, dir, sizes, threads, frames, single: !packets_only })
+        Cmd::Bench(BenchCmd::Rend3r { frames, size, spheres, lights, no_pin }) => {
+            threads::global(std::thread::available_parallelism().map_or(1, |n| n.get()), !no_pin)?;
+            rend3r_bench::run(frames, size, &spheres, &lights)
         }
-        Cmd::Bench(BenchCmd::Dynamic { scenes, frames, size }) => dynamic_bench::run(&scenes, frames, size),
+        Cmd::Bench(BenchCmd::Frame { scenes, dir, sizes, threads, frames, packets_only, no_pin }) => {
+            frame_bench::run(&frame_bench::FrameOptions { scenes, dir, sizes, threads, frames, single: !packets_only, pin: !no_pin })
+        }
+        Cmd::Bench(BenchCmd::Dynamic { scenes, frames, size, no_pin }) => {
+            threads::global(std::thread::available_parallelism().map_or(1, |n| n.get()), !no_pin)?;
+            dynamic_bench::run(&scenes, frames, size)
+        }
         Cmd::Bench(BenchCmd::Net { clients, seconds, size, format }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),
         Cmd::Serve(a) => net_cmd::serve(lucent_net::ServerConfig {
             listen: a.listen,
@@ -577,24 +600,37 @@ fn run() -> Result<()> {
             camera_table_old: camera_table == "old",
             output,
         }),
-        Cmd::Bench(BenchCmd::Rays { dir, name, threads, frames, warmup, kinds, width, watertight, scalar, dump_ids, api, quality }) => {
-            bench::rays(
-                &dir,
-                &bench::RaysOptions {
-                    name,
-                    threads,
-                    frames,
-                    warmup,
-                    kinds,
-                    width: if width == 4 { lucent_accel::Width::W4 } else { lucent_accel::Width::W8 },
-                    test: if watertight { lucent_accel::TriangleTest::Watertight } else { lucent_accel::TriangleTest::UnitTriangle },
-                    kernel: if scalar { lucent_accel::Kernel::Scalar } else { lucent_accel::Kernel::detect() },
-                    dump_ids,
-                    apis: api,
-                    quality: if quality == "high" { lucent_accel::Quality::High } else { lucent_accel::Quality::Sah },
-                },
-            )
-        }
+        Cmd::Bench(BenchCmd::Rays {
+            dir,
+            name,
+            threads,
+            frames,
+            warmup,
+            kinds,
+            width,
+            watertight,
+            scalar,
+            dump_ids,
+            api,
+            quality,
+            no_pin,
+        }) => bench::rays(
+            &dir,
+            &bench::RaysOptions {
+                name,
+                threads,
+                frames,
+                warmup,
+                kinds,
+                width: if width == 4 { lucent_accel::Width::W4 } else { lucent_accel::Width::W8 },
+                test: if watertight { lucent_accel::TriangleTest::Watertight } else { lucent_accel::TriangleTest::UnitTriangle },
+                kernel: if scalar { lucent_accel::Kernel::Scalar } else { lucent_accel::Kernel::detect() },
+                dump_ids,
+                apis: api,
+                quality: if quality == "high" { lucent_accel::Quality::High } else { lucent_accel::Quality::Sah },
+                pin: !no_pin,
+            },
+        ),
     }
 }
 
