@@ -328,6 +328,15 @@ struct ServeArgs {
     examples: Option<PathBuf>,
 }
 
+/// The benchmarks' choice of pinned or unpinned worker threads (`threads::pool`).
+#[derive(clap::Args)]
+struct PinArgs {
+    /// Leave the worker threads unpinned (by default each worker is kept on its own
+    /// CPU: short parallel jobs then scale steadily; see ARCHITECTURE.md).
+    #[arg(long)]
+    no_pin: bool,
+}
+
 #[derive(Subcommand)]
 enum BenchCmd {
     /// Shaded frames per second (primary rays, one shadow ray per light, shading; no
@@ -353,10 +362,8 @@ enum BenchCmd {
         /// Time packets only (by default ray-by-ray tracing is timed too, for comparison).
         #[arg(long)]
         packets_only: bool,
-        /// Leave the worker threads unpinned (by default each worker is kept on its own
-        /// CPU: short parallel jobs then scale steadily; see ARCHITECTURE.md).
-        #[arg(long)]
-        no_pin: bool,
+        #[command(flatten)]
+        pin: PinArgs,
     },
     /// Dynamic scenes: TLAS rebuild for 1k/10k/100k instances, BLAS refit (100k-triangle
     /// grid, the museum's animated mesh, and how its SAH cost decays), and whole animated
@@ -371,10 +378,8 @@ enum BenchCmd {
         /// Frame size.
         #[arg(long, default_value = "512x384", value_parser = render_cmd::parse_size)]
         size: (u32, u32),
-        /// Leave the worker threads unpinned (by default each worker is kept on its own
-        /// CPU: short parallel jobs then scale steadily; see ARCHITECTURE.md).
-        #[arg(long)]
-        no_pin: bool,
+        #[command(flatten)]
+        pin: PinArgs,
     },
     /// The network device: frames per second and latency (batch sent -> frame received) for
     /// 1 and 64 clients streaming moving-sphere programs, server memory, and words per
@@ -413,10 +418,8 @@ enum BenchCmd {
         /// Light counts of the rows to time (Table IV has 0 and 1).
         #[arg(long, value_delimiter = ',', default_value = "0,1")]
         lights: Vec<usize>,
-        /// Leave the worker threads unpinned (by default each worker is kept on its own
-        /// CPU: short parallel jobs then scale steadily; see ARCHITECTURE.md).
-        #[arg(long)]
-        no_pin: bool,
+        #[command(flatten)]
+        pin: PinArgs,
     },
     /// Trace the rays dumped by the Embree harness (shared/bench) and print JSON lines.
     Rays {
@@ -457,10 +460,8 @@ enum BenchCmd {
         /// optimization: a better tree for a longer build).
         #[arg(long, default_value = "sah", value_parser = ["sah", "high"])]
         quality: String,
-        /// Leave the worker threads unpinned (by default each worker is kept on its own
-        /// CPU: short parallel jobs then scale steadily; see ARCHITECTURE.md).
-        #[arg(long)]
-        no_pin: bool,
+        #[command(flatten)]
+        pin: PinArgs,
     },
 }
 
@@ -551,15 +552,15 @@ fn run() -> Result<()> {
             })
         }
         Cmd::Disasm { file, camera_table, triangles } => isa_cmd::disasm(&file, isa_cmd::table(camera_table == "old"), triangles),
-        Cmd::Bench(BenchCmd::Rend3r { frames, size, spheres, lights, no_pin }) => {
-            threads::global(std::thread::available_parallelism().map_or(1, |n| n.get()), !no_pin)?;
+        Cmd::Bench(BenchCmd::Rend3r { frames, size, spheres, lights, pin }) => {
+            threads::global(!pin.no_pin)?;
             rend3r_bench::run(frames, size, &spheres, &lights)
         }
-        Cmd::Bench(BenchCmd::Frame { scenes, dir, sizes, threads, frames, packets_only, no_pin }) => {
-            frame_bench::run(&frame_bench::FrameOptions { scenes, dir, sizes, threads, frames, single: !packets_only, pin: !no_pin })
+        Cmd::Bench(BenchCmd::Frame { scenes, dir, sizes, threads, frames, packets_only, pin }) => {
+            frame_bench::run(&frame_bench::FrameOptions { scenes, dir, sizes, threads, frames, single: !packets_only, pin: !pin.no_pin })
         }
-        Cmd::Bench(BenchCmd::Dynamic { scenes, frames, size, no_pin }) => {
-            threads::global(std::thread::available_parallelism().map_or(1, |n| n.get()), !no_pin)?;
+        Cmd::Bench(BenchCmd::Dynamic { scenes, frames, size, pin }) => {
+            threads::global(!pin.no_pin)?;
             dynamic_bench::run(&scenes, frames, size)
         }
         Cmd::Bench(BenchCmd::Net { clients, seconds, size, format }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),
@@ -613,7 +614,7 @@ fn run() -> Result<()> {
             dump_ids,
             api,
             quality,
-            no_pin,
+            pin,
         }) => bench::rays(
             &dir,
             &bench::RaysOptions {
@@ -628,7 +629,7 @@ fn run() -> Result<()> {
                 dump_ids,
                 apis: api,
                 quality: if quality == "high" { lucent_accel::Quality::High } else { lucent_accel::Quality::Sah },
-                pin: !no_pin,
+                pin: !pin.no_pin,
             },
         ),
     }

@@ -17,8 +17,15 @@ pub fn pool(threads: usize, pin: bool) -> Result<rayon::ThreadPool> {
     builder(threads, pin).build().context("cannot start the thread pool")
 }
 
-/// [`pool`] as rayon's global pool (for code that uses it implicitly).
-pub fn global(threads: usize, pin: bool) -> Result<()> {
+/// [`pool`] as rayon's global pool (for code that uses it implicitly), with rayon's own
+/// default size: `RAYON_NUM_THREADS` when it is a positive number, else one worker per
+/// available CPU.
+pub fn global(pin: bool) -> Result<()> {
+    let threads = std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|s| s.parse::<usize>().ok())
+        .filter(|&n| n > 0)
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     builder(threads, pin).build_global().context("cannot set up the global thread pool")
 }
 
