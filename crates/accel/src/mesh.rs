@@ -5,7 +5,8 @@ use crate::geom::{Aabb, Hit, Ray, INVALID};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::traverse::{self, Counters, Leaves, RayPre, TraversalStats};
 use crate::triangle::{
-    tri4_intersect_scalar, tri4_occluded_scalar, unit_map_possible, unit_maps4_soa, Tri4, UnitTriangle, WatertightRay, NEVER_HIT,
+    tri4_intersect_scalar, tri4_occluded_scalar, unit_map_possible, unit_maps4_soa, Tri4, UnitTriangle, WatertightRay, AXIS_SHIFT,
+    NEVER_HIT,
 };
 use crate::wide::{collapse, leaf_code, leaf_range, WideNode, EMPTY, LEAF};
 use glam::Vec3;
@@ -263,13 +264,13 @@ impl MeshBvh {
                         for (vv, &id) in v.iter_mut().zip(chunk).skip(1) {
                             *vv = verts(&indices[id as usize]);
                         }
-                        let (m, _) = unit_maps4_soa(&v);
+                        let (m, axes, _) = unit_maps4_soa(&v);
                         let mut t4 = Tri4 { m, prim: [u32::MAX; 4] };
                         for (lane, &id) in chunk.iter().enumerate() {
-                            t4.prim[lane] = id;
+                            t4.prim[lane] = id | axes[lane] << AXIS_SHIFT;
                         }
                         for lane in chunk.len()..4 {
-                            t4.set(lane, &NEVER_HIT, u32::MAX);
+                            t4.pad(lane);
                         }
                         slot.write(t4);
                     }
@@ -339,11 +340,11 @@ impl MeshBvh {
         // Triangle data: new unit-triangle maps (or vertices), in place.
         let remap = |t4: &mut Tri4| {
             for lane in 0..4 {
-                let id = t4.prim[lane];
-                if id == u32::MAX {
+                if t4.is_pad(lane) {
                     continue;
                 }
-                let m = verts(id).and_then(|v| UnitTriangle::new(v[0], v[1], v[2])).map_or(NEVER_HIT, |u| u.m);
+                let id = t4.id(lane);
+                let m = verts(id).and_then(|v| UnitTriangle::new(v[0], v[1], v[2])).unwrap_or(NEVER_HIT);
                 t4.set(lane, &m, id);
             }
         };
@@ -365,7 +366,7 @@ impl MeshBvh {
             let ids: Vec<u32> = if tris.is_empty() {
                 wt_ids[first as usize..(first + count) as usize].to_vec()
             } else {
-                tris[first as usize..(first + count) as usize].iter().flat_map(|t| t.prim).filter(|&p| p != u32::MAX).collect()
+                tris[first as usize..(first + count) as usize].iter().flat_map(Tri4::ids).collect()
             };
             for id in ids {
                 if let Some(v) = verts(id) {
@@ -761,13 +762,13 @@ impl<K: KernelSet> Leaves for UnitLeaves<'_, K> {
                     hit.u = u;
                     hit.v = v;
                     self.den.set(den);
-                    hit.prim = t4.prim[lane];
+                    hit.prim = t4.id(lane);
                 }
             } else if let Some(h) = tri4_intersect_scalar(t4, r.org, r.dir, r.tmin, hit.t) {
                 hit.t = h.t;
                 hit.u = h.u;
                 hit.v = h.v;
-                hit.prim = t4.prim[h.lane];
+                hit.prim = t4.id(h.lane);
             }
         }
     }
@@ -902,9 +903,7 @@ mod tests {
             for code in nodes.iter().flat_map(|n| n.child).filter(|&c| c != EMPTY && c & LEAF != 0) {
                 let (first, count) = leaf_range(code);
                 let ids: Vec<u32> = match test {
-                    TriangleTest::UnitTriangle => {
-                        m.tris[first as usize..(first + count) as usize].iter().flat_map(|t| t.prim).filter(|&id| id != u32::MAX).collect()
-                    }
+                    TriangleTest::UnitTriangle => m.tris[first as usize..(first + count) as usize].iter().flat_map(Tri4::ids).collect(),
                     TriangleTest::Watertight => m.wt_ids[first as usize..(first + count) as usize].to_vec(),
                 };
                 for w in ids.windows(2) {

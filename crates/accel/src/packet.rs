@@ -43,6 +43,8 @@ pub const MAX_PACKET: usize = 64;
 pub(crate) const LANES: usize = 8;
 /// Groups per packet.
 pub(crate) const GROUPS: usize = MAX_PACKET / LANES;
+/// Entries of a packet's origin and direction vectors: x, y, z, x, y (see [`Packet::o`]).
+pub(crate) const CYCLIC: usize = 5;
 /// Groups of a packet that must reach a leaf before its triangles are culled against the
 /// whole packet ([`avx::frustum_keep`]).
 const CULL_GROUPS: usize = 2;
@@ -268,8 +270,11 @@ pub(crate) struct Packet {
     pub groups: usize,
     /// Lanes holding a ray (finite origin and direction, non-empty range).
     pub valid: [M8; GROUPS],
-    pub o: [[F8; 3]; GROUPS],
-    pub d: [[F8; 3]; GROUPS],
+    /// Origins and directions as x, y, z, then x and y again ([`CYCLIC`]): the three
+    /// components a unit-triangle map of axis `k` reads, `k, k+1, k+2` (mod 3), are then
+    /// the consecutive entries from `k` on.
+    pub o: [[F8; CYCLIC]; GROUPS],
+    pub d: [[F8; CYCLIC]; GROUPS],
     /// Reciprocal directions (|d| clamped to ≥ 1e-18 as in the single-ray kernel).
     pub inv: [[F8; 3]; GROUPS],
     pub tmin: [F8; GROUPS],
@@ -341,8 +346,8 @@ impl Packet {
         let p = Packet {
             groups: 0,
             valid: [M8::NONE; GROUPS],
-            o: [[z; 3]; GROUPS],
-            d: [[z; 3]; GROUPS],
+            o: [[z; CYCLIC]; GROUPS],
+            d: [[z; CYCLIC]; GROUPS],
             inv: [[z; 3]; GROUPS],
             tmin: [z; GROUPS],
             common: None,
@@ -374,8 +379,8 @@ impl Packet {
         for (g, b) in blocks[..groups].iter().enumerate() {
             // PERF: written out, not `array::map`: its closure shim stayed an out-of-line
             // call compiled without AVX2 (a twentieth of a sparse REND3R frame).
-            p.o[g] = [F8(b.org[0]), F8(b.org[1]), F8(b.org[2])];
-            p.d[g] = [F8(b.dir[0]), F8(b.dir[1]), F8(b.dir[2])];
+            p.o[g] = [F8(b.org[0]), F8(b.org[1]), F8(b.org[2]), F8(b.org[0]), F8(b.org[1])];
+            p.d[g] = [F8(b.dir[0]), F8(b.dir[1]), F8(b.dir[2]), F8(b.dir[0]), F8(b.dir[1])];
             p.tmin[g] = F8(b.tmin);
             let tmax = F8(b.tmax);
             p.inv[g] = recip3(&p.d[g]);
@@ -497,13 +502,14 @@ impl Packet {
             if active[g].bits() == 0 {
                 continue;
             }
-            let [ox, oy, oz] = self.o[g];
-            let [dx, dy, dz] = self.d[g];
+            let [ox, oy, oz, ..] = self.o[g];
+            let [dx, dy, dz, ..] = self.d[g];
             for r in 0..3 {
                 let (a, b, cc) = (F8::splat(c[0][r]), F8::splat(c[1][r]), F8::splat(c[2][r]));
                 p.o[g][r] = a.mul(ox).add(b.mul(oy)).add(cc.mul(oz)).add(F8::splat(tr[r]));
                 p.d[g][r] = a.mul(dx).add(b.mul(dy)).add(cc.mul(dz));
             }
+            (p.o[g][3], p.o[g][4], p.d[g][3], p.d[g][4]) = (p.o[g][0], p.o[g][1], p.d[g][0], p.d[g][1]);
             p.inv[g] = recip3(&p.d[g]);
         }
         // The same arithmetic on the same origin gives the same point in every lane.
@@ -713,7 +719,7 @@ impl Packet {
 
 /// [`recip`] of three rows (PERF: not `array::map`, see `load_blocks_into`).
 #[inline(always)]
-fn recip3(d: &[F8; 3]) -> [F8; 3] {
+fn recip3(d: &[F8; CYCLIC]) -> [F8; 3] {
     [recip(d[0]), recip(d[1]), recip(d[2])]
 }
 
@@ -1023,14 +1029,17 @@ fn traverse<const ANY: bool, K: KernelSet, L: PacketLeaves, C: Counters>(
 
 /// The unit-triangle test of one group of rays against lane `lane` of `t4`, exactly as
 /// [`crate::triangle::unit_triangle_hit`] computes it: the hit mask and scaled `T, U, V, |D'z|`.
+/// The lane must not be padding.
 #[inline(always)]
 fn tri_eval(t4: &Tri4, lane: usize, p: &Packet, g: usize, tmax: F8) -> (M8, [F8; 4]) {
     let m = |c: usize| F8::splat(t4.m[c][lane]);
-    let [ox, oy, oz] = p.o[g];
-    let [dx, dy, dz] = p.d[g];
-    let dir = |r: usize| m(r).mul_add(dx, m(r + 1).mul_add(dy, m(r + 2).mul(dz)));
-    let org = |r: usize| m(r).mul_add(ox, m(r + 1).mul_add(oy, m(r + 2).mul_add(oz, m(r + 3))));
-    let (dzp, ozp, dxp, oxp, dyp, oyp) = (dir(8), org(8), dir(0), org(0), dir(4), org(4));
+    let k = t4.axis(lane) as usize;
+    let ([o0, o1, o2], [d0, d1, d2]) = (*cyclic(&p.o[g], k), *cyclic(&p.d[g], k));
+    let dir = |i: usize| m(i).mul_add(d1, m(i + 1).mul_add(d2, F8::splat(t4.m[i + 2][lane] * 0.0)));
+    let org = |i: usize| m(i).mul_add(o1, m(i + 1).mul_add(o2, m(i + 2)));
+    let dzp = m(6).mul_add(d1, m(7).mul_add(d2, m(8).mul_add(F8::splat(0.0), d0)));
+    let ozp = m(6).mul_add(o1, m(7).mul_add(o2, m(8).add(o0)));
+    let (dxp, oxp, dyp, oyp) = (dir(0), org(0), dir(3), org(3));
     let adz = dzp.xor_sign(dzp);
     let uu = oxp.mul_add(dzp, ozp.mul(dxp).neg()).xor_sign(dzp);
     let vv = oyp.mul_add(dzp, ozp.mul(dyp).neg()).xor_sign(dzp);
@@ -1038,6 +1047,17 @@ fn tri_eval(t4: &Tri4, lane: usize, p: &Packet, g: usize, tmax: F8) -> (M8, [F8;
     let z = F8::splat(0.0);
     let ok = uu.ge(z).and(vv.ge(z)).and(uu.add(vv).le(adz)).and(tt.ge(p.tmin[g].mul(adz))).and(tt.lt(tmax.mul(adz)));
     (ok, [tt, uu, vv, adz])
+}
+
+/// Components `k, k+1, k+2` (mod 3) of a [`CYCLIC`] vector, for a map of axis `k` (not a
+/// padding lane's).
+#[inline(always)]
+fn cyclic(v: &[F8; CYCLIC], k: usize) -> &[F8; 3] {
+    debug_assert!(k < 3, "a padding lane");
+    // PERF: three consecutive entries from `k` (one address), not indices through
+    // `triangle::ROTATION` (callgrind: 4.7% more instructions for primary packets).
+    let k = k.min(2);
+    v[k..].first_chunk::<3>().expect("k <= 2 leaves three of five entries")
 }
 
 /// Unit-triangle leaves for packets.
@@ -1119,7 +1139,7 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
                 let mut bp = [INVALID; LANES];
                 for lane in 0..4 {
                     // Padding lanes come last and never hit.
-                    if t4.prim[lane] == u32::MAX {
+                    if t4.is_pad(lane) {
                         break;
                     }
                     let (ok, [tt, uu, vv, adz]) = tri_eval(t4, lane, p, g, limit);
@@ -1132,7 +1152,7 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
                     bt = bt.blend(take, t);
                     bu = bu.blend(take, uu.div(adz));
                     bv = bv.blend(take, vv.div(adz));
-                    bp = M8::blend_u32(take, bp, [t4.prim[lane]; LANES]);
+                    bp = M8::blend_u32(take, bp, [t4.id(lane); LANES]);
                     found = found.or(take);
                 }
                 if found.bits() != 0 {
@@ -1167,7 +1187,7 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
                 }
                 if !K::SIMD {
                     for lane in 0..4 {
-                        if t4.prim[lane] == u32::MAX {
+                        if t4.is_pad(lane) {
                             break;
                         }
                         hit = hit.or(tri_eval(t4, lane, p, g, limit).0);
@@ -2096,6 +2116,7 @@ mod avx {
         }
         *b = RayBlock { org: [out[0], out[1], out[2]], dir: [out[3], out[4], out[5]], tmin: out[6], tmax: out[7] };
     }
+    use super::cyclic;
     use crate::triangle::Tri4;
     use crate::wide::WideNode;
     use std::arch::x86_64::*;
@@ -2217,18 +2238,23 @@ mod avx {
     #[target_feature(enable = "avx2,fma")]
     fn eval(t4: &Tri4, lane: usize, p: &Packet, g: usize, tmax: __m256, org: Option<&[[f32; 4]; 3]>) -> (__m256, [__m256; 4]) {
         let m = |c: usize| _mm256_set1_ps(t4.m[c][lane]);
-        let (dx, dy, dz) = (ld(&p.d[g][0]), ld(&p.d[g][1]), ld(&p.d[g][2]));
-        let dir = |r: usize| _mm256_fmadd_ps(m(r), dx, _mm256_fmadd_ps(m(r + 1), dy, _mm256_mul_ps(m(r + 2), dz)));
-        let dzp = dir(8);
+        let k = t4.axis(lane) as usize;
+        let d = cyclic(&p.d[g], k);
+        let (d0, d1, d2) = (ld(&d[0]), ld(&d[1]), ld(&d[2]));
+        let zero = _mm256_setzero_ps();
+        let dir = |i: usize| _mm256_fmadd_ps(m(i), d1, _mm256_fmadd_ps(m(i + 1), d2, _mm256_mul_ps(m(i + 2), zero)));
+        let dzp = _mm256_fmadd_ps(m(6), d1, _mm256_fmadd_ps(m(7), d2, _mm256_fmadd_ps(m(8), zero, d0)));
         let dxp = dir(0);
-        let dyp = dir(4);
+        let dyp = dir(3);
         let (oxp, oyp, ozp) = match org {
             // The origin's terms, computed once per triangle (`origin_terms`), broadcast.
             Some(o) => (_mm256_set1_ps(o[0][lane]), _mm256_set1_ps(o[1][lane]), _mm256_set1_ps(o[2][lane])),
             None => {
-                let (ox, oy, oz) = (ld(&p.o[g][0]), ld(&p.o[g][1]), ld(&p.o[g][2]));
-                let org = |r: usize| _mm256_fmadd_ps(m(r), ox, _mm256_fmadd_ps(m(r + 1), oy, _mm256_fmadd_ps(m(r + 2), oz, m(r + 3))));
-                (org(0), org(4), org(8))
+                let o = cyclic(&p.o[g], k);
+                let (o0, o1, o2) = (ld(&o[0]), ld(&o[1]), ld(&o[2]));
+                let org = |i: usize| _mm256_fmadd_ps(m(i), o1, _mm256_fmadd_ps(m(i + 1), o2, m(i + 2)));
+                let oz = _mm256_fmadd_ps(m(6), o1, _mm256_fmadd_ps(m(7), o2, _mm256_add_ps(m(8), o0)));
+                (org(0), org(3), oz)
             }
         };
         let signbit = _mm256_set1_ps(-0.0);
@@ -2258,15 +2284,28 @@ mod avx {
     pub(super) fn origin_terms(t4: &Tri4, o: &[f32; 3]) -> [[f32; 4]; 3] {
         // SAFETY: `Tri4` rows are 16-byte aligned `[f32; 4]`s.
         let row = |c: usize| unsafe { _mm_load_ps(t4.m[c].as_ptr()) };
-        let (ox, oy, oz) = (_mm_set1_ps(o[0]), _mm_set1_ps(o[1]), _mm_set1_ps(o[2]));
+        let [p0, p1, p2] = rotated(t4, _mm_setr_ps(o[0], o[1], o[2], 0.0));
+        let ox = _mm_fmadd_ps(row(0), p1, _mm_fmadd_ps(row(1), p2, row(2)));
+        let oy = _mm_fmadd_ps(row(3), p1, _mm_fmadd_ps(row(4), p2, row(5)));
+        let oz = _mm_fmadd_ps(row(6), p1, _mm_fmadd_ps(row(7), p2, _mm_add_ps(row(8), p0)));
         let mut out = [[0f32; 4]; 3];
-        for (r, slot) in out.iter_mut().enumerate() {
-            let b = 4 * r;
-            let v = _mm_fmadd_ps(row(b), ox, _mm_fmadd_ps(row(b + 1), oy, _mm_fmadd_ps(row(b + 2), oz, row(b + 3))));
+        for (slot, v) in out.iter_mut().zip([ox, oy, oz]) {
             // SAFETY: `slot` is 16 bytes.
             unsafe { _mm_storeu_ps(slot.as_mut_ptr(), v) };
         }
         out
+    }
+
+    /// Components `k, k+1, k+2` of `v = (x, y, z, 0)` for each lane of `t4`, `k` being the
+    /// lane's axis (a lane without one gets the zero).
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    fn rotated(t4: &Tri4, v: __m128) -> [__m128; 3] {
+        // SAFETY: `Tri4` is 16-byte aligned, its ids 16 bytes.
+        let k = _mm_srli_epi32::<{ crate::triangle::AXIS_SHIFT as i32 }>(unsafe { _mm_load_si128(t4.prim.as_ptr().cast()) });
+        let next = _mm_permutevar_ps(_mm_castsi128_ps(_mm_setr_epi32(1, 2, 0, 3)), k);
+        let after = _mm_permutevar_ps(_mm_castsi128_ps(_mm_setr_epi32(2, 0, 1, 3)), k);
+        [_mm_permutevar_ps(v, k), _mm_permutevar_ps(v, _mm_castps_si128(next)), _mm_permutevar_ps(v, _mm_castps_si128(after))]
     }
 
     /// The lanes of `t4` that some ray of a packet with common origin and directions within
@@ -2286,8 +2325,9 @@ mod avx {
         let o = |k: usize| unsafe { _mm_loadu_ps(org[k].as_ptr()) };
         let (ox, oy, oz) = (o(0), o(1), o(2));
         let abs = |v: __m128| _mm_andnot_ps(_mm_set1_ps(-0.0), v);
-        let lo: [__m128; 3] = std::array::from_fn(|k| _mm_set1_ps(c.lo[k]));
-        let hi: [__m128; 3] = std::array::from_fn(|k| _mm_set1_ps(c.hi[k]));
+        // The direction box in each lane's own component order, as its map reads it.
+        let lo = rotated(t4, _mm_setr_ps(c.lo[0], c.lo[1], c.lo[2], 0.0));
+        let hi = rotated(t4, _mm_setr_ps(c.hi[0], c.hi[1], c.hi[2], 0.0));
         let mag: [__m128; 3] = std::array::from_fn(|k| _mm_max_ps(abs(lo[k]), abs(hi[k])));
         // Range of a·d over the box.
         let range = |a: [__m128; 3]| {
@@ -2301,9 +2341,11 @@ mod avx {
         };
         // Σ|a_k|·max|d_k|: the scale a·d's rounding goes with.
         let scale = |a: [__m128; 3]| (0..3).fold(_mm_setzero_ps(), |s, k| _mm_fmadd_ps(abs(a[k]), mag[k], s));
-        let mx = [row(0), row(1), row(2)];
-        let my = [row(4), row(5), row(6)];
-        let mz = [row(8), row(9), row(10)];
+        // The maps' direction rows over those components: the axis' column is (0, 0, 1).
+        let (zero, one) = (_mm_setzero_ps(), _mm_set1_ps(1.0));
+        let mx = [zero, row(0), row(1)];
+        let my = [zero, row(3), row(4)];
+        let mz = [one, row(6), row(7)];
         let au: [__m128; 3] = std::array::from_fn(|k| _mm_fmsub_ps(ox, mz[k], _mm_mul_ps(oz, mx[k])));
         let av: [__m128; 3] = std::array::from_fn(|k| _mm_fmsub_ps(oy, mz[k], _mm_mul_ps(oz, my[k])));
         let aw: [__m128; 3] = std::array::from_fn(|k| _mm_sub_ps(_mm_add_ps(au[k], av[k]), mz[k]));
@@ -2360,7 +2402,7 @@ mod avx {
         let mut bp = _mm256_setzero_ps();
         for lane in 0..4 {
             // Padding lanes come last and never hit.
-            if t4.prim[lane] == u32::MAX {
+            if t4.is_pad(lane) {
                 break;
             }
             if keep & (1 << lane) == 0 {
@@ -2379,7 +2421,7 @@ mod avx {
             bt = _mm256_blendv_ps(bt, t, take);
             bu = _mm256_blendv_ps(bu, _mm256_div_ps(uu, adz), take);
             bv = _mm256_blendv_ps(bv, _mm256_div_ps(vv, adz), take);
-            bp = _mm256_blendv_ps(bp, _mm256_castsi256_ps(_mm256_set1_epi32(t4.prim[lane] as i32)), take);
+            bp = _mm256_blendv_ps(bp, _mm256_castsi256_ps(_mm256_set1_epi32(t4.id(lane) as i32)), take);
             found = _mm256_or_ps(found, take);
         }
         if _mm256_movemask_ps(found) != 0 {
@@ -2491,7 +2533,7 @@ mod avx {
         let lim = ld(limit);
         let mut hit = _mm256_setzero_ps();
         for lane in 0..4 {
-            if t4.prim[lane] == u32::MAX {
+            if t4.is_pad(lane) {
                 break;
             }
             hit = _mm256_or_ps(hit, eval(t4, lane, p, g, lim, None).0);

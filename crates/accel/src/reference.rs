@@ -14,7 +14,7 @@ pub fn intersect_triangles(positions: &[Vec3], indices: &[[u32; 3]], ray: &Ray) 
         let Some(u) = UnitTriangle::new(positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]) else {
             continue;
         };
-        if let Some((t, u, v)) = unit_triangle_hit(&u.m, ray.org, ray.dir, ray.tmin, tmax) {
+        if let Some((t, u, v)) = unit_triangle_hit(&u, ray.org, ray.dir, ray.tmin, tmax) {
             tmax = t;
             best = Some(Hit { t, u, v, prim: i as u32, inst: INVALID });
         }
@@ -42,7 +42,7 @@ pub fn intersect_triangles_watertight(positions: &[Vec3], indices: &[[u32; 3]], 
 pub fn occluded_triangles(positions: &[Vec3], indices: &[[u32; 3]], ray: &Ray) -> bool {
     indices.iter().any(|t| {
         UnitTriangle::new(positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize])
-            .is_some_and(|u| unit_triangle_hit(&u.m, ray.org, ray.dir, ray.tmin, ray.tmax).is_some())
+            .is_some_and(|u| unit_triangle_hit(&u, ray.org, ray.dir, ray.tmin, ray.tmax).is_some())
     })
 }
 
