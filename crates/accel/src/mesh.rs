@@ -157,7 +157,7 @@ impl MeshBvh {
         // chunk at its place in the packed array. PERF: a sequential `retain` of the
         // references was 2 ms of Conference's 50 ms. The unit-triangle maps are made
         // later, leaf by leaf, from the vertices: made here in mesh order, they were
-        // copied into the leaves in tree order, a scattered read of 48 bytes per triangle
+        // copied into the leaves in tree order, a scattered read of 36 bytes per triangle
         // from an array larger than the cache (a tenth of the kitchen's build).
         let mut keep: Vec<bool> = Vec::with_capacity(n);
         let mut kept: Vec<usize> = Vec::new();
