@@ -1186,7 +1186,7 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
                 #[cfg(target_arch = "x86_64")]
                 if K::SIMD {
                     // SAFETY: as above.
-                    hit = unsafe { avx::tri4_any(t4, p, g, &limit) };
+                    hit = unsafe { avx::tri4_any(t4, p, g, &limit, &m[g]) };
                 }
                 if !K::SIMD {
                     for lane in 0..4 {
@@ -2529,17 +2529,25 @@ mod avx {
         (hit & !odd, st(_mm256_set_m128(t[1], t[0])), odd)
     }
 
-    /// The lanes of group `g` that hit any triangle of `t4` within `[tmin, limit)`.
+    /// The lanes of group `g` that hit any triangle of `t4` within `[tmin, limit)`; stops
+    /// once every lane of `active` is hit (PERF: shadow rays that start beside their
+    /// blocker, most of the kitchen's, are all blocked by a group's first triangle, and
+    /// the other three were tested for nothing).
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    pub(super) fn tri4_any(t4: &Tri4, p: &Packet, g: usize, limit: &F8) -> M8 {
+    pub(super) fn tri4_any(t4: &Tri4, p: &Packet, g: usize, limit: &F8, active: &M8) -> M8 {
         let lim = ld(limit);
+        let want = ldm(active);
         let mut hit = _mm256_setzero_ps();
         for lane in 0..4 {
             if t4.is_pad(lane) {
                 break;
             }
             hit = _mm256_or_ps(hit, eval(t4, lane, p, g, lim, None).0);
+            // All wanted lanes hit: `want & !hit` is empty.
+            if _mm256_testc_ps(hit, want) != 0 {
+                break;
+            }
         }
         stm(hit)
     }
