@@ -5,8 +5,7 @@ use crate::geom::{Aabb, Hit, Ray, INVALID};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::traverse::{self, Counters, Leaves, RayPre, TraversalStats};
 use crate::triangle::{
-    tri4_intersect_scalar, tri4_occluded_scalar, unit_map_possible, unit_maps4_soa, Tri4, UnitTriangle, WatertightRay, AXIS_SHIFT,
-    NEVER_HIT,
+    tri4_intersect_scalar, tri4_occluded_scalar, unit_map_possible, unit_maps4_soa, Tri4, UnitTriangle, WatertightRay, NEVER_HIT,
 };
 use crate::wide::{collapse, leaf_code, leaf_range, WideNode, EMPTY, LEAF};
 use glam::Vec3;
@@ -267,7 +266,7 @@ impl MeshBvh {
                         let (m, axes, _) = unit_maps4_soa(&v);
                         let mut t4 = Tri4 { m, prim: [u32::MAX; 4] };
                         for (lane, &id) in chunk.iter().enumerate() {
-                            t4.prim[lane] = id | axes[lane] << AXIS_SHIFT;
+                            t4.prim[lane] = Tri4::prim_of(id, axes[lane]);
                         }
                         for lane in chunk.len()..4 {
                             t4.pad(lane);

@@ -290,17 +290,27 @@ impl Tri4 {
     /// A group whose lanes never hit.
     pub const EMPTY: Self = {
         let mut m = [[0.0f32; 4]; 9];
-        m[2] = [NEVER_HIT.m[2]; 4];
-        m[5] = [NEVER_HIT.m[5]; 4];
+        let mut c = 0;
+        while c < 9 {
+            m[c] = [NEVER_HIT.m[c]; 4];
+            c += 1;
+        }
         Self { m, prim: [u32::MAX; 4] }
     };
+
+    /// A lane's `prim`: primitive `id` (below 2^30) with the map's `axis` above it.
+    #[inline(always)]
+    #[must_use]
+    pub const fn prim_of(id: u32, axis: u32) -> u32 {
+        id & ID_MASK | axis << AXIS_SHIFT
+    }
 
     /// Puts a map into a lane, for primitive `id` (below 2^30).
     pub fn set(&mut self, lane: usize, t: &UnitTriangle, id: u32) {
         for (c, v) in t.m.iter().enumerate() {
             self.m[c][lane] = *v;
         }
-        self.prim[lane] = id & ID_MASK | t.axis << AXIS_SHIFT;
+        self.prim[lane] = Self::prim_of(id, t.axis);
     }
 
     /// Makes a lane padding: never hit, no primitive.
