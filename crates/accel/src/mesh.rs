@@ -381,7 +381,7 @@ impl MeshBvh {
                 if code == EMPTY {
                     continue;
                 }
-                let b = if code & LEAF != 0 { leaf(code) } else { refit_node(nodes, code as usize, leaf) };
+                let b = if code & LEAF != 0 { leaf(code) } else { refit_node(nodes, WideNode::<W>::index_of(code), leaf) };
                 nodes[i].set(k, &b, code);
                 total = total.union(b);
             }
@@ -586,8 +586,9 @@ impl MeshBvh {
                         if (f + k) as usize > items {
                             return Err(format!("node {i}: leaf {f}+{k} beyond {items} items"));
                         }
-                    } else if c as usize >= nodes.len() || c as usize <= i {
-                        return Err(format!("node {i}: child {c} out of order"));
+                    } else if c % WideNode::<W>::STRIDE != 0 || WideNode::<W>::index_of(c) >= nodes.len() || WideNode::<W>::index_of(c) <= i
+                    {
+                        return Err(format!("node {i}: child code {c} not a node after it"));
                     }
                 }
             }
@@ -671,8 +672,8 @@ fn collapse_to(
     make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, BuildError>,
 ) -> Result<Nodes, BuildError> {
     Ok(match width {
-        Width::W4 => Nodes::W4(collapse::<4, _>(bin, make_leaf)?),
-        Width::W8 => Nodes::W8(collapse::<8, _>(bin, make_leaf)?),
+        Width::W4 => Nodes::W4(collapse::<4, _>(bin, make_leaf, || BuildError::TooLarge(bin.prims.len()))?),
+        Width::W8 => Nodes::W8(collapse::<8, _>(bin, make_leaf, || BuildError::TooLarge(bin.prims.len()))?),
     })
 }
 

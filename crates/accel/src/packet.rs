@@ -34,7 +34,7 @@ use crate::geom::{Hit, Ray, INVALID};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::traverse::{Counters, TraversalStats, STACK};
 use crate::triangle::Tri4;
-use crate::wide::{leaf_range, WideNode, EMPTY, LEAF};
+use crate::wide::{leaf_range, node_at, WideNode, EMPTY, LEAF};
 use glam::{Affine3A, Vec3};
 
 /// Most rays in one packet.
@@ -880,7 +880,8 @@ pub(crate) trait PacketLeaves {
     fn prefetch(&self, _first: u32) {}
 }
 
-/// A stack entry: a child code, where its box is (`node · 8 + slot`) and its entry bound.
+/// A stack entry: a child code, where its box is (its parent's code with the slot in the
+/// low three bits) and its entry bound.
 #[derive(Clone, Copy)]
 struct Entry {
     code: u32,
@@ -891,8 +892,9 @@ struct Entry {
 /// The masks of the lanes of `active` whose rays enter the box of slot `at`.
 #[inline(always)]
 fn leaf_masks<K: KernelSet>(nodes: &[WideNode<8>], at: u32, p: &Packet, iv: &Interval, h: &PacketHits, active: &Masks) -> (Masks, u32) {
-    // SAFETY: `at` was made from a valid node index and a slot < 8.
-    let node = unsafe { nodes.get_unchecked((at >> 3) as usize) };
+    // SAFETY: `at` is a valid inner code (a multiple of `WideNode::<8>::STRIDE`, which is
+    // at least 8) with a slot < 8 in its low bits.
+    let node = unsafe { node_at(nodes, at & !7) };
     let slot = (at & 7) as usize;
     let rows: [f32; 6] = std::array::from_fn(|r| node.bounds[r][slot]);
     let mut m = [M8::NONE; GROUPS];
@@ -973,11 +975,12 @@ fn traverse<const ANY: bool, K: KernelSet, L: PacketLeaves, C: Counters>(
     let mut dist = [0f32; 8];
     loop {
         if cur.code & LEAF == 0 {
-            // SAFETY: node indices come from the builder and are in range.
-            let node = unsafe { nodes.get_unchecked(cur.code as usize) };
+            // SAFETY: inner codes come from the collapse and address nodes of `nodes`.
+            let node = unsafe { node_at(nodes, cur.code) };
             let mut mask = node_test::<K>(node, iv, tmax, &mut dist);
             c.node();
-            let (base, at0) = (sp, cur.code << 3);
+            // An inner code is a multiple of 32: the slot fits in its low bits.
+            let (base, at0) = (sp, cur.code);
             while mask != 0 {
                 let k = mask.trailing_zeros() as usize;
                 mask &= mask - 1;

@@ -11,7 +11,7 @@
 
 use crate::build::MAX_DEPTH;
 use crate::geom::{Hit, Ray};
-use crate::wide::{leaf_range, WideNode, EMPTY, LEAF};
+use crate::wide::{leaf_range, node_at, WideNode, EMPTY, LEAF};
 use glam::Vec3;
 
 /// Far-distance scale for a conservative box test.
@@ -267,10 +267,11 @@ pub(crate) fn prefetch<T>(x: &T) {
     let _ = x;
 }
 
-/// Asks for the cache lines of node `i` (a hint; no effect off x86-64).
+/// Asks for the cache lines of the node with inner child code `code` (a hint; no effect
+/// off x86-64).
 #[inline(always)]
-pub(crate) fn prefetch_node<const W: usize>(nodes: &[WideNode<W>], i: u32) {
-    if let Some(n) = nodes.get(i as usize) {
+pub(crate) fn prefetch_node<const W: usize>(nodes: &[WideNode<W>], code: u32) {
+    if let Some(n) = nodes.get(WideNode::<W>::index_of(code)) {
         prefetch(n);
     }
 }
@@ -389,9 +390,9 @@ pub(crate) unsafe fn intersect<const W: usize, B: BoxTest<W>, L: Leaves, C: Coun
     let mut dist = [0f32; W];
     loop {
         if cur & LEAF == 0 {
-            // SAFETY: node indices come from the builder and are in range (checked by
-            // `validate` in tests); the caller guarantees B's CPU features.
-            let node = unsafe { nodes.get_unchecked(cur as usize) };
+            // SAFETY: inner codes come from the collapse and address nodes of `nodes`
+            // (checked by `validate` in tests); the caller guarantees B's CPU features.
+            let node = unsafe { node_at(nodes, cur) };
             let mask = unsafe { B::test(node, r, hit.t, &mut dist) };
             c.node();
             if mask != 0 {
@@ -443,7 +444,7 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves, C: Count
     loop {
         if cur & LEAF == 0 {
             // SAFETY: as in `intersect`.
-            let node = unsafe { nodes.get_unchecked(cur as usize) };
+            let node = unsafe { node_at(nodes, cur) };
             let mask = unsafe { B::test(node, r, tmax, &mut dist) };
             c.node();
             if mask != 0 {

@@ -607,7 +607,7 @@ fn clustered_top_level_gives_every_instance_its_own_slot() {
         let mut seen = vec![0u32; n];
         let mut stack = vec![(0u32, Aabb { min: Vec3::splat(f32::NEG_INFINITY), max: Vec3::splat(f32::INFINITY) })];
         while let Some((i, outer)) = stack.pop() {
-            let node = &nodes[i as usize];
+            let node = &nodes[WideNode::<8>::index_of(i)];
             for k in 0..8 {
                 let c = node.child[k];
                 if c == EMPTY {
