@@ -586,9 +586,11 @@ impl MeshBvh {
                         if (f + k) as usize > items {
                             return Err(format!("node {i}: leaf {f}+{k} beyond {items} items"));
                         }
-                    } else if c % WideNode::<W>::STRIDE != 0 || WideNode::<W>::index_of(c) >= nodes.len() || WideNode::<W>::index_of(c) <= i
-                    {
-                        return Err(format!("node {i}: child code {c} not a node after it"));
+                    } else {
+                        let j = WideNode::<W>::index_of(c);
+                        if c % WideNode::<W>::STRIDE != 0 || j >= nodes.len() || j <= i {
+                            return Err(format!("node {i}: child code {c} not a node after it"));
+                        }
                     }
                 }
             }
@@ -671,9 +673,10 @@ fn collapse_to(
     bin: &crate::build::BinaryBvh,
     make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, BuildError>,
 ) -> Result<Nodes, BuildError> {
+    let too_many = || BuildError::TooLarge(bin.prims.len());
     Ok(match width {
-        Width::W4 => Nodes::W4(collapse::<4, _>(bin, make_leaf, || BuildError::TooLarge(bin.prims.len()))?),
-        Width::W8 => Nodes::W8(collapse::<8, _>(bin, make_leaf, || BuildError::TooLarge(bin.prims.len()))?),
+        Width::W4 => Nodes::W4(collapse::<4, _>(bin, make_leaf, too_many)?),
+        Width::W8 => Nodes::W8(collapse::<8, _>(bin, make_leaf, too_many)?),
     })
 }
 

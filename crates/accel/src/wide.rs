@@ -336,7 +336,8 @@ mod tests {
     use glam::Vec3;
 
     /// Every inner code of both collapses is a multiple of the stride whose node, found by
-    /// address (`node_at`), is the node at its index; the root comes first.
+    /// address (`node_at`), is the node at its index, and none points at the root (index
+    /// 0). Returns how many inner codes were checked.
     fn check_codes<const W: usize>(nodes: &[WideNode<W>]) -> usize {
         let mut inner = 0;
         for n in nodes {
