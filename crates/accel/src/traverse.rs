@@ -62,9 +62,10 @@ impl RayPre {
         let dir = Vec3::new(f(&r.dir.x), f(&r.dir.y), f(&r.dir.z));
         let tmin = f(&r.tmin);
         // One SIMD division instead of three dependent scalar ones. A zero component would
-        // make 1/d infinite and o·(1/d) ∞ or NaN, and the NaN-ignoring min/max would then
+        // make 1/d infinite and o·(1/d) ∞ or NaN, and NaN slab distances would then either
         // drop that axis from the slab test (a ray along an axis would visit the whole
-        // tree). As Embree's `rcp_safe`, keep |d| ≥ 1e-18 for the box test.
+        // tree) or, under the integer max/min of the box tests, drop boxes the ray enters.
+        // As Embree's `rcp_safe`, keep |d| ≥ 1e-18 for the box test.
         let d = glam::Vec3A::from(dir);
         let tiny = glam::Vec3A::splat(1e-18);
         let d = glam::Vec3A::select(d.abs().cmplt(tiny), tiny.copysign(d), d);
