@@ -110,3 +110,14 @@ impl KernelSet for SimdSet {
     type B8 = crate::traverse::Avx2Box;
     const SIMD: bool = true;
 }
+
+/// The SIMD kernels with the AVX-512VL 8-wide box test (run only where AVX-512F/VL were
+/// detected).
+#[cfg(target_arch = "x86_64")]
+pub(crate) struct Avx512Set;
+#[cfg(target_arch = "x86_64")]
+impl KernelSet for Avx512Set {
+    type B4 = crate::traverse::SseBox;
+    type B8 = crate::traverse::Avx512Box;
+    const SIMD: bool = true;
+}

@@ -700,14 +700,14 @@ fn simd_occluded(b: &MeshBvh, ray: &Ray) -> bool {
 #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
 fn avx512_intersect(b: &MeshBvh, ray: &Ray) -> Option<Hit> {
     let mut hit = Hit::none(ray.tmax);
-    b.intersect_k::<crate::kernel::SimdSet, ()>(&RayPre::new(ray), &mut hit, &mut ());
+    b.intersect_k::<crate::kernel::Avx512Set, ()>(&RayPre::new(ray), &mut hit, &mut ());
     hit.is_hit().then_some(hit)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
 fn avx512_occluded(b: &MeshBvh, ray: &Ray) -> bool {
-    b.occluded_k::<crate::kernel::SimdSet, ()>(&RayPre::new(ray), ray.tmax, &mut ())
+    b.occluded_k::<crate::kernel::Avx512Set, ()>(&RayPre::new(ray), ray.tmax, &mut ())
 }
 
 /// The four-triangle test of the SIMD kernel sets (which run only where AVX2 and FMA

@@ -407,14 +407,14 @@ fn simd_occluded(t: &TwoLevel, ray: &Ray) -> bool {
 #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
 fn avx512_intersect(t: &TwoLevel, ray: &Ray) -> Option<Hit> {
     let mut hit = Hit::none(ray.tmax);
-    t.intersect_k::<crate::kernel::SimdSet>(&RayPre::new(ray), &mut hit);
+    t.intersect_k::<crate::kernel::Avx512Set>(&RayPre::new(ray), &mut hit);
     hit.is_hit().then_some(hit)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
 fn avx512_occluded(t: &TwoLevel, ray: &Ray) -> bool {
-    t.occluded_k::<crate::kernel::SimdSet>(&RayPre::new(ray), ray.tmax)
+    t.occluded_k::<crate::kernel::Avx512Set>(&RayPre::new(ray), ray.tmax)
 }
 
 pub(crate) struct InstLeaves<'a, K> {

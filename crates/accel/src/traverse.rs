@@ -111,6 +111,31 @@ pub(crate) trait BoxTest<const W: usize> {
     /// # Safety
     /// The CPU must support the instructions of the implementation.
     unsafe fn test(node: &WideNode<W>, r: &RayPre, tmax: f32, dist: &mut [f32; W]) -> u32;
+
+    /// [`Self::test`], with the codes and entry distances of the first two hit children
+    /// in slot order (any values where fewer are hit).
+    ///
+    /// # Safety
+    /// As [`Self::test`].
+    #[inline(always)]
+    unsafe fn test_hits(node: &WideNode<W>, r: &RayPre, tmax: f32, dist: &mut [f32; W]) -> Hits {
+        // SAFETY: forwarded.
+        let mask = unsafe { Self::test(node, r, tmax, dist) };
+        let i = mask.trailing_zeros() as usize % W;
+        let j = (mask & mask.wrapping_sub(1)).trailing_zeros() as usize % W;
+        Hits { mask, code: [node.child[i], node.child[j]], dist: [dist[i], dist[j]] }
+    }
+}
+
+/// A node's box test result: the hit mask and the first two hit children.
+#[derive(Clone, Copy)]
+pub(crate) struct Hits {
+    /// Bit `i` set when child `i` is hit.
+    pub mask: u32,
+    /// Codes of the lowest two hit slots.
+    pub code: [u32; 2],
+    /// Their entry distances.
+    pub dist: [f32; 2],
 }
 
 /// Portable box test; identical answers to the SIMD ones.
@@ -136,13 +161,42 @@ impl<const W: usize> BoxTest<W> for ScalarBox {
 }
 
 #[cfg(target_arch = "x86_64")]
-pub(crate) use simd::{Avx2Box, SseBox};
+pub(crate) use simd::{Avx2Box, Avx512Box, SseBox};
 
 #[cfg(target_arch = "x86_64")]
 mod simd {
-    use super::{BoxTest, RayPre, FAR_SCALE};
+    use super::{BoxTest, Hits, RayPre, FAR_SCALE};
     use crate::wide::WideNode;
     use std::arch::x86_64::*;
+
+    /// The slab arithmetic of the 8-wide tests: the entry distances (also stored to `dist`)
+    /// and the widened far limits of the eight children.
+    ///
+    /// # Safety
+    /// Only for functions with AVX2 and FMA enabled (it inlines into them).
+    #[inline(always)]
+    unsafe fn slabs8(node: &WideNode<8>, r: &RayPre, tmax: f32, dist: &mut [f32; 8]) -> (__m256, __m256) {
+        // SAFETY: `WideNode<8>` is 32-byte aligned and each bounds row is 32 bytes at a
+        // multiple of 32, so the aligned loads are valid; the offsets are 32 × a row index
+        // below 6 (RayPre::new), so every row read lies inside `bounds`; the caller has
+        // AVX2 and FMA enabled.
+        unsafe {
+            let base = node.bounds.as_ptr().cast::<u8>();
+            let row = |off: u32| _mm256_load_ps(base.add(off as usize).cast::<f32>());
+            let a: [__m256; 3] =
+                std::array::from_fn(|k| _mm256_fmsub_ps(row(r.off8[k]), _mm256_set1_ps(r.inv[k]), _mm256_set1_ps(r.oinv[k])));
+            let b: [__m256; 3] =
+                std::array::from_fn(|k| _mm256_fmsub_ps(row(r.off8[k + 3]), _mm256_set1_ps(r.inv[k]), _mm256_set1_ps(r.oinv[k])));
+            let imax = |x: __m256, y: __m256| _mm256_castsi256_ps(_mm256_max_epi32(_mm256_castps_si256(x), _mm256_castps_si256(y)));
+            let imin = |x: __m256, y: __m256| _mm256_castsi256_ps(_mm256_min_epi32(_mm256_castps_si256(x), _mm256_castps_si256(y)));
+            let tn = imax(imax(a[0], a[1]), imax(a[2], _mm256_set1_ps(r.tmin)));
+            let tf = imin(imin(b[0], b[1]), imin(b[2], _mm256_set1_ps(tmax)));
+            let slack = _mm256_set1_ps(r.slack);
+            let tn = _mm256_sub_ps(tn, slack);
+            _mm256_storeu_ps(dist.as_mut_ptr(), tn);
+            (tn, _mm256_fmadd_ps(tf, _mm256_set1_ps(FAR_SCALE), slack))
+        }
+    }
 
     /// 8-wide AVX2 box test.
     pub(crate) struct Avx2Box;
@@ -151,26 +205,49 @@ mod simd {
         #[inline]
         #[target_feature(enable = "avx2,fma")]
         unsafe fn test(node: &WideNode<8>, r: &RayPre, tmax: f32, dist: &mut [f32; 8]) -> u32 {
-            // SAFETY: `WideNode<8>` is 32-byte aligned and each bounds row is 32 bytes at a
-            // multiple of 32, so the aligned loads are valid; the offsets are 32 × a row
-            // index below 6 (RayPre::new), so every row read lies inside `bounds`; AVX2 and
-            // FMA are enabled here.
-            unsafe {
-                let base = node.bounds.as_ptr().cast::<u8>();
-                let row = |off: u32| _mm256_load_ps(base.add(off as usize).cast::<f32>());
-                let a: [__m256; 3] =
-                    std::array::from_fn(|k| _mm256_fmsub_ps(row(r.off8[k]), _mm256_set1_ps(r.inv[k]), _mm256_set1_ps(r.oinv[k])));
-                let b: [__m256; 3] =
-                    std::array::from_fn(|k| _mm256_fmsub_ps(row(r.off8[k + 3]), _mm256_set1_ps(r.inv[k]), _mm256_set1_ps(r.oinv[k])));
-                let imax = |x: __m256, y: __m256| _mm256_castsi256_ps(_mm256_max_epi32(_mm256_castps_si256(x), _mm256_castps_si256(y)));
-                let imin = |x: __m256, y: __m256| _mm256_castsi256_ps(_mm256_min_epi32(_mm256_castps_si256(x), _mm256_castps_si256(y)));
-                let tn = imax(imax(a[0], a[1]), imax(a[2], _mm256_set1_ps(r.tmin)));
-                let tf = imin(imin(b[0], b[1]), imin(b[2], _mm256_set1_ps(tmax)));
-                let slack = _mm256_set1_ps(r.slack);
-                let tn = _mm256_sub_ps(tn, slack);
-                _mm256_storeu_ps(dist.as_mut_ptr(), tn);
-                let far = _mm256_fmadd_ps(tf, _mm256_set1_ps(FAR_SCALE), slack);
-                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tn, far)) as u32
+            // SAFETY: AVX2 and FMA are enabled here.
+            let (tn, far) = unsafe { slabs8(node, r, tmax, dist) };
+            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tn, far)) as u32
+        }
+    }
+
+    /// 8-wide box test for the AVX-512VL kernels: [`Avx2Box`]'s arithmetic with the mask in
+    /// a mask register, from which the first two hit children's codes and distances are
+    /// compressed out of the node's code row and the distances (after Embree's AVX-512
+    /// walk, which orders children by compressed keys). PERF: one or two hit children (most
+    /// nodes) are then known without the movemask, bit scans and loads that followed the
+    /// mask on the way to the next node: single rays 2-4% faster than with `Avx2Box`.
+    pub(crate) struct Avx512Box;
+
+    impl Avx512Box {
+        #[inline]
+        #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+        fn eval(node: &WideNode<8>, r: &RayPre, tmax: f32, dist: &mut [f32; 8]) -> (__mmask8, __m256) {
+            // SAFETY: AVX2 and FMA are enabled here.
+            let (tn, far) = unsafe { slabs8(node, r, tmax, dist) };
+            (_mm256_cmp_ps_mask::<_CMP_LE_OQ>(tn, far), tn)
+        }
+    }
+
+    impl BoxTest<8> for Avx512Box {
+        #[inline]
+        #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+        unsafe fn test(node: &WideNode<8>, r: &RayPre, tmax: f32, dist: &mut [f32; 8]) -> u32 {
+            u32::from(Self::eval(node, r, tmax, dist).0)
+        }
+
+        #[inline]
+        #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+        unsafe fn test_hits(node: &WideNode<8>, r: &RayPre, tmax: f32, dist: &mut [f32; 8]) -> Hits {
+            let (k, tn) = Self::eval(node, r, tmax, dist);
+            // SAFETY: the code row is 32 bytes at offset 192 of a 64-byte aligned node.
+            let codes = unsafe { _mm256_load_si256(node.child.as_ptr().cast::<__m256i>()) };
+            let c = _mm256_castsi256_si128(_mm256_maskz_compress_epi32(k, codes));
+            let d = _mm256_castps256_ps128(_mm256_maskz_compress_ps(k, tn));
+            Hits {
+                mask: u32::from(k),
+                code: [_mm_cvtsi128_si32(c) as u32, _mm_extract_epi32::<1>(c) as u32],
+                dist: [_mm_cvtss_f32(d), _mm_cvtss_f32(_mm_movehdup_ps(d))],
             }
         }
     }
@@ -272,7 +349,9 @@ pub(crate) fn prefetch_node<const W: usize>(nodes: &[WideNode<W>], code: u32) {
     }
 }
 
-/// The child to visit next among the hit children `mask` of `node` (the nearest). The
+/// The child to visit next among the hit children `hits.mask` of `node` (the nearest);
+/// one or two hit children are taken from `hits` (the box test's), more from `dist` and
+/// the node. The
 /// closest-hit walk (`LATER_ON_TIE` false) pushes the others farthest first, so they pop
 /// nearest first; the any-hit walk (`LATER_ON_TIE` true) pushes them in slot order and
 /// without their distances (PERF: single shadow rays 2-4% faster than sorted, kitchen
@@ -285,21 +364,21 @@ pub(crate) fn prefetch_node<const W: usize>(nodes: &[WideNode<W>], code: u32) {
 fn visit_children<const W: usize, const LATER_ON_TIE: bool>(
     nodes: &[WideNode<W>],
     node: &WideNode<W>,
-    mut mask: u32,
     dist: &[f32; W],
+    hits: &Hits,
     st_code: &mut [std::mem::MaybeUninit<u32>; STACK],
     st_t: &mut [std::mem::MaybeUninit<f32>; STACK],
     sp: &mut usize,
 ) -> u32 {
+    let mut mask = hits.mask;
     let i = mask.trailing_zeros() as usize;
     mask &= mask - 1;
     if mask == 0 {
-        return node.child[i];
+        return hits.code[0];
     }
-    let j = mask.trailing_zeros() as usize;
     if mask & (mask - 1) == 0 {
         // PERF: exactly two (the common case): go to the nearer, push the farther.
-        let (ci, cj, di, dj) = (node.child[i], node.child[j], dist[i], dist[j]);
+        let ([ci, cj], [di, dj]) = (hits.code, hits.dist);
         let near_first = if LATER_ON_TIE { di < dj } else { di <= dj };
         let (cn, cf, df) = if near_first { (ci, cj, dj) } else { (cj, ci, di) };
         // Start loading the farther node: it is likely visited later.
@@ -389,10 +468,10 @@ pub(crate) unsafe fn intersect<const W: usize, B: BoxTest<W>, L: Leaves, C: Coun
             // SAFETY: inner codes come from the collapse and address nodes of `nodes`
             // (checked by `validate` in tests); the caller guarantees B's CPU features.
             let node = unsafe { node_at(nodes, cur) };
-            let mask = unsafe { B::test(node, r, hit.t, &mut dist) };
+            let hits = unsafe { B::test_hits(node, r, hit.t, &mut dist) };
             c.node();
-            if mask != 0 {
-                cur = visit_children::<W, false>(nodes, node, mask, &dist, &mut st_code, &mut st_t, &mut sp);
+            if hits.mask != 0 {
+                cur = visit_children::<W, false>(nodes, node, &dist, &hits, &mut st_code, &mut st_t, &mut sp);
                 continue;
             }
         } else if cur != EMPTY {
@@ -441,11 +520,11 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves, C: Count
         if cur & LEAF == 0 {
             // SAFETY: as in `intersect`.
             let node = unsafe { node_at(nodes, cur) };
-            let mask = unsafe { B::test(node, r, tmax, &mut dist) };
+            let hits = unsafe { B::test_hits(node, r, tmax, &mut dist) };
             c.node();
-            if mask != 0 {
+            if hits.mask != 0 {
                 // Nearest child first: an occluder near the ray's start ends the query soonest.
-                cur = visit_children::<W, true>(nodes, node, mask, &dist, &mut st_code, &mut st_t, &mut sp);
+                cur = visit_children::<W, true>(nodes, node, &dist, &hits, &mut st_code, &mut st_t, &mut sp);
                 continue;
             }
         } else if cur != EMPTY {
@@ -466,7 +545,66 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves, C: Count
 
 #[cfg(test)]
 mod tests {
-    use super::{imax, imin};
+    use super::{imax, imin, BoxTest, Hits, RayPre, ScalarBox};
+    use crate::geom::{Aabb, Ray};
+    use crate::wide::WideNode;
+    use glam::Vec3;
+    use rand::{Rng, SeedableRng};
+
+    /// Every SIMD 8-wide box test gives the scalar test's hit mask, entry distances and
+    /// first two hit children (codes and distances) on seeded random nodes (some slots
+    /// empty, some boxes around the origin) and rays, with random far limits.
+    #[test]
+    fn simd_box_tests_match_scalar() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let mut tested = [0usize; 3];
+        for _ in 0..20_000 {
+            let mut node = WideNode::<8>::EMPTY;
+            for i in 0..8 {
+                if rng.random_bool(0.15) {
+                    continue;
+                }
+                let c = Vec3::new(rng.random_range(-4.0..4.0), rng.random_range(-4.0..4.0), rng.random_range(-4.0..4.0));
+                let h = Vec3::new(rng.random_range(0.0..3.0), rng.random_range(0.0..3.0), rng.random_range(0.0..3.0));
+                node.set(i, &Aabb { min: c - h, max: c + h }, rng.random_range(0..1u32 << 20) * 32);
+            }
+            let dir = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+            let ray = Ray::new(Vec3::ZERO, if dir.length() > 1e-3 { dir } else { Vec3::X });
+            let pre = RayPre::new(&ray);
+            let tmax = if rng.random_bool(0.5) { f32::INFINITY } else { rng.random_range(0.0..6.0) };
+            let mut want_d = [0f32; 8];
+            // SAFETY: the scalar test runs anywhere.
+            let want = unsafe { ScalarBox::test_hits(&node, &pre, tmax, &mut want_d) };
+            let check = |name: &str, got: Hits, got_d: [f32; 8]| {
+                assert_eq!(got.mask, want.mask, "{name}: mask");
+                for i in 0..8 {
+                    if want.mask >> i & 1 == 1 {
+                        assert_eq!(got_d[i].to_bits(), want_d[i].to_bits(), "{name}: distance of slot {i}");
+                    }
+                }
+                for h in 0..(want.mask.count_ones() as usize).min(2) {
+                    assert_eq!(got.code[h], want.code[h], "{name}: code of hit {h}");
+                    assert_eq!(got.dist[h].to_bits(), want.dist[h].to_bits(), "{name}: distance of hit {h}");
+                }
+            };
+            tested[(want.mask.count_ones() as usize).min(2)] += 1;
+            #[cfg(target_arch = "x86_64")]
+            if crate::Kernel::simd_available() {
+                let mut d = [0f32; 8];
+                // SAFETY: AVX2 and FMA were detected.
+                let got = unsafe { super::Avx2Box::test_hits(&node, &pre, tmax, &mut d) };
+                check("avx2", got, d);
+            }
+            #[cfg(target_arch = "x86_64")]
+            if crate::Kernel::avx512_available() {
+                let mut d = [0f32; 8];
+                // SAFETY: AVX-512F/VL (and AVX2, FMA) were detected.
+                let got = unsafe { super::Avx512Box::test_hits(&node, &pre, tmax, &mut d) };
+                check("avx512", got, d);
+            }
+        }
+        assert!(tested.iter().all(|&n| n > 1000), "nodes with no, one and several hits: {tested:?}");
+    }
 
     /// Integer max/min on float bits: exact where the box test needs it (a non-negative
     /// operand for the max, none negative for the min), and never tighter than the float
