@@ -70,7 +70,10 @@ impl RayPre {
         let tiny = glam::Vec3A::splat(1e-18);
         let d = glam::Vec3A::select(d.abs().cmplt(tiny), tiny.copysign(d), d);
         let inv: Vec3 = (glam::Vec3A::ONE / d).into();
-        let neg = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
+        // The sign of each reciprocal is the sign bit of its component (the clamp above
+        // keeps it, −0.0 included). PERF: read from the direction, so the rows the box tests
+        // load are known (and the root's loads issued) before the division finishes.
+        let neg = [dir.x.is_sign_negative(), dir.y.is_sign_negative(), dir.z.is_sign_negative()];
         let near: [usize; 3] = std::array::from_fn(|k| k + 3 * neg[k] as usize);
         let far: [usize; 3] = std::array::from_fn(|k| k + 3 * (!neg[k]) as usize);
         let off8 = [near[0], near[1], near[2], far[0], far[1], far[2]].map(|r| r as u32 * 32);
