@@ -9,8 +9,10 @@ pub enum Kernel {
     Scalar,
     /// SSE/AVX2/FMA code; chosen only when the CPU has AVX2 and FMA.
     Simd,
-    /// The same kernels compiled for AVX-512VL (32 vector registers: no spills); same
-    /// answers as `Simd`. Chosen only when the CPU has AVX-512F and AVX-512VL.
+    /// The same kernels compiled for AVX-512VL (32 vector registers: no spills), with the
+    /// single-ray walks' 8-wide box test taking its first two hit children from a mask
+    /// register (`Avx512Set`); same answers as `Simd`. Chosen only when the CPU has
+    /// AVX-512F and AVX-512VL.
     Avx512,
 }
 

@@ -354,9 +354,8 @@ pub(crate) fn prefetch_node<const W: usize>(nodes: &[WideNode<W>], code: u32) {
 
 /// The child to visit next among the hit children `hits.mask` of `node` (the nearest);
 /// one or two hit children are taken from `hits` (the box test's), more from `dist` and
-/// the node. The
-/// closest-hit walk (`LATER_ON_TIE` false) pushes the others farthest first, so they pop
-/// nearest first; the any-hit walk (`LATER_ON_TIE` true) pushes them in slot order and
+/// the node. The closest-hit walk (`LATER_ON_TIE` false) pushes the others farthest
+/// first, so they pop nearest first; the any-hit walk (`LATER_ON_TIE` true) pushes them in slot order and
 /// without their distances (PERF: single shadow rays 2-4% faster than sorted, kitchen
 /// unchanged). Of two children at the same distance (a ray starting inside both boxes),
 /// the insertion sort visits the later slot first; `LATER_ON_TIE` makes the two-child
