@@ -10,6 +10,10 @@
 use crate::geom::Aabb;
 use glam::{Vec3, Vec4};
 
+mod spatial;
+pub use spatial::ALPHA;
+pub(crate) use spatial::{Clipper, NoClip, TriangleClip};
+
 /// Number of bins per axis.
 pub const BINS: usize = 32;
 /// Subtrees with more primitives than this are built as separate rayon tasks.
@@ -41,11 +45,15 @@ pub struct BuildConfig {
     /// binary structure mostly disappears when the tree is collapsed, and binning these
     /// many small nodes was a large part of the build.
     pub median_max: usize,
+    /// Spatial splits (Stich et al. 2009, see `spatial`) may add at most this many
+    /// references, as a share of the primitives (0: none). Only builds given a clipper
+    /// that can split their primitives use it.
+    pub spatial: f32,
 }
 
 impl Default for BuildConfig {
     fn default() -> Self {
-        Self { max_leaf: 8, leaf_block: 4, cost_traverse: 1.0, median_max: 0 }
+        Self { max_leaf: 8, leaf_block: 4, cost_traverse: 1.0, median_max: 0, spatial: 0.0 }
     }
 }
 
@@ -94,11 +102,29 @@ impl PrimRef {
     fn centroid2(&self) -> Vec4 {
         self.lo + self.hi
     }
+    #[inline(always)]
+    fn box4(&self) -> Box4 {
+        Box4 { lo: self.lo, hi: self.hi }
+    }
+    /// A reference to `id` with box `b` (its xyz lanes), marked with `side` (a spatial
+    /// partition's mark in the w lane of `hi`, which is otherwise unused: any normal float).
+    #[inline(always)]
+    fn with_box(b: &Box4, id: u32, side: f32) -> Self {
+        Self { lo: b.lo.truncate().extend(f32::from_bits(id + ID_BIAS)), hi: b.hi.truncate().extend(side) }
+    }
+    #[inline(always)]
+    fn set_side(&mut self, side: f32) {
+        self.hi.w = side;
+    }
+    #[inline(always)]
+    fn side(&self) -> f32 {
+        self.hi.w
+    }
 }
 
 /// A box in SIMD form for the builder's hot loops.
 #[derive(Clone, Copy, Debug)]
-struct Box4 {
+pub(crate) struct Box4 {
     lo: Vec4,
     hi: Vec4,
 }
@@ -129,6 +155,20 @@ impl Box4 {
     }
     fn aabb(&self) -> Aabb {
         Aabb { min: self.lo.truncate(), max: self.hi.truncate() }
+    }
+    /// True when `lo > hi` (or NaN) on some axis.
+    #[inline(always)]
+    fn is_empty(&self) -> bool {
+        !(self.lo.x <= self.hi.x && self.lo.y <= self.hi.y && self.lo.z <= self.hi.z)
+    }
+    /// Half the surface area of the intersection with `o` (0 when they do not meet).
+    fn overlap_area(&self, o: &Self) -> f32 {
+        let b = Self { lo: self.lo.max(o.lo), hi: self.hi.min(o.hi) };
+        if b.is_empty() {
+            0.0
+        } else {
+            b.half_area()
+        }
     }
 }
 
@@ -196,8 +236,9 @@ impl BinaryBvh {
         parts.iter().sum::<f64>() as f32
     }
 
-    /// Checks the tree's invariants: children inside parents, every primitive in exactly
-    /// one leaf, leaf sizes within bounds. Returns a description of the first violation.
+    /// Checks the tree's invariants: children inside parents, every primitive slot in
+    /// exactly one leaf (at most one with `cfg.spatial`, whose spare room may stay unused),
+    /// leaf sizes within bounds. Returns a description of the first violation.
     pub fn validate(&self, cfg: &BuildConfig) -> Result<(), String> {
         if self.nodes.is_empty() {
             return if self.prims.is_empty() { Ok(()) } else { Err("primitives but no nodes".into()) };
@@ -230,7 +271,9 @@ impl BinaryBvh {
                 }
             }
         }
-        if let Some(p) = seen.iter().position(|&s| s != 1) {
+        // With spatial splits, slots of unused spare room are in no leaf.
+        let gaps_allowed = cfg.spatial > 0.0;
+        if let Some(p) = seen.iter().position(|&s| s > 1 || s == 0 && !gaps_allowed) {
             return Err(format!("prim slot {p} is in {} leaves", seen[p]));
         }
         Ok(())
@@ -245,14 +288,37 @@ fn blocks(n: usize, block: usize) -> usize {
 /// Builds the binary BVH over `prims` (any order; primitives with non-finite or empty
 /// boxes must already be left out by the caller).
 #[must_use]
-pub fn build_binary(mut prims: Vec<PrimRef>, cfg: &BuildConfig) -> BinaryBvh {
+pub fn build_binary(prims: Vec<PrimRef>, cfg: &BuildConfig) -> BinaryBvh {
+    build_binary_with(prims, cfg, &NoClip)
+}
+
+/// [`build_binary`] with spatial splits of up to `cfg.spatial` extra references, made by
+/// `clip` (none with [`NoClip`]). A primitive may then be in several leaves, each with the
+/// box of its part there, and [`BinaryBvh::prims`] may hold gaps that no leaf covers.
+pub(crate) fn build_binary_with<C: Clipper>(mut prims: Vec<PrimRef>, cfg: &BuildConfig, clip: &C) -> BinaryBvh {
     if prims.is_empty() {
         return BinaryBvh::default();
     }
+    let n = prims.len();
     let (bounds, cbounds) = bounds_of(&prims);
-    let mut nodes = Vec::with_capacity(prims.len() / 2 + 1);
-    build_rec(cfg, &mut prims, 0, bounds, cbounds, 0, &mut nodes);
+    let spare = if C::ON && cfg.spatial > 0.0 { (n as f64 * f64::from(cfg.spatial)) as usize } else { 0 };
+    if spare > 0 {
+        // Spare room for the split references; what stays unused keeps these copies.
+        prims.resize(n + spare, prims[0]);
+    }
+    let ctx = Ctx { cfg, clip, min_overlap: spatial::ALPHA * bounds.half_area() };
+    let mut nodes = Vec::with_capacity(n / 2 + 1);
+    build_rec(&ctx, &mut prims, n, 0, bounds, cbounds, 0, &mut nodes);
     BinaryBvh { nodes, prims }
+}
+
+/// What every node of a build shares.
+struct Ctx<'a, C> {
+    cfg: &'a BuildConfig,
+    clip: &'a C,
+    /// Spatial splits are searched where the object split's sides overlap by more (α times
+    /// the root's half area).
+    min_overlap: f32,
 }
 
 fn bounds_of(prims: &[PrimRef]) -> (Box4, Box4) {
@@ -385,22 +451,26 @@ struct Split {
     axis: usize,
     bin: usize,
     cost: f32,
+    /// The sides' boxes.
+    left: Box4,
+    right: Box4,
 }
 
 /// Best SAH split of `prims` (bins: fewer for small nodes, where the sweep would dominate).
 /// PERF: nodes of 5 to 15 primitives took 60 cycles per primitive with 8 bins, most of it
 /// the fixed cost of the bins and the sweep; with 4 they take 36, for a tree within 0.2%
 /// of the same SAH cost and 0.2–0.4% more triangle groups.
-fn find_split(prims: &[PrimRef], cb: &Box4, cfg: &BuildConfig) -> (Option<Split>, Binner) {
+/// The sides' boxes are filled in only when `sides` is set (else empty).
+fn find_split(prims: &[PrimRef], cb: &Box4, cfg: &BuildConfig, sides: bool) -> (Option<Split>, Binner) {
     match prims.len() {
-        0..16 => find_split_n::<4>(prims, cb, cfg),
-        16..64 => find_split_n::<8>(prims, cb, cfg),
-        64..1024 => find_split_n::<16>(prims, cb, cfg),
-        _ => find_split_n::<BINS>(prims, cb, cfg),
+        0..16 => find_split_n::<4>(prims, cb, cfg, sides),
+        16..64 => find_split_n::<8>(prims, cb, cfg, sides),
+        64..1024 => find_split_n::<16>(prims, cb, cfg, sides),
+        _ => find_split_n::<BINS>(prims, cb, cfg, sides),
     }
 }
 
-fn find_split_n<const N: usize>(prims: &[PrimRef], cb: &Box4, cfg: &BuildConfig) -> (Option<Split>, Binner) {
+fn find_split_n<const N: usize>(prims: &[PrimRef], cb: &Box4, cfg: &BuildConfig, sides: bool) -> (Option<Split>, Binner) {
     let binner = Binner::new(cb, N);
     let bins = if prims.len() > PARALLEL_BIN_MIN {
         use rayon::prelude::*;
@@ -439,7 +509,11 @@ fn find_split_n<const N: usize>(prims: &[PrimRef], cb: &Box4, cfg: &BuildConfig)
             }
         }
     }
-    let split = (best_cost < f32::INFINITY).then_some(Split { axis: best.0, bin: best.1, cost: best_cost });
+    let split = (best_cost < f32::INFINITY).then(|| {
+        let (k, i) = best;
+        let side = |r: std::ops::Range<usize>| if sides { bins.b[k][r].iter().fold(Box4::EMPTY, |a, b| a.union(*b)) } else { Box4::EMPTY };
+        Split { axis: k, bin: i, cost: best_cost, left: side(0..i), right: side(i..N) }
+    });
     (split, binner)
 }
 
@@ -582,16 +656,21 @@ fn make_leaf(nodes: &mut Vec<BinNode>, bounds: Box4, offset: usize, n: usize) ->
     (nodes.len() - 1) as u32
 }
 
-fn build_rec(
-    cfg: &BuildConfig,
-    prims: &mut [PrimRef],
+/// Builds the node over the `live` references at the front of `all`; the rest of `all` is
+/// spare room for spatial splits. `offset` is where `all` starts in the whole array.
+#[allow(clippy::too_many_arguments)]
+fn build_rec<C: Clipper>(
+    ctx: &Ctx<C>,
+    all: &mut [PrimRef],
+    live: usize,
     offset: usize,
     bounds: Box4,
     cbounds: Box4,
     depth: u32,
     nodes: &mut Vec<BinNode>,
 ) -> u32 {
-    let n = prims.len();
+    let cfg = ctx.cfg;
+    let n = live;
     let max_leaf = cfg.max_leaf.max(1);
     // One block fits: a split costs at least cost_traverse·A ≥ the leaf's one block·A, so
     // no SAH evaluation is needed (this skips binning for the many tiny nodes).
@@ -599,40 +678,74 @@ fn build_rec(
         return make_leaf(nodes, bounds, offset, n);
     }
     if n <= cfg.median_max {
-        return build_small(cfg, prims, offset, nodes).0;
+        return build_small(cfg, &mut all[..n], offset, nodes).0;
     }
-    let (split, binner) = if depth >= MEDIAN_DEPTH { (None, Binner::new(&cbounds, 2)) } else { find_split(prims, &cbounds, cfg) };
+    let (split, binner) =
+        if depth >= MEDIAN_DEPTH { (None, Binner::new(&cbounds, 2)) } else { find_split(&all[..n], &cbounds, cfg, C::ON && all.len() > n) };
+    // A spatial split, where the object split's sides overlap and there is room for more
+    // references; taken when it is cheaper.
+    let spatial = match &split {
+        Some(s) if C::ON && all.len() > n && n >= spatial::MIN_REFS && s.left.overlap_area(&s.right) > ctx.min_overlap => {
+            spatial::find(&all[..n], &bounds, cfg).filter(|sp| sp.cost < s.cost)
+        }
+        _ => None,
+    };
     let area = bounds.half_area();
     let leaf_cost = blocks(n, cfg.leaf_block) as f32 * area;
-    let (nl, sides) = match split {
-        Some(s) if n > max_leaf || cfg.cost_traverse * area + s.cost < leaf_cost => partition(prims, &binner, &s),
+    let worth = |cost: f32| n > max_leaf || cfg.cost_traverse * area + cost < leaf_cost;
+    let (nl, end, sides) = match (split, spatial) {
+        (_, Some(sp)) if worth(sp.cost) => {
+            let (nl, end) = spatial::partition(all, n, &sp, ctx.clip);
+            let (l, r) = all[..end].split_at(nl);
+            (nl, end, [bounds_of(l), bounds_of(r)])
+        }
+        (Some(s), None) if worth(s.cost) => {
+            let (nl, sides) = partition(&mut all[..n], &binner, &s);
+            (nl, n, sides)
+        }
         _ if n <= max_leaf => return make_leaf(nodes, bounds, offset, n),
         _ => {
             // No useful split (equal centroids, or too deep): object median along the widest axis.
+            let prims = &mut all[..n];
             let axis = cbounds.aabb().extent().max_position();
             let mid = n / 2;
             prims.select_nth_unstable_by(mid, |a, b| a.centroid2()[axis].total_cmp(&b.centroid2()[axis]));
             let (l, r) = prims.split_at(mid);
-            (mid, [bounds_of(l), bounds_of(r)])
+            (mid, n, [bounds_of(l), bounds_of(r)])
         }
     };
+    let nr = end - nl;
+    // The spare room left, handed on to the children that may still split (in proportion
+    // to their references): the right side's references move up past the left side's
+    // share. Only min(share, nr) of them move: the order within a side does not matter.
+    let spare = all.len() - end;
+    let wants = |m: usize| if C::ON && m >= spatial::MIN_REFS { m } else { 0 };
+    let (wl, wr) = (wants(nl), wants(nr));
+    let give_l = if spare == 0 || wl + wr == 0 { 0 } else { (spare as f64 * wl as f64 / (wl + wr) as f64) as usize };
+    let give_r = if wr == 0 { 0 } else { spare - give_l };
+    if give_l > 0 {
+        let k = give_l.min(nr);
+        all.copy_within(nl..nl + k, nl + give_l + nr - k);
+    }
     let me = nodes.len();
     nodes.push(BinNode { bounds: bounds.aabb(), first: 0, right: 0, count: 0 });
-    let (left, right) = prims.split_at_mut(nl);
+    let (left, rest) = all.split_at_mut(nl + give_l);
+    let right = &mut rest[..nr + give_r];
+    let roff = offset + nl + give_l;
     let [(bl, cl), (br, cr)] = sides;
     let (li, ri) = if n > PARALLEL_MIN {
         // The left subtree goes straight into `nodes`; only the right one is built apart
         // and copied in (PERF: copying both halves at every parallel level was 14% of a
         // 10k-instance top-level build). Sized for a typical tree so it does not regrow.
-        let mut rn = Vec::with_capacity(n - nl);
+        let mut rn = Vec::with_capacity(nr);
         let (li, _) = rayon::join(
-            || build_rec(cfg, left, offset, bl, cl, depth + 1, nodes),
-            || build_rec(cfg, right, offset + nl, br, cr, depth + 1, &mut rn),
+            || build_rec(ctx, left, nl, offset, bl, cl, depth + 1, nodes),
+            || build_rec(ctx, right, nr, roff, br, cr, depth + 1, &mut rn),
         );
         (li, append(nodes, rn))
     } else {
-        let li = build_rec(cfg, left, offset, bl, cl, depth + 1, nodes);
-        let ri = build_rec(cfg, right, offset + nl, br, cr, depth + 1, nodes);
+        let li = build_rec(ctx, left, nl, offset, bl, cl, depth + 1, nodes);
+        let ri = build_rec(ctx, right, nr, roff, br, cr, depth + 1, nodes);
         (li, ri)
     };
     nodes[me].first = li;
@@ -891,6 +1004,67 @@ pub fn build_lbvh_into(prims: &[PrimRef], max_leaf: usize, s: &mut MortonScratch
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// Spatial splits on seeded soups of long, large and small triangles: the tree is
+    /// valid, some triangles were split, the spare room is respected, and every point of
+    /// every triangle (a barycentric grid, vertices and edges included) lies in the box of
+    /// a leaf that holds that triangle.
+    #[test]
+    fn split_references_cover_their_triangles() {
+        for seed in 0..6u64 {
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+            let n = [40usize, 300, 2000][seed as usize % 3];
+            let mut positions = Vec::new();
+            let mut indices = Vec::new();
+            for i in 0..n {
+                // Mostly small triangles; every fifth spans most of the scene.
+                let size = if i % 5 == 0 { 10.0 } else { 0.2 };
+                let c = Vec3::new(rng.random(), rng.random(), rng.random()) * 10.0;
+                for _ in 0..3 {
+                    positions.push(c + (Vec3::new(rng.random(), rng.random(), rng.random()) - 0.5) * size);
+                }
+                let v = 3 * i as u32;
+                indices.push([v, v + 1, v + 2]);
+            }
+            let prims: Vec<PrimRef> = indices
+                .iter()
+                .enumerate()
+                .map(|(i, t)| PrimRef::new(Aabb::from_points(&t.map(|v| positions[v as usize])), i as u32))
+                .collect();
+            let cfg = BuildConfig { spatial: 0.3, ..BuildConfig::default() };
+            let bvh = build_binary_with(prims, &cfg, &TriangleClip { positions: &positions, indices: &indices });
+            bvh.validate(&cfg).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+            assert!(bvh.prims.len() <= n + (n as f32 * 0.3) as usize, "seed {seed}: spare room overrun");
+            let mut leaves_of = vec![Vec::new(); n];
+            let mut refs = 0;
+            for node in bvh.nodes.iter().filter(|x| x.is_leaf()) {
+                for p in &bvh.prims[node.first as usize..(node.first + node.count) as usize] {
+                    leaves_of[p.id() as usize].push(node.bounds);
+                    refs += 1;
+                }
+            }
+            assert!(refs > n || n < 100, "seed {seed}: no triangle was split ({refs} references)");
+            for (id, t) in indices.iter().enumerate() {
+                let v = t.map(|i| positions[i as usize]);
+                // The points in f64, so that their own rounding does not leave the triangle.
+                let inside = |bx: &Aabb, p: [f64; 3]| (0..3).all(|k| f64::from(bx.min[k]) <= p[k] && p[k] <= f64::from(bx.max[k]));
+                for a in 0..=16 {
+                    for b in 0..=16 - a {
+                        let (s, u) = (f64::from(a) / 16.0, f64::from(b) / 16.0);
+                        let p: [f64; 3] = std::array::from_fn(|k| {
+                            let (x, y, z) = (f64::from(v[0][k]), f64::from(v[1][k]), f64::from(v[2][k]));
+                            x * (1.0 - s - u) + y * s + z * u
+                        });
+                        assert!(
+                            leaves_of[id].iter().any(|bx| inside(bx, p)),
+                            "seed {seed}: triangle {id} point {p:?} is in none of its leaves"
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     /// Both partitions against their definition, on sizes around their block boundaries
     /// and size limit, and with every share of right-hand elements (seeded).

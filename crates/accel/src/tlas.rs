@@ -235,6 +235,7 @@ impl TwoLevel {
             nodes: self.nodes.len(),
             leaves: 0,
             prims: self.instances.len(),
+            refs: self.instances.len(),
             sah: 0.0,
             wide_sah: 0.0,
             bytes: std::mem::size_of_val(self.nodes.as_slice())
@@ -248,6 +249,7 @@ impl TwoLevel {
                 bottom.nodes += s.nodes;
                 bottom.leaves += s.leaves;
                 bottom.prims += s.prims;
+                bottom.refs += s.refs;
                 bottom.bytes += s.bytes;
             }
         }
@@ -293,7 +295,7 @@ impl TwoLevel {
                 self.unbounded.push(i as u32);
             }
         }
-        let cfg = BuildConfig { max_leaf: 2, leaf_block: 1, cost_traverse: 1.0, median_max: 8 };
+        let cfg = BuildConfig { max_leaf: 2, leaf_block: 1, cost_traverse: 1.0, median_max: 8, spatial: 0.0 };
         match self.builder {
             TopBuilder::Linear => build_lbvh_into(prims, 2, &mut self.scratch),
             TopBuilder::Sah if prims.len() >= CLUSTER_MIN => build_clustered_into(prims, &cfg, TOP_CLUSTER, &mut self.scratch),

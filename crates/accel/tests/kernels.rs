@@ -598,7 +598,7 @@ fn clustered_top_level_gives_every_instance_its_own_slot() {
             })
             .collect();
         let prims: Vec<PrimRef> = boxes.iter().enumerate().map(|(i, b)| PrimRef::new(*b, i as u32)).collect();
-        let cfg = BuildConfig { max_leaf: 2, leaf_block: 1, cost_traverse: 1.0, median_max: 8 };
+        let cfg = BuildConfig { max_leaf: 2, leaf_block: 1, cost_traverse: 1.0, median_max: 8, spatial: 0.0 };
         let bin = build_clustered(prims.clone(), &cfg, 8);
         bin.validate(&BuildConfig { max_leaf: 8, ..cfg }).unwrap_or_else(|e| panic!("{n}: {e}"));
         let mut nodes: Vec<WideNode<8>> = Vec::new();

@@ -177,7 +177,11 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
         println!(
             "{{\"kind\":\"build\",\"tracer\":\"lucent\",\"scene\":\"{}\",\"tris\":{tris},\"quality\":\"{}\",\"bvh\":\"{bvh_label}\",\"threads\":{threads},\"median_ms\":{:.2},\"nodes\":{},\"sah\":{:.2},\"sah_embree_convention\":{:.2},\"bytes\":{},\"bytes_per_tri\":{:.1}}}",
             o.name,
-            if o.quality == lucent_accel::Quality::High { "high" } else { "sah" },
+            match o.quality {
+                lucent_accel::Quality::Sah => "sah",
+                lucent_accel::Quality::Spatial => "spatial",
+                lucent_accel::Quality::High => "high",
+            },
             1e3 * crate::stats::median(&mut times),
             st.nodes,
             st.sah,

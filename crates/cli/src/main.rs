@@ -68,9 +68,11 @@ enum Cmd {
         /// for comparisons).
         #[arg(long)]
         single_rays: bool,
-        /// BVH quality: `sah` (binned SAH, parallel: the default) or `high` (then
-        /// insertion-based optimization: a better tree for a longer build).
-        #[arg(long, default_value = "sah", value_parser = ["sah", "high"])]
+        /// BVH quality: `sah` (binned SAH, parallel: the default), `spatial` (with
+        /// spatial splits: triangles cut between leaves; much faster on scenes of large,
+        /// overlapping triangles such as Sponza, slower on others, about 3× the build) or
+        /// `high` (then insertion-based optimization: a better tree for a longer build).
+        #[arg(long, default_value = "sah", value_parser = ["sah", "spatial", "high"])]
         quality: String,
     },
     /// Assemble a REND3R program (.rdr) into instruction words (.mem text or raw binary).
@@ -456,13 +458,22 @@ enum BenchCmd {
         /// packets (8×8-pixel tiles). One JSON line each.
         #[arg(long, value_delimiter = ',', default_value = "single,packet8,packet64")]
         api: Vec<bench::Api>,
-        /// BVH quality: `sah` (binned SAH, parallel) or `high` (then insertion-based
-        /// optimization: a better tree for a longer build).
-        #[arg(long, default_value = "sah", value_parser = ["sah", "high"])]
+        /// BVH quality: `sah` (binned SAH, parallel), `spatial` (with spatial splits) or
+        /// `high` (then insertion-based optimization: a better tree for a longer build).
+        #[arg(long, default_value = "sah", value_parser = ["sah", "spatial", "high"])]
         quality: String,
         #[command(flatten)]
         pin: PinArgs,
     },
+}
+
+/// The build quality named on the command line (clap allows only these names).
+fn quality_of(name: &str) -> lucent_accel::Quality {
+    match name {
+        "high" => lucent_accel::Quality::High,
+        "spatial" => lucent_accel::Quality::Spatial,
+        _ => lucent_accel::Quality::Sah,
+    }
 }
 
 fn main() -> std::process::ExitCode {
@@ -513,7 +524,7 @@ fn run() -> Result<()> {
                 no_shadows,
                 watertight,
                 single_rays,
-                quality_high: quality == "high",
+                quality: quality_of(&quality),
             })
         }
         Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo),
@@ -628,7 +639,7 @@ fn run() -> Result<()> {
                 kernel: if scalar { lucent_accel::Kernel::Scalar } else { lucent_accel::Kernel::detect() },
                 dump_ids,
                 apis: api,
-                quality: if quality == "high" { lucent_accel::Quality::High } else { lucent_accel::Quality::Sah },
+                quality: quality_of(&quality),
                 pin: !pin.no_pin,
             },
         ),

@@ -24,7 +24,7 @@ pub struct RenderArgs {
     pub no_shadows: bool,
     pub watertight: bool,
     pub single_rays: bool,
-    pub quality_high: bool,
+    pub quality: lucent_accel::Quality,
 }
 
 /// Parses "WxH".
@@ -125,7 +125,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let t1 = Instant::now();
     let opts = MeshOptions {
         test: if a.watertight { TriangleTest::Watertight } else { TriangleTest::UnitTriangle },
-        quality: if a.quality_high { lucent_accel::Quality::High } else { lucent_accel::Quality::Sah },
+        quality: a.quality,
         ..MeshOptions::default()
     };
     let mut world = World::new(scene, opts)?;
