@@ -70,7 +70,7 @@ enum Cmd {
         single_rays: bool,
         /// BVH quality: `sah` (binned SAH, parallel: the default), `spatial` (with
         /// spatial splits: triangles cut between leaves; much faster on scenes of large,
-        /// overlapping triangles such as Sponza, slower on others, about 3× the build) or
+        /// overlapping triangles such as Sponza, slower on others, up to 2× the build) or
         /// `high` (then insertion-based optimization: a better tree for a longer build).
         #[arg(long, default_value = "sah", value_parser = ["sah", "spatial", "high"])]
         quality: String,
