@@ -1014,7 +1014,7 @@ mod tests {
     fn split_references_cover_their_triangles() {
         for seed in 0..6u64 {
             let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-            let n = [40usize, 300, 2000][seed as usize % 3];
+            let n = [40usize, 2000, 5000][seed as usize % 3];
             let mut positions = Vec::new();
             let mut indices = Vec::new();
             for i in 0..n {
@@ -1044,7 +1044,7 @@ mod tests {
                     refs += 1;
                 }
             }
-            assert!(refs > n || n < 100, "seed {seed}: no triangle was split ({refs} references)");
+            assert!(refs > n || n < spatial::MIN_REFS, "seed {seed}: no triangle was split ({refs} references)");
             for (id, t) in indices.iter().enumerate() {
                 let v = t.map(|i| positions[i as usize]);
                 // The points in f64, so that their own rounding does not leave the triangle.
