@@ -175,34 +175,36 @@ pub fn optimize(bvh: &mut BinaryBvh, cfg: &BuildConfig) -> (f32, f32) {
         let mut t = Tree { nodes: &mut bvh.nodes, parent };
         // Each pass takes the next most wasteful nodes when the last one gained little.
         let mut window = 0usize;
+        let mut cand: Vec<(f32, u32)> = Vec::with_capacity(t.nodes.len());
         for _ in 0..MAX_PASSES {
             // Candidates: nodes whose parent is not the root, most wasteful first.
-            // PERF: scored in parallel, and only the pass's window is sorted (after a
-            // selection): sorting every node each pass was a third of the optimization.
-            use rayon::prelude::*;
-            let mut cand: Vec<(f32, u32)> = (1..t.nodes.len() as u32)
-                .into_par_iter()
-                .filter(|&i| t.parent[i as usize] != 0 && t.parent[i as usize] != NONE)
-                .map(|i| {
-                    let n = &t.nodes[i as usize];
-                    let a = area(&n.bounds);
-                    let m = if n.is_leaf() {
-                        a
-                    } else {
-                        let [l, r] = [area(&t.nodes[n.first as usize].bounds), area(&t.nodes[n.right as usize].bounds)];
-                        let (sum, min) = ((l + r).max(f32::MIN_POSITIVE), l.min(r).max(f32::MIN_POSITIVE));
-                        a * (a / sum) * (a / min)
-                    };
-                    (m, i)
-                })
-                .collect();
+            // PERF: scored in one sequential loop into a buffer kept across passes, and
+            // only the pass's window is sorted (after a selection): sorting every node
+            // each pass was a third of the optimization, and a parallel scoring's
+            // unindexed collect cost more than the scoring.
+            cand.clear();
+            for i in 1..t.nodes.len() as u32 {
+                let p = t.parent[i as usize];
+                if p == 0 || p == NONE {
+                    continue;
+                }
+                let n = &t.nodes[i as usize];
+                let a = area(&n.bounds);
+                let m = if n.is_leaf() {
+                    a
+                } else {
+                    let [l, r] = [area(&t.nodes[n.first as usize].bounds), area(&t.nodes[n.right as usize].bounds)];
+                    let (sum, min) = ((l + r).max(f32::MIN_POSITIVE), l.min(r).max(f32::MIN_POSITIVE));
+                    a * (a / sum) * (a / min)
+                };
+                cand.push((m, i));
+            }
             let k = (cand.len() as f64 * BATCH).ceil() as usize;
             let (lo, hi) = ((window * k).min(cand.len()), ((window + 1) * k).min(cand.len()));
             if lo >= hi {
                 break;
             }
-            // Most wasteful first; ties by node index, so the order does not depend on
-            // how the parallel scoring was split.
+            // Most wasteful first; ties by node index.
             let order = |a: &(f32, u32), b: &(f32, u32)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
             if hi < cand.len() {
                 cand.select_nth_unstable_by(hi, order);
