@@ -680,12 +680,12 @@ fn build_rec<C: Clipper>(
     if n <= cfg.median_max {
         return build_small(cfg, &mut all[..n], offset, nodes).0;
     }
-    let (split, binner) =
-        if depth >= MEDIAN_DEPTH { (None, Binner::new(&cbounds, 2)) } else { find_split(&all[..n], &cbounds, cfg, C::ON && all.len() > n) };
-    // A spatial split, where the object split's sides overlap and there is room for more
-    // references; taken when it is cheaper.
+    // Room for more references: spatial splits are possible here.
+    let room = C::ON && all.len() > n;
+    let (split, binner) = if depth >= MEDIAN_DEPTH { (None, Binner::new(&cbounds, 2)) } else { find_split(&all[..n], &cbounds, cfg, room) };
+    // A spatial split, where the object split's sides overlap; taken when it is cheaper.
     let spatial = match &split {
-        Some(s) if C::ON && all.len() > n && n >= spatial::MIN_REFS && s.left.overlap_area(&s.right) > ctx.min_overlap => {
+        Some(s) if room && n >= spatial::MIN_REFS && s.left.overlap_area(&s.right) > ctx.min_overlap => {
             spatial::find(&all[..n], &bounds, cfg).filter(|sp| sp.cost < s.cost)
         }
         _ => None,

@@ -10,8 +10,10 @@
 //! What this module follows from the paper:
 //! - the search runs only where the best object split's children overlap by more than a
 //!   share `α` of the root's area (§4.4; α = [`ALPHA`]);
-//! - chopped binning: a reference is clipped at every bin plane it crosses, and counted in
-//!   its first bin as an entry and in its last as an exit (§4.2);
+//! - chopped binning: a reference is counted in its first bin as an entry and in its last
+//!   as an exit, and each bin it spans takes its part (§4.2). Unlike the paper, the parts
+//!   are its box cut at the bin planes, not the clipped primitive (see `fill`); only the
+//!   chosen plane clips primitives;
 //! - reference unsplitting: a straddling reference goes whole to one side when that is
 //!   cheaper by the SAH than splitting it (§4.3).
 //!
@@ -200,11 +202,6 @@ impl Grid {
     fn planes(&self, i: usize) -> Vec4 {
         self.origin + self.width * i as f32
     }
-    /// The plane between slabs `i - 1` and `i` on `axis`.
-    #[inline(always)]
-    fn plane(&self, axis: usize, i: usize) -> f32 {
-        self.origin[axis] + self.width[axis] * i as f32
-    }
 }
 
 /// Chopped binning (Stich et al. §4.2) with the references' boxes cut at the bin planes
@@ -292,7 +289,7 @@ pub(super) fn find(prims: &[PrimRef], bounds: &Box4, cfg: &BuildConfig) -> Optio
         }
     }
     let (cost, axis, i) = best.filter(|b| b.0.is_finite())?;
-    let mut s = SpatialSplit { axis, plane: grid.plane(axis, i), cost, left: Box4::EMPTY, right: Box4::EMPTY, nl: 0, nr: 0 };
+    let mut s = SpatialSplit { axis, plane: grid.planes(i)[axis], cost, left: Box4::EMPTY, right: Box4::EMPTY, nl: 0, nr: 0 };
     for j in 0..i {
         s.left = s.left.union(bins.b[axis][j]);
         s.nl += bins.enter[axis][j];
