@@ -1,6 +1,6 @@
 //! The bottom-level index over one triangle mesh.
 
-use crate::build::{build_binary, BuildConfig, PrimRef};
+use crate::build::{build_binary, BinNode, BinaryBvh, BuildConfig, PrimRef};
 use crate::geom::{Aabb, Hit, Ray, INVALID};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::traverse::{self, Counters, Leaves, RayPre, TraversalStats};
@@ -222,9 +222,16 @@ impl MeshBvh {
         } else {
             build_binary(prims, &cfg)
         };
-        if opts.quality == Quality::High {
-            crate::reinsert::optimize(&mut bin, &cfg);
-        }
+        // Insertion-based optimization (`Quality::High`) moves subtrees between inner nodes
+        // only: leaves keep their indices and primitive ranges, so the leaves' triangle
+        // groups can be numbered and filled while it runs. Returns the tree's SAH cost.
+        let optimize = |nodes: &mut [BinNode]| {
+            if opts.quality == Quality::High {
+                crate::reinsert::optimize_nodes(nodes, &cfg).1
+            } else {
+                BinaryBvh::cost_of(nodes, &cfg)
+            }
+        };
         let bounds = bin.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds);
         let too_large = || BuildError::TooLarge(indices.len());
         let mut wt_verts = Vec::new();
@@ -258,8 +265,8 @@ impl MeshBvh {
                     jobs.push((first, count, mine));
                     rest = tail;
                 }
-                let fill = |(first, count, out): (u32, u32, &mut [std::mem::MaybeUninit<Tri4>])| {
-                    let by_area = largest_first(&bin.prims[first as usize..(first + count) as usize]);
+                let fill = |(first, count, out): (u32, u32, &mut [std::mem::MaybeUninit<Tri4>]), prims: &[PrimRef]| {
+                    let by_area = largest_first(&prims[first as usize..(first + count) as usize]);
                     let ids = &by_area[..count as usize];
                     // PERF: the triangles are read in tree order, scattered over the mesh's
                     // order, and each read waited on memory. Ask in two stages, for the
@@ -267,10 +274,10 @@ impl MeshBvh {
                     // the vertex indices of those PREFETCH_AHEAD to twice that ahead, and
                     // the vertices of the nearer ones, whose indices were asked for earlier.
                     let end = (first + count) as usize;
-                    for p in bin.prims.get(end + PREFETCH_AHEAD..).unwrap_or(&[]).iter().take(PREFETCH_AHEAD) {
+                    for p in prims.get(end + PREFETCH_AHEAD..).unwrap_or(&[]).iter().take(PREFETCH_AHEAD) {
                         crate::traverse::prefetch(&indices[p.id() as usize]);
                     }
-                    for p in bin.prims.get(end..).unwrap_or(&[]).iter().take(PREFETCH_AHEAD) {
+                    for p in prims.get(end..).unwrap_or(&[]).iter().take(PREFETCH_AHEAD) {
                         for &v in &indices[p.id() as usize] {
                             crate::traverse::prefetch(&positions[v as usize]);
                         }
@@ -298,14 +305,16 @@ impl MeshBvh {
                     let start = start_of.get(first as usize).copied().unwrap_or(u32::MAX);
                     leaf_code(start, count.div_ceil(4)).ok_or_else(too_large)
                 };
-                // The tree's SAH cost (a sequential walk) on the fill's side, too.
-                let (nodes, sah) = rayon::join(
-                    || collapse_to(opts.width, &bin, &mut make_leaf),
+                // The optimization and the collapse (sequential) beside the fill.
+                let ntris = bin.prims.len();
+                let BinaryBvh { nodes: bnodes, prims: bprims } = &mut bin;
+                let bprims = &*bprims;
+                let ((nodes, sah), ()) = rayon::join(
                     || {
-                        let sah = bin.sah_cost(&cfg);
-                        jobs.into_par_iter().for_each(fill);
-                        sah
+                        let sah = optimize(bnodes);
+                        (collapse_to(opts.width, bnodes, ntris, &mut make_leaf), sah)
                     },
+                    || jobs.into_par_iter().for_each(|j| fill(j, bprims)),
                 );
                 // SAFETY: the leaves' group ranges tile [0, total) and every group of every
                 // leaf was written by `fill` (a leaf of `count` triangles has
@@ -326,8 +335,9 @@ impl MeshBvh {
                     leaves += 1;
                     leaf_code(start, count).ok_or_else(too_large)
                 };
-                let nodes = collapse_to(opts.width, &bin, &mut make_leaf)?;
-                (nodes, leaves, bin.sah_cost(&cfg))
+                let sah = optimize(&mut bin.nodes);
+                let nodes = collapse_to(opts.width, &bin.nodes, bin.prims.len(), &mut make_leaf)?;
+                (nodes, leaves, sah)
             }
         };
         let (n_nodes, node_bytes) = match &nodes {
@@ -691,13 +701,14 @@ fn largest_first(leaf: &[crate::build::PrimRef]) -> [u32; MAX_LEAF] {
 /// The wide nodes of `bin` at `width` (see [`collapse`]).
 fn collapse_to(
     width: Width,
-    bin: &crate::build::BinaryBvh,
+    nodes: &[BinNode],
+    tris: usize,
     make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, BuildError>,
 ) -> Result<Nodes, BuildError> {
-    let too_many = || BuildError::TooLarge(bin.prims.len());
+    let too_many = || BuildError::TooLarge(tris);
     Ok(match width {
-        Width::W4 => Nodes::W4(collapse::<4, _>(bin, make_leaf, too_many)?),
-        Width::W8 => Nodes::W8(collapse::<8, _>(bin, make_leaf, too_many)?),
+        Width::W4 => Nodes::W4(collapse::<4, _>(nodes, make_leaf, too_many)?),
+        Width::W8 => Nodes::W8(collapse::<8, _>(nodes, make_leaf, too_many)?),
     })
 }
 

@@ -1,18 +1,27 @@
-//! Insertion-based optimization of a binary BVH (`--quality high`).
+//! Insertion-based optimization of a binary BVH.
 //!
 //! Bittner, Hapala & Havran, "Fast Insertion-Based Optimization of Bounding Volume
 //! Hierarchies" (Computer Graphics Forum 2013): the subtrees whose boxes are most wasteful
-//! are taken out of the tree one at a time and put back where they add the least surface
-//! area, found by a branch-and-bound search from the root over the *induced cost* (the
-//! growth of every box on the way down). Leaves move as whole subtrees, so the primitive
-//! order and every leaf's range stay as the builder made them; only inner nodes change.
+//! are taken out of the tree and put back where they add the least surface area, found by
+//! a branch-and-bound search from the root over the *induced cost* (the growth of every box
+//! on the way down). Leaves move as whole subtrees, so the primitive order and every leaf's
+//! range stay as the builder made them; only inner nodes change.
 //!
-//! Each pass reinserts 2% of the nodes, those with the largest `A(N) · A(N)/ΣA(children) ·
-//! A(N)/min A(child)` (the paper's combined inefficiency measure); when a pass lowers the SAH
-//! cost by less than 1%, the next one takes the following 2%. At most [`MAX_PASSES`] passes.
+//! The passes run in parallel as in Meister & Bittner, "Parallel Reinsertion for Bounding
+//! Volume Hierarchy Optimization" (Eurographics 2018): each pass searches the best place of
+//! every candidate at once, on the tree as it is at the start of the pass (with the
+//! candidate taken out: the boxes of its ancestors shrink, and the search uses the shrunk
+//! boxes). The moves are then applied one by one in order of their gain, and a move is
+//! skipped when an earlier move of the pass changed one of the nodes it rewires.
+//!
+//! Each pass takes 2% of the nodes, those with the largest `A(N) · A(N)/ΣA(children) ·
+//! A(N)/min A(child)` (the 2013 paper's combined inefficiency measure); when a pass lowers
+//! the SAH cost by less than 1%, the next one takes the following 2%. At most
+//! [`MAX_PASSES`] passes.
 
 use crate::build::{BinNode, BinaryBvh, BuildConfig, MAX_DEPTH};
 use crate::geom::Aabb;
+use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
@@ -21,11 +30,10 @@ pub const MAX_PASSES: usize = 8;
 /// Share of the nodes reinserted per pass.
 const BATCH: f64 = 0.02;
 const NONE: u32 = u32::MAX;
-
-struct Tree<'a> {
-    nodes: &'a mut [BinNode],
-    parent: Vec<u32>,
-}
+/// Nodes per parallel task of the scoring.
+const SCORE_CHUNK: usize = 4096;
+/// Fewer candidates than this are searched on one thread (waking the pool costs more).
+const PARALLEL_SEARCH_MIN: usize = 256;
 
 fn area(b: &Aabb) -> f32 {
     let a = b.half_area();
@@ -36,17 +44,61 @@ fn area(b: &Aabb) -> f32 {
     }
 }
 
+struct Tree<'a> {
+    nodes: &'a mut [BinNode],
+    parent: Vec<u32>,
+    /// `area(nodes[i].bounds)`, kept up to date.
+    areas: Vec<f32>,
+}
+
+/// A proposed move: `n` next to `x`, lowering the sum of the inner nodes' areas by `gain`.
+#[derive(Clone, Copy)]
+struct Move {
+    gain: f32,
+    n: u32,
+    x: u32,
+}
+
+/// Buffers of one search, kept across searches.
+#[derive(Default)]
+struct Scratch {
+    /// The candidate's ancestors (root first), their boxes without it, and those boxes' areas.
+    path: Vec<(u32, Aabb, f32)>,
+    heap: BinaryHeap<Item>,
+}
+
+/// A search front entry: induced cost, node, and the node's index in the candidate's
+/// ancestor path (or `NONE` off the path). Smallest cost first.
+#[derive(PartialEq)]
+struct Item(f32, u32, u32);
+impl Eq for Item {}
+impl PartialOrd for Item {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Item {
+    fn cmp(&self, o: &Self) -> Ordering {
+        o.0.total_cmp(&self.0)
+    }
+}
+
 impl Tree<'_> {
     fn children(&self, i: u32) -> [u32; 2] {
         let n = &self.nodes[i as usize];
         [n.first, n.right]
     }
 
+    fn set_bounds(&mut self, i: u32, b: Aabb) {
+        self.nodes[i as usize].bounds = b;
+        self.areas[i as usize] = area(&b);
+    }
+
     /// Recomputes the boxes from `i` up to the root.
     fn refit_up(&mut self, mut i: u32) {
         while i != NONE {
             let [a, b] = self.children(i);
-            self.nodes[i as usize].bounds = self.nodes[a as usize].bounds.union(self.nodes[b as usize].bounds);
+            self.set_bounds(i, self.nodes[a as usize].bounds.union(self.nodes[b as usize].bounds));
             i = self.parent[i as usize];
         }
     }
@@ -60,57 +112,24 @@ impl Tree<'_> {
         }
     }
 
+    fn sibling(&self, n: u32) -> u32 {
+        let [a, b] = self.children(self.parent[n as usize]);
+        if a == n {
+            b
+        } else {
+            a
+        }
+    }
+
     /// Takes `n` out (its parent must not be the root); returns the freed parent slot.
     fn remove(&mut self, n: u32) -> u32 {
         let p = self.parent[n as usize];
         let g = self.parent[p as usize];
-        let [a, b] = self.children(p);
-        let s = if a == n { b } else { a };
+        let s = self.sibling(n);
         self.replace_child(g, p, s);
         self.parent[s as usize] = g;
         self.refit_up(g);
         p
-    }
-
-    /// The node under which `n` adds the least area (branch and bound over induced cost).
-    fn best_place(&self, n: u32) -> u32 {
-        #[derive(PartialEq)]
-        struct Item(f32, u32);
-        impl Eq for Item {}
-        impl PartialOrd for Item {
-            fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-                Some(self.cmp(o))
-            }
-        }
-        impl Ord for Item {
-            // Smallest induced cost first.
-            fn cmp(&self, o: &Self) -> Ordering {
-                o.0.total_cmp(&self.0)
-            }
-        }
-        let nb = self.nodes[n as usize].bounds;
-        let an = area(&nb);
-        let mut best = (f32::INFINITY, 0u32);
-        let mut heap = BinaryHeap::new();
-        heap.push(Item(0.0, 0));
-        while let Some(Item(ci, x)) = heap.pop() {
-            if ci + an >= best.0 {
-                break;
-            }
-            let xb = self.nodes[x as usize].bounds;
-            let direct = area(&xb.union(nb));
-            let total = ci + direct;
-            if total < best.0 {
-                best = (total, x);
-            }
-            let child_ci = total - area(&xb);
-            if child_ci + an < best.0 && !self.nodes[x as usize].is_leaf() {
-                for c in self.children(x) {
-                    heap.push(Item(child_ci, c));
-                }
-            }
-        }
-        best.1
     }
 
     /// Puts `n` next to `x`, using the free slot `slot` for the new inner node.
@@ -118,26 +137,87 @@ impl Tree<'_> {
         if x == 0 {
             // The root stays at index 0: its contents move to `slot`.
             self.nodes[slot as usize] = self.nodes[0];
-            if !self.nodes[slot as usize].is_leaf() {
-                for c in self.children(slot) {
-                    self.parent[c as usize] = slot;
-                }
+            self.areas[slot as usize] = self.areas[0];
+            for c in self.children(slot) {
+                self.parent[c as usize] = slot;
             }
             self.parent[slot as usize] = 0;
-            self.nodes[0] =
-                BinNode { bounds: self.nodes[slot as usize].bounds.union(self.nodes[n as usize].bounds), first: slot, right: n, count: 0 };
+            let b = self.nodes[slot as usize].bounds.union(self.nodes[n as usize].bounds);
+            self.nodes[0] = BinNode { bounds: b, first: slot, right: n, count: 0 };
+            self.areas[0] = area(&b);
             self.parent[n as usize] = 0;
             self.parent[0] = NONE;
             return;
         }
         let q = self.parent[x as usize];
         self.replace_child(q, x, slot);
-        self.nodes[slot as usize] =
-            BinNode { bounds: self.nodes[x as usize].bounds.union(self.nodes[n as usize].bounds), first: x, right: n, count: 0 };
+        let b = self.nodes[x as usize].bounds.union(self.nodes[n as usize].bounds);
+        self.nodes[slot as usize] = BinNode { bounds: b, first: x, right: n, count: 0 };
+        self.areas[slot as usize] = area(&b);
         self.parent[slot as usize] = q;
         self.parent[x as usize] = slot;
         self.parent[n as usize] = slot;
         self.refit_up(q);
+    }
+
+    /// The best place for `n` in the tree as it would be with `n` taken out (branch and
+    /// bound over induced cost), found without changing the tree, so many searches can run
+    /// at once. `None` when no place is better than where `n` is.
+    fn propose(&self, n: u32, scratch: &mut Scratch) -> Option<Move> {
+        let Scratch { path, heap } = scratch;
+        path.clear();
+        heap.clear();
+        let p = self.parent[n as usize];
+        let s = self.sibling(n);
+        // The ancestors of `p` with their boxes once `n` is gone, and what taking `n` out
+        // saves: `p`'s area and the shrinking of every ancestor.
+        let mut below = self.nodes[s as usize].bounds;
+        let (mut child, mut g) = (p, self.parent[p as usize]);
+        let mut saving = self.areas[p as usize];
+        while g != NONE {
+            let [a, b] = self.children(g);
+            let other = if a == child { b } else { a };
+            below = below.union(self.nodes[other as usize].bounds);
+            let shrunk = area(&below);
+            saving += self.areas[g as usize] - shrunk;
+            path.push((g, below, shrunk));
+            (child, g) = (g, self.parent[g as usize]);
+        }
+        path.reverse(); // root first
+        let nb = self.nodes[n as usize].bounds;
+        let an = area(&nb);
+        // Putting `n` back where it was costs `saving`: only better places are searched.
+        let mut best = (saving, NONE);
+        heap.push(Item(0.0, 0, 0));
+        while let Some(Item(ci, x, k)) = heap.pop() {
+            if ci + an >= best.0 {
+                break;
+            }
+            let (xb, xa) = match path.get(k as usize) {
+                Some(&(_, b, a)) if k != NONE => (b, a),
+                _ => (self.nodes[x as usize].bounds, self.areas[x as usize]),
+            };
+            let total = ci + area(&xb.union(nb));
+            if total < best.0 {
+                best = (total, x);
+            }
+            let child_ci = total - xa;
+            if child_ci + an < best.0 && !self.nodes[x as usize].is_leaf() {
+                for c in self.children(x) {
+                    let item = if k == NONE {
+                        Item(child_ci, c, NONE)
+                    } else if c == p {
+                        Item(child_ci, s, NONE) // `p` goes; `s` takes its place
+                    } else if path.get(k as usize + 1).is_some_and(|&(q, ..)| q == c) {
+                        Item(child_ci, c, k + 1)
+                    } else {
+                        Item(child_ci, c, NONE)
+                    };
+                    heap.push(item);
+                }
+            }
+        }
+        (best.1 != NONE && best.1 != s).then_some(Move { gain: saving - best.0, n, x: best.1 })
     }
 
     fn depth(&self) -> u32 {
@@ -158,83 +238,127 @@ impl Tree<'_> {
 /// Optimizes `bvh` in place; returns the SAH cost before and after. A result deeper than
 /// the traversal stack allows is dropped (the tree is left as built).
 pub fn optimize(bvh: &mut BinaryBvh, cfg: &BuildConfig) -> (f32, f32) {
-    let before = bvh.sah_cost(cfg);
-    if bvh.nodes.len() < 7 {
-        return (before, before);
+    optimize_nodes(&mut bvh.nodes, cfg)
+}
+
+/// [`optimize`] on the nodes of a binary BVH (root first); the primitives are not needed.
+pub fn optimize_nodes(nodes: &mut [BinNode], cfg: &BuildConfig) -> (f32, f32) {
+    if nodes.len() < 7 {
+        let c = BinaryBvh::cost_of(nodes, cfg);
+        return (c, c);
     }
-    let original = bvh.nodes.clone();
-    let mut parent = vec![NONE; bvh.nodes.len()];
-    for (i, n) in bvh.nodes.iter().enumerate() {
+    let original = nodes.to_vec();
+    let len = nodes.len();
+    let mut parent = vec![NONE; len];
+    for (i, n) in nodes.iter().enumerate() {
         if !n.is_leaf() {
             parent[n.first as usize] = i as u32;
             parent[n.right as usize] = i as u32;
         }
     }
-    let mut cost = before;
-    {
-        let mut t = Tree { nodes: &mut bvh.nodes, parent };
-        // Each pass takes the next most wasteful nodes when the last one gained little.
-        let mut window = 0usize;
-        let mut cand: Vec<(f32, u32)> = Vec::with_capacity(t.nodes.len());
-        for _ in 0..MAX_PASSES {
-            // Candidates: nodes whose parent is not the root, most wasteful first.
-            // PERF: scored in one sequential loop into a buffer kept across passes, and
-            // only the pass's window is sorted (after a selection): sorting every node
-            // each pass was a third of the optimization, and a parallel scoring's
-            // unindexed collect cost more than the scoring.
-            cand.clear();
-            for i in 1..t.nodes.len() as u32 {
-                let p = t.parent[i as usize];
-                if p == 0 || p == NONE {
-                    continue;
-                }
-                let n = &t.nodes[i as usize];
-                let a = area(&n.bounds);
-                let m = if n.is_leaf() {
-                    a
-                } else {
-                    let [l, r] = [area(&t.nodes[n.first as usize].bounds), area(&t.nodes[n.right as usize].bounds)];
-                    let (sum, min) = ((l + r).max(f32::MIN_POSITIVE), l.min(r).max(f32::MIN_POSITIVE));
-                    a * (a / sum) * (a / min)
-                };
-                cand.push((m, i));
-            }
-            let k = (cand.len() as f64 * BATCH).ceil() as usize;
-            let (lo, hi) = ((window * k).min(cand.len()), ((window + 1) * k).min(cand.len()));
-            if lo >= hi {
-                break;
-            }
-            // Most wasteful first; ties by node index.
-            let order = |a: &(f32, u32), b: &(f32, u32)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
-            if hi < cand.len() {
-                cand.select_nth_unstable_by(hi, order);
-            }
-            let head = &mut cand[..hi];
-            if lo > 0 {
-                head.select_nth_unstable_by(lo, order);
-            }
-            head[lo..].sort_unstable_by(order);
-            for &(_, n) in &head[lo..] {
-                // An earlier move may have made this node a child of the root.
-                let p = t.parent[n as usize];
-                if p == 0 || p == NONE {
-                    continue;
-                }
-                let slot = t.remove(n);
-                let x = t.best_place(n);
-                t.insert(n, x, slot);
-            }
-            let now = BinaryBvh::cost_of(t.nodes, cfg);
-            let gain = (cost - now) / cost.max(f32::MIN_POSITIVE);
-            cost = now;
-            if gain < 0.01 {
-                window += 1;
-            }
+    let areas = nodes.iter().map(|n| area(&n.bounds)).collect();
+    let mut t = Tree { nodes, parent, areas };
+    // Moves keep the set of leaves, so the root's box stays as it is.
+    let root_area = t.areas[0].max(f32::MIN_POSITIVE) as f64;
+    let (block, traverse) = (cfg.leaf_block.max(1) as u32, cfg.cost_traverse as f64);
+    let (mut before, mut cost) = (0.0f32, 0.0f32);
+    let mut window = 0usize;
+    let mut score = vec![0.0f32; len];
+    let mut cand: Vec<(f32, u32)> = Vec::with_capacity(len);
+    let mut moves: Vec<Option<Move>> = Vec::new();
+    let mut list: Vec<Move> = Vec::new();
+    let mut stamp = vec![0u32; len];
+    let mut scratch = Scratch::default();
+    for pass in 1..=MAX_PASSES as u32 + 1 {
+        // Score every node (-inf for those that may not move: the root and its children)
+        // and sum the tree's SAH cost on the way; chunks in parallel, their sums in order.
+        let now = {
+            let (nodes, parent, areas) = (&*t.nodes, &t.parent, &t.areas);
+            let sums: Vec<f64> = score
+                .par_chunks_mut(SCORE_CHUNK)
+                .enumerate()
+                .map(|(c, out)| {
+                    let mut sum = 0.0f64;
+                    for (i, o) in (c * SCORE_CHUNK..).zip(out.iter_mut()) {
+                        let n = &nodes[i];
+                        let a = areas[i];
+                        let (m, weight) = if n.is_leaf() {
+                            (a, n.count.div_ceil(block) as f64)
+                        } else {
+                            let (l, r) = (areas[n.first as usize], areas[n.right as usize]);
+                            let (s, min) = ((l + r).max(f32::MIN_POSITIVE), l.min(r).max(f32::MIN_POSITIVE));
+                            (a * (a / s) * (a / min), traverse)
+                        };
+                        sum += a as f64 * weight;
+                        *o = if parent[i] == 0 || parent[i] == NONE { f32::NEG_INFINITY } else { m };
+                    }
+                    sum
+                })
+                .collect();
+            (sums.iter().sum::<f64>() / root_area) as f32
+        };
+        if pass == 1 {
+            before = now;
+        } else if (cost - now) < 0.01 * cost {
+            window += 1;
         }
-        if t.depth() > MAX_DEPTH {
-            bvh.nodes = original;
-            return (before, before);
+        cost = now;
+        if pass as usize > MAX_PASSES {
+            break;
         }
+        // This pass's candidates: the window of the most wasteful nodes, ties by index.
+        cand.clear();
+        cand.extend(score.iter().zip(0u32..).filter(|(&m, _)| m > f32::NEG_INFINITY).map(|(&m, i)| (m, i)));
+        let k = (cand.len() as f64 * BATCH).ceil() as usize;
+        let (lo, hi) = ((window * k).min(cand.len()), ((window + 1) * k).min(cand.len()));
+        if lo >= hi {
+            break;
+        }
+        let order = |a: &(f32, u32), b: &(f32, u32)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
+        if hi < cand.len() {
+            cand.select_nth_unstable_by(hi, order);
+        }
+        let head = &mut cand[..hi];
+        if lo > 0 {
+            head.select_nth_unstable_by(lo, order);
+        }
+        let head = &head[lo..];
+        let tree = &t;
+        if head.len() >= PARALLEL_SEARCH_MIN {
+            head.par_iter().with_min_len(16).map_init(Scratch::default, |sc, &(_, n)| tree.propose(n, sc)).collect_into_vec(&mut moves);
+        } else {
+            moves.clear();
+            moves.extend(head.iter().map(|&(_, n)| tree.propose(n, &mut scratch)));
+        }
+        list.clear();
+        list.extend(moves.iter().flatten());
+        list.sort_unstable_by(|a, b| b.gain.total_cmp(&a.gain).then(a.n.cmp(&b.n)));
+        for &Move { n, x, .. } in &list {
+            // The nodes the move rewires: an earlier move of the pass may have changed them.
+            let p = t.parent[n as usize];
+            let rewired = [n, p, t.parent[p as usize], t.sibling(n), x, t.parent[x as usize]];
+            if rewired.iter().any(|&i| i != NONE && stamp[i as usize] == pass) || rewired[2] == NONE {
+                continue;
+            }
+            // ... or put `x` below `n`.
+            let mut up = x;
+            while up != NONE && up != n {
+                up = t.parent[up as usize];
+            }
+            if up == n {
+                continue;
+            }
+            for i in rewired.into_iter().filter(|&i| i != NONE) {
+                stamp[i as usize] = pass;
+            }
+            let slot = t.remove(n);
+            t.insert(n, x, slot);
+            stamp[slot as usize] = pass;
+        }
+    }
+    if t.depth() > MAX_DEPTH {
+        t.nodes.copy_from_slice(&original);
+        return (before, before);
     }
     (before, cost)
 }

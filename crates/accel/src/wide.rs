@@ -4,7 +4,7 @@
 //! `W` children (the approach of Wald et al., "Getting Rid of Packets", RT 2008, and of
 //! Embree's BVH4/BVH8 builders).
 
-use crate::build::BinaryBvh;
+use crate::build::{BinNode, BinaryBvh};
 use crate::geom::Aabb;
 
 /// Child code of an empty slot (its box is inverted, so it is never entered).
@@ -127,12 +127,12 @@ pub unsafe fn node_at<const W: usize>(nodes: &[WideNode<W>], code: u32) -> &Wide
 /// count)` receives each binary leaf's primitive range and returns its leaf code;
 /// `too_many()` is the error when the tree needs more than [`WideNode::MAX_NODES`] nodes.
 pub fn collapse<const W: usize, E>(
-    bin: &BinaryBvh,
+    nodes: &[BinNode],
     make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, E>,
     too_many: impl Fn() -> E + Copy,
 ) -> Result<Vec<WideNode<W>>, E> {
-    let mut out = Vec::with_capacity(bin.nodes.len() / (W / 2).max(1) + 1);
-    let Some(root) = bin.nodes.first() else {
+    let mut out = Vec::with_capacity(nodes.len() / (W / 2).max(1) + 1);
+    let Some(root) = nodes.first() else {
         out.push(WideNode::EMPTY);
         return Ok(out);
     };
@@ -142,20 +142,20 @@ pub fn collapse<const W: usize, E>(
         out.push(n);
         return Ok(out);
     }
-    emit(bin, 0, &mut out, make_leaf, too_many)?;
+    emit(nodes, 0, &mut out, make_leaf, too_many)?;
     Ok(out)
 }
 
 /// The up-to-`W` descendants of binary node `idx` that become the children of its wide
 /// node: inner children are opened, largest surface area first, until there are `W`; the
 /// result is in the binary tree's node order.
-fn open<const W: usize>(bin: &BinaryBvh, idx: usize) -> ([usize; W], usize) {
-    let n = &bin.nodes[idx];
+fn open<const W: usize>(nodes: &[BinNode], idx: usize) -> ([usize; W], usize) {
+    let n = &nodes[idx];
     let mut kids = [0usize; W];
     // Half areas of the inner kids (-1 for leaves), computed once per kid.
     let mut area = [-1.0f32; W];
     let inner_area = |k: usize| {
-        let c = &bin.nodes[k];
+        let c = &nodes[k];
         if c.is_leaf() {
             -1.0
         } else {
@@ -177,7 +177,7 @@ fn open<const W: usize>(bin: &BinaryBvh, idx: usize) -> ([usize; W], usize) {
         if area[best] < 0.0 {
             break;
         }
-        let c = bin.nodes[kids[best]];
+        let c = nodes[kids[best]];
         kids[best] = c.first as usize;
         kids[nk] = c.right as usize;
         area[best] = inner_area(kids[best]);
@@ -193,7 +193,7 @@ fn open<const W: usize>(bin: &BinaryBvh, idx: usize) -> ([usize; W], usize) {
 }
 
 fn emit<const W: usize, E>(
-    bin: &BinaryBvh,
+    nodes: &[BinNode],
     idx: usize,
     out: &mut Vec<WideNode<W>>,
     make_leaf: &mut impl FnMut(u32, u32) -> Result<u32, E>,
@@ -204,10 +204,10 @@ fn emit<const W: usize, E>(
         return Err(too_many());
     }
     out.push(WideNode::EMPTY);
-    let (kids, nk) = open::<W>(bin, idx);
+    let (kids, nk) = open::<W>(nodes, idx);
     for (i, &k) in kids[..nk].iter().enumerate() {
-        let c = bin.nodes[k];
-        let code = if c.is_leaf() { make_leaf(c.first, c.count)? } else { emit(bin, k, out, make_leaf, too_many)? };
+        let c = nodes[k];
+        let code = if c.is_leaf() { make_leaf(c.first, c.count)? } else { emit(nodes, k, out, make_leaf, too_many)? };
         // Set in place: a node built on the stack and stored at the end was a 256-byte
         // copy per node (a `memmove` call in the profile; builds within 1% either way).
         out[slot].set(i, &c.bounds, code);
@@ -373,8 +373,8 @@ mod tests {
             .collect();
         let bin = build_binary(prims.clone(), &BuildConfig::default());
         let leaf = &mut |first: u32, count: u32| leaf_code(first, count).ok_or(());
-        let w8 = collapse::<8, _>(&bin, leaf, || ()).expect("collapse");
-        let w4 = collapse::<4, _>(&bin, leaf, || ()).expect("collapse");
+        let w8 = collapse::<8, _>(&bin.nodes, leaf, || ()).expect("collapse");
+        let w4 = collapse::<4, _>(&bin.nodes, leaf, || ()).expect("collapse");
         assert!(check_codes(&w8) > 100 && check_codes(&w4) > 100);
         let one = build_binary(prims, &BuildConfig { max_leaf: 1, leaf_block: 1, ..BuildConfig::default() });
         let mut spread8 = Vec::new();

@@ -288,24 +288,46 @@ fn a_refit_bvh_gives_the_hits_of_a_fresh_build() {
 }
 
 /// Insertion-based optimization keeps every primitive in exactly one leaf and every box
-/// around its children, lowers the SAH cost, and leaves the answers unchanged.
+/// around its children, lowers the SAH cost, and leaves the answers unchanged. The largest
+/// soup is built by median splits (a poor tree, with much to move), so its passes have
+/// enough candidates for the parallel search and for moves that collide; its tree must not
+/// depend on the number of threads.
 #[test]
 fn reinsertion_keeps_the_tree_valid_and_lowers_its_cost() {
     use lucent_accel::build::{build_binary, BuildConfig, PrimRef};
     use lucent_accel::{Aabb, Quality};
     let mut rng = Pcg64::seed_from_u64(11);
-    for n in [5usize, 60, 3000] {
+    for n in [5usize, 60, 3000, 40_000] {
         let (p, idx) = soup(&mut rng, n, 10.0);
         let prims: Vec<PrimRef> = idx
             .iter()
             .enumerate()
             .map(|(i, t)| PrimRef::new(Aabb::from_points(&[p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]]), i as u32))
             .collect();
-        let cfg = BuildConfig::default();
-        let mut bin = build_binary(prims, &cfg);
-        let (before, after) = lucent_accel::reinsert::optimize(&mut bin, &cfg);
+        let cfg = BuildConfig { median_max: if n > 10_000 { n } else { 0 }, ..BuildConfig::default() };
+        let optimized = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+            pool.install(|| {
+                let mut bin = build_binary(prims.clone(), &cfg);
+                let costs = lucent_accel::reinsert::optimize(&mut bin, &cfg);
+                (bin, costs)
+            })
+        };
+        let (bin, (before, after)) = optimized(2);
         bin.validate(&cfg).expect("valid after reinsertion");
         assert!(after <= before, "{n}: cost {before} -> {after}");
+        assert!((after - bin.sah_cost(&cfg)).abs() <= 1e-4 * after, "{n}: reported {after}, tree {}", bin.sah_cost(&cfg));
+        if n > 10_000 {
+            assert!(after < 0.97 * before, "{n}: cost {before} -> {after}");
+            let (one, _) = optimized(1);
+            assert!(
+                one.nodes
+                    .iter()
+                    .zip(&bin.nodes)
+                    .all(|(a, b)| (a.first, a.right, a.count, a.bounds) == (b.first, b.right, b.count, b.bounds)),
+                "{n}: the tree depends on the thread count"
+            );
+        }
         let plain = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("build");
         let high = MeshBvh::build(&p, &idx, MeshOptions { quality: Quality::High, ..MeshOptions::default() }).expect("build");
         high.validate().expect("well formed");
