@@ -62,8 +62,7 @@ pub enum TriangleTest {
 /// How hard the builder works for a better tree.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Quality {
-    /// Binned SAH (parallel).
-    #[default]
+    /// Binned SAH (parallel) only: the shortest build.
     Sah,
     /// Binned SAH with spatial splits (Stich, Friedrich & Dietrich 2009; see
     /// `build::spatial`): a triangle may be cut between leaves, each part with its own
@@ -73,9 +72,11 @@ pub enum Quality {
     /// kitchen's shadow rays 0.56×; Conference and the museum 0.84–0.97×; the bunny
     /// unchanged. Builds take 1.5–1.9× as long. Meshes built `refittable` get plain SAH.
     Spatial,
-    /// Binned SAH, then insertion-based optimization ([`crate::reinsert`], parallel):
-    /// single rays 5-15% faster on four of the five shared scenes (the bunny's tree is left
-    /// as it is) for builds 1.15-1.3× as long.
+    /// The default: binned SAH, then insertion-based optimization ([`crate::reinsert`],
+    /// parallel). Single rays 5-15% faster than with `Sah` on four of the five shared
+    /// scenes (the bunny's tree is left as it is), for builds 1.15-1.3× as long. Meshes
+    /// built `refittable` (rebuilt while they deform) get plain SAH.
+    #[default]
     High,
 }
 
@@ -227,7 +228,7 @@ impl MeshBvh {
         // only: leaves keep their indices and primitive ranges, so the leaves' triangle
         // groups can be numbered and filled while it runs. Returns the tree's SAH cost.
         let optimize = |nodes: &mut [BinNode]| {
-            if opts.quality == Quality::High {
+            if opts.quality == Quality::High && !refittable {
                 crate::reinsert::optimize_nodes(nodes, &cfg).1
             } else {
                 BinaryBvh::cost_of(nodes, &cfg)

@@ -328,7 +328,7 @@ fn reinsertion_keeps_the_tree_valid_and_lowers_its_cost() {
                 "{n}: the tree depends on the thread count"
             );
         }
-        let plain = MeshBvh::build(&p, &idx, MeshOptions::default()).expect("build");
+        let plain = MeshBvh::build(&p, &idx, MeshOptions { quality: Quality::Sah, ..MeshOptions::default() }).expect("build");
         let high = MeshBvh::build(&p, &idx, MeshOptions { quality: Quality::High, ..MeshOptions::default() }).expect("build");
         high.validate().expect("well formed");
         for _ in 0..300 {
