@@ -158,8 +158,10 @@ pub fn collapse<const W: usize, E>(
 /// slots); with more slots, an inner `n` may instead be opened and its two children share
 /// them. Costs are in Embree's convention (a wide node and a block of leaf items cost 1
 /// each at their box's area). PERF: the greedy collapse (open the largest child until
-/// there are `W`) left wide trees 3-9% costlier on the shared scenes; these are 1-5%
-/// faster to trace incoherent rays through, with a quarter fewer nodes.
+/// there are `W`) left wide trees 3-9% costlier on the shared scenes, with a third more
+/// nodes. On the default (optimized) trees these trace diffuse single rays 0-4% faster,
+/// every other kind and API within -2% and +6%; on plain `Quality::Sah` trees the
+/// kitchen's packets lose 5-8% (measured against the greedy collapse, 1 thread).
 struct WideCosts {
     best: Vec<[f32; 8]>,
 }
