@@ -720,7 +720,7 @@ fn collapse_to(
 fn simd_intersect(b: &MeshBvh, ray: &Ray) -> Option<Hit> {
     let mut hit = Hit::none(ray.tmax);
     b.intersect_k::<crate::kernel::SimdSet, ()>(&RayPre::new(ray), &mut hit, &mut ());
-    hit.is_hit().then_some(hit)
+    hit.is_hit().then(|| hit.reload())
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -736,7 +736,7 @@ fn simd_occluded(b: &MeshBvh, ray: &Ray) -> bool {
 fn avx512_intersect(b: &MeshBvh, ray: &Ray) -> Option<Hit> {
     let mut hit = Hit::none(ray.tmax);
     b.intersect_k::<crate::kernel::Avx512Set, ()>(&RayPre::new(ray), &mut hit, &mut ());
-    hit.is_hit().then_some(hit)
+    hit.is_hit().then(|| hit.reload())
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -780,11 +780,15 @@ impl<'a, K> UnitLeaves<'a, K> {
         Self { tris, den: std::cell::Cell::new(1.0), k: std::marker::PhantomData }
     }
     /// Divides the barycentrics of the hit the leaves found.
+    ///
+    /// PERF: `u` and `v` are read one by one, as the leaves wrote them (see [`Hit::reload`]).
     #[inline(always)]
     fn finish(&self, hit: &mut Hit) {
         let den = self.den.get();
-        hit.u /= den;
-        hit.v /= den;
+        // SAFETY: reads of valid, aligned f32 fields of `hit`.
+        let (u, v) = unsafe { (std::ptr::read_volatile(&hit.u), std::ptr::read_volatile(&hit.v)) };
+        hit.u = u / den;
+        hit.v = v / den;
     }
 }
 

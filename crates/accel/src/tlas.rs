@@ -396,7 +396,7 @@ impl TwoLevel {
 fn simd_intersect(t: &TwoLevel, ray: &Ray) -> Option<Hit> {
     let mut hit = Hit::none(ray.tmax);
     t.intersect_k::<crate::kernel::SimdSet>(&RayPre::new(ray), &mut hit);
-    hit.is_hit().then_some(hit)
+    hit.is_hit().then(|| hit.reload())
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -410,7 +410,7 @@ fn simd_occluded(t: &TwoLevel, ray: &Ray) -> bool {
 fn avx512_intersect(t: &TwoLevel, ray: &Ray) -> Option<Hit> {
     let mut hit = Hit::none(ray.tmax);
     t.intersect_k::<crate::kernel::Avx512Set>(&RayPre::new(ray), &mut hit);
-    hit.is_hit().then_some(hit)
+    hit.is_hit().then(|| hit.reload())
 }
 
 #[cfg(target_arch = "x86_64")]

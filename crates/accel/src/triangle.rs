@@ -472,11 +472,6 @@ pub(crate) mod sse {
         // SAFETY: SSE/SSE4.1 are implied by the FMA the caller guarantees; the arrays hold
         // exactly four f32.
         unsafe {
-            let mut a = [[0f32; 4]; 4];
-            _mm_storeu_ps(a[0].as_mut_ptr(), t);
-            _mm_storeu_ps(a[1].as_mut_ptr(), uu);
-            _mm_storeu_ps(a[2].as_mut_ptr(), vv);
-            _mm_storeu_ps(a[3].as_mut_ptr(), adz);
             // PERF: one lane hits (the common case): it is the lowest set bit, with no scan
             // over the lanes (whose branches on the mask a random lane mispredicted).
             let lane = if mask & (mask - 1) == 0 {
@@ -489,7 +484,13 @@ pub(crate) mod sse {
                 let m = _mm_min_ps(m, _mm_shuffle_ps::<0b01_00_11_10>(m, m));
                 ((_mm_movemask_ps(_mm_cmpeq_ps(ts, m)) & mask) as u32).trailing_zeros() as usize & 3
             };
-            Some((a[0][lane], a[1][lane], a[2][lane], a[3][lane], lane))
+            // PERF: the lane's values are moved to lane 0 in registers (`vpermilps`). Stored
+            // to an array and read back, they were loaded by one masked 32-byte load across
+            // the four 16-byte stores, which defeats store forwarding: a stall at every
+            // group that hits.
+            let at = _mm_set1_epi32(lane as i32);
+            let pick = |x: __m128| _mm_cvtss_f32(_mm_permutevar_ps(x, at));
+            Some((pick(t), pick(uu), pick(vv), pick(adz), lane))
         }
     }
 
