@@ -1446,7 +1446,8 @@ impl MeshBvh {
     ) {
         let single = |g: usize, l: usize, h: &mut PacketHits, c: &mut C| {
             let mut hit = h.get(g, l);
-            if self.intersect_k::<K, C>(&RayPre::new(&p.ray(g, l, hit.t)), &mut hit, c) {
+            // SAFETY: the packet entry points run K only where its features were detected.
+            if unsafe { K::mesh_intersect(self, &p.ray(g, l, hit.t), &mut hit, c) } {
                 hit.inst = inst;
             }
             h.put(g, l, &hit);
@@ -1481,7 +1482,8 @@ impl MeshBvh {
     ) {
         let single = |g: usize, l: usize, h: &mut PacketHits, c: &mut C| {
             let t = h.t[g].0[l];
-            if self.occluded_k::<K, C>(&RayPre::new(&p.ray(g, l, t)), t, c) {
+            // SAFETY: as above.
+            if unsafe { K::mesh_occluded(self, &p.ray(g, l, t), t, c) } {
                 h.t[g].0[l] = f32::NEG_INFINITY;
             }
         };
@@ -1874,7 +1876,8 @@ impl TwoLevel {
             },
             |g, l, h| {
                 let mut hit = h.get(g, l);
-                self.intersect_k::<K>(&RayPre::new(&p.ray(g, l, hit.t)), &mut hit);
+                // SAFETY: the packet entry points run K only where its features were detected.
+                unsafe { K::two_level_intersect(self, &p.ray(g, l, hit.t), &mut hit) };
                 h.put(g, l, &hit);
             }
         );
@@ -1922,7 +1925,8 @@ impl TwoLevel {
             },
             |g, l, h| {
                 let t = h.t[g].0[l];
-                if self.occluded_k::<K>(&RayPre::new(&p.ray(g, l, t)), t) {
+                // SAFETY: as above.
+                if unsafe { K::two_level_occluded(self, &p.ray(g, l, t), t) } {
                     h.t[g].0[l] = f32::NEG_INFINITY;
                 }
             }
