@@ -403,6 +403,30 @@ pub(crate) mod sse {
     // and a plain `inline`, LLVM kept `intersect` out of line, one call per triangle group,
     // and single primary rays were 15% slower.
 
+    // PERF: the helpers below are `inline(always)` functions, not closures: a closure does
+    // not take the `target_feature` of its caller, so one left out of line by LLVM turns
+    // every intrinsic in it into a call.
+
+    /// Row `c` of a group's maps in both halves of a register.
+    ///
+    /// # Safety
+    /// AVX, as the callers below.
+    #[inline(always)]
+    unsafe fn row(t4: &Tri4, c: usize) -> __m256 {
+        // SAFETY: `Tri4` is 16-byte aligned, so its 16-byte rows are; the caller's AVX.
+        unsafe { _mm256_broadcast_ps(&*t4.m[c].as_ptr().cast::<__m128>()) }
+    }
+
+    /// Lane `at` (the same index in every lane) of `x`.
+    ///
+    /// # Safety
+    /// AVX, as the callers below.
+    #[inline(always)]
+    unsafe fn pick(x: __m128, at: __m128i) -> f32 {
+        // SAFETY: the caller's AVX.
+        unsafe { _mm_cvtss_f32(_mm_permutevar_ps(x, at)) }
+    }
+
     /// The lane mask of hits and the scaled `T, U, V` and `|D'z|` of all lanes.
     ///
     /// The origin's and the direction's terms share one 8-lane register: lanes 0..4 hold
@@ -418,7 +442,6 @@ pub(crate) mod sse {
         // SAFETY: `Tri4` is 16-byte aligned, so the 16-byte rows and ids are aligned and in
         // bounds; the caller guarantees AVX2 and FMA.
         unsafe {
-            let row = |c: usize| _mm256_broadcast_ps(&*t4.m[c].as_ptr().cast::<__m128>());
             let ray = _mm256_setr_ps(o.x, o.y, o.z, 0.0, d.x, d.y, d.z, 0.0);
             let k = _mm256_srli_epi32::<{ AXIS_SHIFT as i32 }>(_mm256_broadcastsi128_si256(_mm_load_si128(t4.prim.as_ptr().cast())));
             let next = _mm256_castsi256_ps(_mm256_setr_epi32(1, 2, 0, 3, 1, 2, 0, 3));
@@ -427,9 +450,9 @@ pub(crate) mod sse {
             let k2 = _mm256_castps_si256(_mm256_permutevar_ps(after, k));
             let (p0, p1, p2) = (_mm256_permutevar_ps(ray, k), _mm256_permutevar_ps(ray, k1), _mm256_permutevar_ps(ray, k2));
             let one_zero = _mm256_setr_ps(1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0);
-            let x = _mm256_fmadd_ps(row(0), p1, _mm256_fmadd_ps(row(1), p2, _mm256_mul_ps(row(2), one_zero)));
-            let y = _mm256_fmadd_ps(row(3), p1, _mm256_fmadd_ps(row(4), p2, _mm256_mul_ps(row(5), one_zero)));
-            let z = _mm256_fmadd_ps(row(6), p1, _mm256_fmadd_ps(row(7), p2, _mm256_fmadd_ps(row(8), one_zero, p0)));
+            let x = _mm256_fmadd_ps(row(t4, 0), p1, _mm256_fmadd_ps(row(t4, 1), p2, _mm256_mul_ps(row(t4, 2), one_zero)));
+            let y = _mm256_fmadd_ps(row(t4, 3), p1, _mm256_fmadd_ps(row(t4, 4), p2, _mm256_mul_ps(row(t4, 5), one_zero)));
+            let z = _mm256_fmadd_ps(row(t4, 6), p1, _mm256_fmadd_ps(row(t4, 7), p2, _mm256_fmadd_ps(row(t4, 8), one_zero, p0)));
             let (oxp, dxp) = (_mm256_castps256_ps128(x), _mm256_extractf128_ps::<1>(x));
             let (oyp, dyp) = (_mm256_castps256_ps128(y), _mm256_extractf128_ps::<1>(y));
             let (ozp, dzp) = (_mm256_castps256_ps128(z), _mm256_extractf128_ps::<1>(z));
@@ -489,8 +512,7 @@ pub(crate) mod sse {
             // the four 16-byte stores, which defeats store forwarding: a stall at every
             // group that hits.
             let at = _mm_set1_epi32(lane as i32);
-            let pick = |x: __m128| _mm_cvtss_f32(_mm_permutevar_ps(x, at));
-            Some((pick(t), pick(uu), pick(vv), pick(adz), lane))
+            Some((pick(t, at), pick(uu, at), pick(vv, at), pick(adz, at), lane))
         }
     }
 
