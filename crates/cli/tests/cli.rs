@@ -333,3 +333,23 @@ fn run_ends_on_a_loop_without_frames() {
         assert!(s.contains("program halted after 1 frames"), "{extra:?}: {s}");
     }
 }
+
+/// Every SIMD intrinsic in the release binary is inlined into a kernel compiled with its
+/// CPU features. One left as a function of its own means some kernel code was compiled
+/// without them (a closure does not take its caller's `target_feature`, and LLVM may leave
+/// one out of line), and every intrinsic there is a call: session 25 found single rays 4-5
+/// times slower, and incoherent packets' fallbacks 3 times slower, that way. Only
+/// `_xgetbv` (the standard library's feature detection) may stand alone. Needs `nm`
+/// (binutils); debug builds inline nothing, so it runs in release builds only.
+#[test]
+#[cfg_attr(debug_assertions, ignore = "inlining is only meaningful in release builds")]
+fn no_simd_intrinsic_is_left_out_of_line() {
+    let o = Command::new("nm")
+        .args(["-C", env!("CARGO_BIN_EXE_lucent")])
+        .output()
+        .expect("this test reads the binary's symbols with nm (Debian package binutils)");
+    assert!(o.status.success(), "nm: {}", String::from_utf8_lossy(&o.stderr));
+    let symbols = String::from_utf8_lossy(&o.stdout);
+    let outlined: Vec<&str> = symbols.lines().filter(|l| l.contains("core::core_arch::x86::") && !l.contains("_xgetbv")).collect();
+    assert!(outlined.is_empty(), "intrinsics compiled as functions of their own:\n{}", outlined.join("\n"));
+}
