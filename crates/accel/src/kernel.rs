@@ -129,34 +129,20 @@ pub(crate) trait KernelSet {
 /// The single-ray entry points of one kernel set, compiled with `$feat` (its
 /// `target_feature` list; none for the portable set).
 macro_rules! single_entries {
-    ($set:ty) => {
+    ($set:ty $(, $feat:literal)?) => {
+        $(#[target_feature(enable = $feat)])?
         unsafe fn mesh_intersect<C: Counters>(m: &MeshBvh, ray: &Ray, hit: &mut Hit, c: &mut C) -> bool {
             m.intersect_k::<$set, C>(&RayPre::new(ray), hit, c)
         }
+        $(#[target_feature(enable = $feat)])?
         unsafe fn mesh_occluded<C: Counters>(m: &MeshBvh, ray: &Ray, tmax: f32, c: &mut C) -> bool {
             m.occluded_k::<$set, C>(&RayPre::new(ray), tmax, c)
         }
+        $(#[target_feature(enable = $feat)])?
         unsafe fn two_level_intersect(t: &TwoLevel, ray: &Ray, hit: &mut Hit) {
             t.intersect_k::<$set>(&RayPre::new(ray), hit)
         }
-        unsafe fn two_level_occluded(t: &TwoLevel, ray: &Ray, tmax: f32) -> bool {
-            t.occluded_k::<$set>(&RayPre::new(ray), tmax)
-        }
-    };
-    ($set:ty, $feat:literal) => {
-        #[target_feature(enable = $feat)]
-        unsafe fn mesh_intersect<C: Counters>(m: &MeshBvh, ray: &Ray, hit: &mut Hit, c: &mut C) -> bool {
-            m.intersect_k::<$set, C>(&RayPre::new(ray), hit, c)
-        }
-        #[target_feature(enable = $feat)]
-        unsafe fn mesh_occluded<C: Counters>(m: &MeshBvh, ray: &Ray, tmax: f32, c: &mut C) -> bool {
-            m.occluded_k::<$set, C>(&RayPre::new(ray), tmax, c)
-        }
-        #[target_feature(enable = $feat)]
-        unsafe fn two_level_intersect(t: &TwoLevel, ray: &Ray, hit: &mut Hit) {
-            t.intersect_k::<$set>(&RayPre::new(ray), hit)
-        }
-        #[target_feature(enable = $feat)]
+        $(#[target_feature(enable = $feat)])?
         unsafe fn two_level_occluded(t: &TwoLevel, ray: &Ray, tmax: f32) -> bool {
             t.occluded_k::<$set>(&RayPre::new(ray), tmax)
         }

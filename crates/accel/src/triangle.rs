@@ -492,8 +492,8 @@ pub(crate) mod sse {
         if mask == 0 {
             return None;
         }
-        // SAFETY: SSE/SSE4.1 are implied by the FMA the caller guarantees; the arrays hold
-        // exactly four f32.
+        // SAFETY: SSE4.1 and AVX (`vpermilps`) are implied by the AVX2 and FMA the caller
+        // guarantees.
         unsafe {
             // PERF: one lane hits (the common case): it is the lowest set bit, with no scan
             // over the lanes (whose branches on the mask a random lane mispredicted).
