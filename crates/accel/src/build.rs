@@ -285,10 +285,25 @@ fn blocks(n: usize, block: usize) -> usize {
     n.div_ceil(block.max(1))
 }
 
-/// Builds the binary BVH over `prims` (any order; primitives with non-finite or empty
-/// boxes must already be left out by the caller).
+/// Whether a primitive can be built over: a finite, non-empty box (a point is fine).
+/// Nothing else can be hit, and one non-finite box would spread into every box above it.
+#[inline]
+fn usable(p: &PrimRef) -> bool {
+    let (lo, hi) = (p.min(), p.max());
+    lo.is_finite() && hi.is_finite() && lo.cmple(hi).all()
+}
+
+/// `prims` without those that are not [`usable`] (their ids are kept, so the rest still
+/// name their primitives). One read of the array when all are usable.
+fn usable_only(prims: &[PrimRef]) -> Option<Vec<PrimRef>> {
+    (!prims.iter().all(usable)).then(|| prims.iter().copied().filter(usable).collect())
+}
+
+/// Builds the binary BVH over `prims` (any order). Primitives with non-finite or empty
+/// boxes are left out: no leaf holds them.
 #[must_use]
 pub fn build_binary(prims: Vec<PrimRef>, cfg: &BuildConfig) -> BinaryBvh {
+    let prims = usable_only(&prims).unwrap_or(prims);
     build_binary_with(prims, cfg, &NoClip)
 }
 
@@ -903,6 +918,9 @@ pub fn build_clustered(prims: Vec<PrimRef>, cfg: &BuildConfig, cluster: usize) -
 
 /// [`build_clustered`] with reused buffers; the tree is left in `s.bvh`.
 pub fn build_clustered_into(prims: &[PrimRef], cfg: &BuildConfig, cluster: usize, s: &mut MortonScratch) {
+    if let Some(ok) = usable_only(prims) {
+        return build_clustered_into(&ok, cfg, cluster, s);
+    }
     let cluster = cluster.max(1);
     if prims.len() <= 4 * cluster {
         s.bvh = build_binary(prims.to_vec(), cfg);
@@ -969,6 +987,9 @@ pub fn build_lbvh(prims: Vec<PrimRef>, max_leaf: usize) -> BinaryBvh {
 
 /// [`build_lbvh`] with reused buffers; the tree is left in `s.bvh`.
 pub fn build_lbvh_into(prims: &[PrimRef], max_leaf: usize, s: &mut MortonScratch) {
+    if let Some(ok) = usable_only(prims) {
+        return build_lbvh_into(&ok, max_leaf, s);
+    }
     s.bvh.nodes.clear();
     s.bvh.prims.clear();
     if prims.is_empty() {

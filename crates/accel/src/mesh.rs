@@ -1,11 +1,11 @@
 //! The bottom-level index over one triangle mesh.
 
-use crate::build::{build_binary, BinNode, BinaryBvh, BuildConfig, PrimRef};
+use crate::build::{BinNode, BinaryBvh, BuildConfig, PrimRef};
 use crate::geom::{Aabb, Hit, Ray, INVALID};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::traverse::{self, Counters, Leaves, RayPre, TraversalStats};
 use crate::triangle::{
-    tri4_intersect_scalar, tri4_occluded_scalar, unit_map_possible, unit_maps4_soa, Tri4, UnitTriangle, WatertightRay, NEVER_HIT,
+    in_range, tri4_intersect_scalar, tri4_occluded_scalar, unit_map_possible, unit_maps4_soa, Tri4, UnitTriangle, WatertightRay, NEVER_HIT,
 };
 use crate::wide::{collapse, leaf_code, leaf_range, WideNode, EMPTY, LEAF};
 use glam::Vec3;
@@ -183,7 +183,7 @@ impl MeshBvh {
                 let mut count = 0;
                 for (k_out, t) in k_out.iter_mut().zip(idx) {
                     let v = verts(t);
-                    let k = unit_map_possible(v[0], v[1], v[2]) || refittable && v.iter().all(|p| p.is_finite());
+                    let k = unit_map_possible(v[0], v[1], v[2]) || refittable && v.iter().all(|&p| in_range(p));
                     k_out.write(k);
                     count += usize::from(k);
                 }
@@ -222,7 +222,8 @@ impl MeshBvh {
         let mut bin = if cfg.spatial > 0.0 {
             crate::build::build_binary_with(prims, &cfg, &crate::build::TriangleClip { positions, indices })
         } else {
-            build_binary(prims, &cfg)
+            // The first pass kept only triangles with finite, non-empty boxes.
+            crate::build::build_binary_with(prims, &cfg, &crate::build::NoClip)
         };
         // Insertion-based optimization (`Quality::High`) moves subtrees between inner nodes
         // only: leaves keep their indices and primitive ranges, so the leaves' triangle
@@ -400,8 +401,10 @@ impl MeshBvh {
             } else {
                 tris[first as usize..(first + count) as usize].iter().flat_map(Tri4::ids).collect()
             };
+            // A triangle with a corner out of range can't be hit (its lane never hits); its
+            // box would spread NaN or infinity into the node's and lose the whole subtree.
             for id in ids {
-                if let Some(v) = verts(id) {
+                if let Some(v) = verts(id).filter(|v| v.iter().all(|&p| in_range(p))) {
                     b = b.union(Aabb::from_points(&v));
                 }
             }

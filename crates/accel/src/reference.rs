@@ -2,7 +2,7 @@
 
 use crate::geom::{Hit, Ray, INVALID};
 use crate::shape::Shape;
-use crate::triangle::{unit_triangle_hit, UnitTriangle, WatertightRay};
+use crate::triangle::{unit_map_possible, unit_triangle_hit, UnitTriangle, WatertightRay};
 use glam::{Affine3A, Vec3};
 
 /// Closest hit over all triangles with the unit-triangle test.
@@ -29,7 +29,12 @@ pub fn intersect_triangles_watertight(positions: &[Vec3], indices: &[[u32; 3]], 
     let mut best: Option<Hit> = None;
     let mut tmax = ray.tmax;
     for (i, t) in indices.iter().enumerate() {
-        if let Some((t, u, v)) = w.hit(positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize], ray.tmin, tmax) {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        // The triangles a build keeps (degenerate ones and those out of range are left out).
+        if !unit_map_possible(a, b, c) {
+            continue;
+        }
+        if let Some((t, u, v)) = w.hit(a, b, c, ray.tmin, tmax) {
             tmax = t;
             best = Some(Hit { t, u, v, prim: i as u32, inst: INVALID });
         }

@@ -129,9 +129,31 @@ impl Tree<'_> {
         }
     }
 
-    /// Takes `n` out (its parent must not be the root); returns the freed parent slot.
+    /// Takes `n` (not the root) out; returns the slot it frees: `n`'s parent, or, when
+    /// that parent is the root (which stays at index 0), the sibling, whose contents move
+    /// into the root.
+    ///
+    /// The second case is reached by undoing a move that put `n` beside the root: before
+    /// it was handled, such an undo read the root's parent (`NONE`) and panicked
+    /// (`../shared/scenes/regressions/reinsert_root.obj`).
     fn remove(&mut self, n: u32) -> u32 {
         let p = self.parent[n as usize];
+        debug_assert!(p != NONE, "remove: {n} is the root");
+        if p == 0 {
+            let s = self.sibling(n);
+            let node = self.nodes[s as usize];
+            self.nodes[0] = node;
+            if !node.is_leaf() {
+                for c in self.children(0) {
+                    self.parent[c as usize] = 0;
+                }
+            }
+            self.set_bounds(0, node.bounds);
+            self.delta -= f64::from(self.areas[s as usize]);
+            self.areas[s as usize] = 0.0;
+            self.parent[s as usize] = NONE;
+            return s;
+        }
         let g = self.parent[p as usize];
         let s = self.sibling(n);
         self.replace_child(g, p, s);

@@ -80,11 +80,29 @@ fn largest_axis(n: DVec3) -> usize {
     }
 }
 
+/// The largest vertex coordinate (in absolute value) lucent traces: 2^60, about 1.15e18. A
+/// triangle with a corner beyond it (or a non-finite one) is left out of every build, like a
+/// degenerate one, and the reference kernels skip it too. Beyond it the unit-triangle map of
+/// a triangle with another corner near the origin has entries near f32's denormals, and the
+/// test reports points far outside the triangle (a corner at 3.4e38 gave hits 50 units off
+/// it); box arithmetic near f32's range overflows. No scene needs such coordinates.
+pub const MAX_COORD: f32 = (1u64 << 60) as f32;
+
+/// Whether every coordinate of `v` is finite and within [`MAX_COORD`].
+#[inline(always)]
+#[must_use]
+pub fn in_range(v: Vec3) -> bool {
+    v.abs().cmple(Vec3::splat(MAX_COORD)).all()
+}
+
 impl UnitTriangle {
     /// The map for triangle (v0, v1, v2), computed in f64; `None` when the triangle is
-    /// degenerate (zero area) or not finite.
+    /// degenerate (zero area) or has a corner out of range ([`in_range`]).
     #[must_use]
     pub fn new(v0: Vec3, v1: Vec3, v2: Vec3) -> Option<Self> {
+        if !(in_range(v0) && in_range(v1) && in_range(v2)) {
+            return None;
+        }
         let (a, b, c) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
         let e1 = b - a;
         let e2 = c - a;
@@ -132,6 +150,9 @@ impl UnitTriangle {
 #[inline]
 #[must_use]
 pub fn unit_map_possible(v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
+    if !(in_range(v0) && in_range(v1) && in_range(v2)) {
+        return false;
+    }
     let (a, b, c) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
     let det = (b - a).cross(c - a).length_squared();
     det > 0.0 && det.is_finite() && a.is_finite()
@@ -235,7 +256,7 @@ unsafe fn unit_maps4_soa_avx(tris: &[[Vec3; 3]; 4]) -> ([[f32; 4]; 9], [u32; 4],
     let mut axes = [0u32; 4];
     let mut ok = [false; 4];
     for l in 0..4 {
-        let good = dets[l] > 0.0 && dets[l].is_finite() && tris[l][0].is_finite() && m.iter().all(|col| col[l].is_finite());
+        let good = dets[l] > 0.0 && dets[l].is_finite() && tris[l].iter().all(|&v| in_range(v)) && m.iter().all(|col| col[l].is_finite());
         ok[l] = good;
         axes[l] = if on_z >> l & 1 == 1 { 2 } else { (on_y >> l & 1) as u32 };
         if !good {
@@ -694,14 +715,15 @@ mod tests {
     }
 
     /// The batched maps (AVX, four at a time) are the bits of `UnitTriangle::new`, on
-    /// ordinary, tiny, huge, degenerate and non-finite triangles.
+    /// ordinary, tiny, huge (near [`MAX_COORD`] and beyond it), degenerate and non-finite
+    /// triangles.
     #[test]
     fn batched_unit_maps_match_one_by_one() {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
         let mut tris = Vec::new();
         for i in 0..4000 {
-            let scale = [1.0f32, 1e-3, 1e-19, 1e-30, 1e19, 1e37][i % 6];
+            let scale = [1.0f32, 1e-3, 1e-19, 1e-30, 1e18, 1e37][i % 6];
             let mut v =
                 [0; 3].map(|_| Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)) * scale);
             match i % 11 {

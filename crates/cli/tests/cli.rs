@@ -353,3 +353,38 @@ fn no_simd_intrinsic_is_left_out_of_line() {
     let outlined: Vec<&str> = symbols.lines().filter(|l| l.contains("core::core_arch::x86::") && !l.contains("_xgetbv")).collect();
     assert!(outlined.is_empty(), "intrinsics compiled as functions of their own:\n{}", outlined.join("\n"));
 }
+
+/// Every input that once broke lucent (`../shared/scenes/regressions/`, see its README) goes
+/// through the commands a new user runs first, with the default build: `info` and a small
+/// `render` succeed, with no panic. The first was `reinsert_root.obj`, whose default build
+/// (`--quality high`) panicked in the reinsertion (a move beside the root, undone).
+#[test]
+fn every_regression_input_loads_and_renders() {
+    let scenes = std::env::var("LUCENT_SCENES")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes"));
+    let dir = scenes.join("regressions");
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x != "md"))
+        .collect();
+    files.sort();
+    assert!(files.iter().any(|f| f.ends_with("reinsert_root.obj")), "regressions: {files:?}");
+    let d = tempfile::tempdir().expect("tmp");
+    for f in &files {
+        let o = lucent().arg("info").arg(f).output().expect("run");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success() && !err.contains("panicked"), "info {}: {err}", f.display());
+        let out = d.path().join("r.png");
+        let o = lucent().args(["render", "--size", "64x48", "--threads", "2", "-o"]).arg(&out).arg(f).output().expect("run");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success() && !err.contains("panicked"), "render {}: {err}", f.display());
+        // Something of the mesh is in view (the default camera frames the scene).
+        let img = image::open(&out).expect("png").to_rgb8();
+        let mut colours: Vec<[u8; 3]> = img.pixels().map(|p| p.0).collect();
+        colours.sort_unstable();
+        colours.dedup();
+        assert!(colours.len() > 8, "render {}: only {} colours", f.display(), colours.len());
+    }
+}
