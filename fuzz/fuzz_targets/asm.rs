@@ -1,14 +1,3 @@
-//! Any text through the assembler: an error or words, never a panic; and whatever
-//! assembles must disassemble and reassemble to the same words.
+//! Fuzz target `asm`: the harness `lucent_fuzzing::asm` (see that crate for what it reads).
 #![no_main]
-use libfuzzer_sys::fuzz_target;
-use lucent_isa::*;
-
-fuzz_target!(|data: &[u8]| {
-    if let Ok(src) = std::str::from_utf8(data) {
-        if let Ok(words) = assemble_words(src, AsmOptions::default()) {
-            let text = disassemble(&words, DisasmOptions::default()).expect("assembled words decode");
-            assert_eq!(assemble_words(&text, AsmOptions::default()).expect("disassembly assembles"), words);
-        }
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| lucent_fuzzing::asm(data));

@@ -1,12 +1,3 @@
-//! Any bytes as big-endian words through the decoders and the disassembler.
+//! Fuzz target `decode`: the harness `lucent_fuzzing::decode` (see that crate for what it reads).
 #![no_main]
-use libfuzzer_sys::fuzz_target;
-use lucent_isa::*;
-
-fuzz_target!(|data: &[u8]| {
-    let words: Vec<u32> = data.chunks_exact(4).map(|c| u32::from_be_bytes([c[0], c[1], c[2], c[3]])).collect();
-    let _ = decode(&words);
-    if let Ok(text) = disassemble(&words, DisasmOptions::default()) {
-        assert_eq!(assemble_words(&text, AsmOptions::default()).expect("disassembly assembles"), words);
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| lucent_fuzzing::decode(data));

@@ -1,9 +1,3 @@
-//! Any text through the OBJ importer: a scene or an error, never a panic.
+//! Fuzz target `obj`: the harness `lucent_fuzzing::obj` (see that crate for what it reads).
 #![no_main]
-use libfuzzer_sys::fuzz_target;
-
-fuzz_target!(|data: &[u8]| {
-    if let Ok(text) = std::str::from_utf8(data) {
-        let _ = lucent_scene::parse_obj(std::path::Path::new("fuzz.obj"), std::path::Path::new("/nonexistent"), text);
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| lucent_fuzzing::obj(data));

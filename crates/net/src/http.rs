@@ -61,14 +61,20 @@ fn respond(s: &mut TcpStream, status: &str, ctype: &str, body: &[u8]) {
 }
 
 /// The request line and headers (names lower-cased).
-struct Request {
-    method: String,
-    path: String,
-    headers: Vec<(String, String)>,
+#[derive(Debug)]
+pub struct Request {
+    /// `GET`, ...
+    pub method: String,
+    /// The request target.
+    pub path: String,
+    /// Header names (lower-cased) and values.
+    pub headers: Vec<(String, String)>,
 }
 
 impl Request {
-    fn header(&self, name: &str) -> Option<&str> {
+    /// The value of header `name` (lower case).
+    #[must_use]
+    pub fn header(&self, name: &str) -> Option<&str> {
         self.headers.iter().find(|h| h.0 == name).map(|h| h.1.as_str())
     }
 }
@@ -95,7 +101,14 @@ fn read_head(s: &mut TcpStream, act: &Activity) -> io::Result<Option<Request>> {
             Err(e) => return Err(e),
         }
     }
-    let text = String::from_utf8_lossy(&buf);
+    Ok(Some(parse_head(&buf)))
+}
+
+/// The request line and headers of a request head (any bytes: invalid UTF-8 is replaced,
+/// missing parts are empty). Public for the fuzz target `http`.
+#[must_use]
+pub fn parse_head(buf: &[u8]) -> Request {
+    let text = String::from_utf8_lossy(buf);
     let mut lines = text.split("\r\n");
     let mut first = lines.next().unwrap_or("").split(' ');
     let method = first.next().unwrap_or("").to_string();
@@ -104,7 +117,7 @@ fn read_head(s: &mut TcpStream, act: &Activity) -> io::Result<Option<Request>> {
         .take_while(|l| !l.is_empty())
         .filter_map(|l| l.split_once(':').map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string())))
         .collect();
-    Ok(Some(Request { method, path, headers }))
+    Request { method, path, headers }
 }
 
 pub(crate) fn handle(ctx: Arc<Ctx>, mut s: TcpStream, guard: ConnGuard) {

@@ -23,7 +23,7 @@ pub use model::*;
 pub use obj::{load_obj, parse_obj};
 pub use ply::load_ply;
 pub use sunflowers::{sunflower_mesh, sunflower_scene, FLOWERS};
-pub use texture::{srgb_to_linear, texture_from_image};
+pub use texture::{decode_image, open_image, srgb_to_linear, texture_from_image, MAX_TEXTURE_BYTES, MAX_TEXTURE_SIDE};
 
 use std::path::Path;
 

@@ -14,6 +14,35 @@ pub fn srgb_to_linear(c: f32) -> f32 {
     }
 }
 
+/// The largest texture side lucent decodes (pixels).
+pub const MAX_TEXTURE_SIDE: u32 = 16_384;
+/// The most memory one texture's decoding may take (bytes): a 16k × 16k RGBA image.
+pub const MAX_TEXTURE_BYTES: u64 = 4 * (MAX_TEXTURE_SIDE as u64) * (MAX_TEXTURE_SIDE as u64);
+
+fn limits() -> image::Limits {
+    let mut l = image::Limits::default();
+    l.max_image_width = Some(MAX_TEXTURE_SIDE);
+    l.max_image_height = Some(MAX_TEXTURE_SIDE);
+    l.max_alloc = Some(MAX_TEXTURE_BYTES);
+    l
+}
+
+/// Decodes an encoded image (PNG or JPEG, by its first bytes) within the texture limits: an
+/// image whose header claims more than [`MAX_TEXTURE_SIDE`] pixels a side, or more than
+/// [`MAX_TEXTURE_BYTES`] to decode, is an error before anything is allocated.
+pub fn decode_image(bytes: &[u8]) -> image::ImageResult<image::DynamicImage> {
+    let mut r = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format()?;
+    r.limits(limits());
+    r.decode()
+}
+
+/// Opens and decodes an image file within the texture limits (see [`decode_image`]).
+pub fn open_image(path: &Path) -> image::ImageResult<image::DynamicImage> {
+    let mut r = image::ImageReader::open(path)?.with_guessed_format()?;
+    r.limits(limits());
+    r.decode()
+}
+
 /// Decodes an image into a texture (`srgb`: colour data to linearize).
 pub fn texture_from_image(name: String, img: image::DynamicImage, wrap_u: Wrap, wrap_v: Wrap, srgb: bool) -> Texture {
     let rgba = img.to_rgba8();
@@ -34,7 +63,7 @@ impl TextureCache {
         if let Some(&id) = self.by_path.get(path) {
             return id;
         }
-        let id = match image::open(path) {
+        let id = match open_image(path) {
             Ok(img) => {
                 self.textures.push(texture_from_image(path.display().to_string(), img, wrap, wrap, srgb));
                 Some((self.textures.len() - 1) as u32)

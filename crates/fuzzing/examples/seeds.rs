@@ -1,0 +1,148 @@
+//! Writes the seed corpora of every fuzz target: `cargo run --release -p lucent_fuzzing
+//! --example seeds -- OUT SHARED`, with `OUT` the corpus folder (`fuzz/corpus`, one folder
+//! per target) and `SHARED` the `shared/` folder beside the checkout. Scene and program
+//! files come from `SHARED/scenes` and `SHARED/rend3r` (at most [`MAX_SEED`] bytes each;
+//! gzipped OBJ files unpacked); the binary protocols' seeds are made with lucent's own
+//! encoders. `scripts/fuzz` runs this before a campaign.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// The largest file taken as a seed (bytes): libFuzzer mutates small inputs far faster.
+const MAX_SEED: u64 = 256 * 1024;
+
+fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(rd) = std::fs::read_dir(dir) else { return };
+    for e in rd.flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            walk(&p, out);
+        } else {
+            out.push(p);
+        }
+    }
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let (Some(out), Some(shared)) = (args.get(1), args.get(2)) else {
+        return Err("usage: seeds OUT SHARED (the corpus folder and the shared/ folder)".into());
+    };
+    let (out, shared) = (PathBuf::from(out), PathBuf::from(shared));
+    let mut counts = std::collections::BTreeMap::<&str, usize>::new();
+    let mut put = |target: &'static str, name: String, data: &[u8]| -> std::io::Result<()> {
+        let dir = out.join(target);
+        std::fs::create_dir_all(&dir)?;
+        std::fs::write(dir.join(name.replace(['/', '\\'], "_")), data)?;
+        *counts.entry(target).or_default() += 1;
+        Ok(())
+    };
+    let mut files = Vec::new();
+    walk(&shared.join("scenes"), &mut files);
+    walk(&shared.join("rend3r"), &mut files);
+    files.sort();
+    for f in &files {
+        let len = std::fs::metadata(f)?.len();
+        let rel = f.strip_prefix(&shared).unwrap_or(f).display().to_string();
+        let name = f.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
+        let ext = name.rsplit('.').next().unwrap_or("");
+        if name.ends_with(".obj.gz") {
+            // Unpacked, cut to the first 256 KB of lines.
+            let mut text = Vec::new();
+            flate2::read::GzDecoder::new(std::fs::File::open(f)?).take(MAX_SEED).read_to_end(&mut text)?;
+            let cut = text.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+            put("obj", rel, &text[..cut])?;
+            continue;
+        }
+        if len > MAX_SEED {
+            continue;
+        }
+        let target = match ext {
+            "obj" => "obj",
+            "mtl" => "mtl",
+            "ply" => "ply",
+            "gltf" => "gltf",
+            "glb" => "glb",
+            "png" | "jpg" | "jpeg" => "image",
+            "rdr" | "asm" | "s" => "asm",
+            "mem" => "mem",
+            _ => continue,
+        };
+        let data = std::fs::read(f)?;
+        put(target, rel.clone(), &data)?;
+        if target == "mem" {
+            // The same program as raw big-endian words (the binary decoder's input) and in
+            // the wire protocol.
+            if let Ok(words) = lucent_isa::from_mem(&String::from_utf8_lossy(&data)) {
+                let bytes = lucent_isa::to_bin(&words);
+                put("decode", rel.clone(), &bytes)?;
+                put("mem", format!("{rel}.bin"), &bytes)?;
+                let hello = lucent_net::Hello {
+                    input: lucent_net::Input::Words,
+                    format: lucent_net::PixelFormat::Rgb565,
+                    old_camera_table: false,
+                    width: 64,
+                    height: 48,
+                    mode: lucent_net::WireMode::Default,
+                };
+                let mut wire = hello.encode().to_vec();
+                for chunk in words.chunks(64) {
+                    lucent_net::protocol::write_message(&mut wire, 1, &lucent_net::protocol::words_to_bytes(chunk))?;
+                }
+                put("net", rel.clone(), &wire)?;
+                put("ws", format!("{rel}.bin"), &ws_frame(2, &lucent_net::protocol::words_to_bytes(&words), true))?;
+            }
+        }
+        if target == "asm" && data.len() < 60_000 {
+            put("ws", rel, &ws_frame(1, &data, true))?;
+        }
+    }
+    // Small PLY files of each encoding, and HTTP heads the page server sees.
+    let tri = "element vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    put("ply", "ascii.ply".into(), format!("ply\nformat ascii 1.0\n{tri}0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").as_bytes())?;
+    for (name, le) in [("binary_le.ply", true), ("binary_be.ply", false)] {
+        let fmt = if le { "binary_little_endian" } else { "binary_big_endian" };
+        let mut b = format!("ply\nformat {fmt} 1.0\n{tri}").into_bytes();
+        for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+            b.extend(if le { v.to_le_bytes() } else { v.to_be_bytes() });
+        }
+        b.push(3);
+        for i in [0i32, 1, 2] {
+            b.extend(if le { i.to_le_bytes() } else { i.to_be_bytes() });
+        }
+        put("ply", name.into(), &b)?;
+    }
+    for (i, head) in [
+        "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n",
+        "GET /ws HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n",
+        "GET /programs/rt_spheres.rdr?x=1 HTTP/1.1\r\n\r\n",
+    ]
+    .iter()
+    .enumerate()
+    {
+        put("http", format!("head{i}"), head.as_bytes())?;
+    }
+    for (t, n) in &counts {
+        println!("{t:8} {n} seeds");
+    }
+    Ok(())
+}
+
+/// One masked client frame (RFC 6455 §5.2): `opcode` 1 text, 2 binary.
+fn ws_frame(opcode: u8, payload: &[u8], fin: bool) -> Vec<u8> {
+    let mut f = vec![if fin { 0x80 } else { 0 } | opcode];
+    let n = payload.len();
+    if n < 126 {
+        f.push(0x80 | n as u8);
+    } else if n < 65_536 {
+        f.push(0x80 | 126);
+        f.extend((n as u16).to_be_bytes());
+    } else {
+        f.push(0x80 | 127);
+        f.extend((n as u64).to_be_bytes());
+    }
+    let mask = [0x37, 0xfa, 0x21, 0x3d];
+    f.extend(mask);
+    f.extend(payload.iter().enumerate().map(|(i, b)| b ^ mask[i % 4]));
+    f
+}
