@@ -25,6 +25,7 @@
 #![warn(missing_docs)]
 
 pub mod build;
+pub mod closed;
 mod geom;
 mod kernel;
 mod mesh;

@@ -8,6 +8,7 @@ mod bench;
 mod dynamic_bench;
 mod frame_bench;
 mod isa_cmd;
+mod leaks_bench;
 mod net_cmd;
 mod rend3r_bench;
 mod render_cmd;
@@ -384,6 +385,18 @@ enum BenchCmd {
         #[command(flatten)]
         pin: PinArgs,
     },
+    /// Watertightness: rays from inside closed meshes (an icosphere, a torus, a cube with
+    /// shared edges; at 1e-4, 1 and 1e4 scale, turned off the axes) aimed at their vertices
+    /// and edges, where a ray must hit. Prints, per mesh and triangle test (unit-triangle,
+    /// watertight), the rays that met nothing: leaks.
+    Leaks {
+        /// Rays per triangle test, split evenly over the nine meshes.
+        #[arg(long, default_value_t = 100_000_000)]
+        rays: u64,
+        /// Seed of the ray set.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     /// The network device: frames per second and latency (batch sent -> frame received) for
     /// 1 and 64 clients streaming moving-sphere programs, server memory, and words per
     /// second accepted. Runs its own server on loopback.
@@ -575,6 +588,7 @@ fn run() -> Result<()> {
             threads::global(!pin.no_pin)?;
             dynamic_bench::run(&scenes, frames, size)
         }
+        Cmd::Bench(BenchCmd::Leaks { rays, seed }) => leaks_bench::run(rays, seed),
         Cmd::Bench(BenchCmd::Net { clients, seconds, size, format }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),
         Cmd::Serve(a) => net_cmd::serve(lucent_net::ServerConfig {
             listen: a.listen,
