@@ -413,6 +413,20 @@ enum BenchCmd {
         /// Pixel format of the frames.
         #[arg(long, default_value = "png", value_parser = ["png", "rgb8", "rgb565"])]
         format: String,
+        /// Soak instead: `--soak-clients` concurrent clients on loopback, one in ten of them
+        /// hostile (garbage, truncated and oversize messages, stalled readers, abrupt
+        /// disconnects, slow writers), while the well-formed ones ask for `--soak-frames`
+        /// frames each and check every pixel against what `lucent run` renders. Prints lost
+        /// and wrong frames (goal 0), latency, the server's memory over time and panics;
+        /// fails when a frame is lost or wrong or anything panicked.
+        #[arg(long)]
+        soak: bool,
+        /// Clients of the soak.
+        #[arg(long, default_value_t = 64)]
+        soak_clients: usize,
+        /// Frames each well-formed client asks for in the soak.
+        #[arg(long, default_value_t = 10_000)]
+        soak_frames: u64,
     },
     /// REND3R's Table IV scenes (1..4096 spheres, 0/1 lights): frame times, and words per
     /// second through the assembler and the processor.
@@ -589,7 +603,8 @@ fn run() -> Result<()> {
             dynamic_bench::run(&scenes, frames, size)
         }
         Cmd::Bench(BenchCmd::Leaks { rays, seed }) => leaks_bench::run(rays, seed),
-        Cmd::Bench(BenchCmd::Net { clients, seconds, size, format }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),
+        Cmd::Bench(BenchCmd::Net { soak: true, soak_clients, soak_frames, .. }) => net_cmd::soak(soak_clients, soak_frames),
+        Cmd::Bench(BenchCmd::Net { clients, seconds, size, format, .. }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),
         Cmd::Serve(a) => net_cmd::serve(lucent_net::ServerConfig {
             listen: a.listen,
             udp: (!a.no_udp).then_some(a.udp),

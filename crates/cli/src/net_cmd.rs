@@ -297,3 +297,293 @@ fn wait_done(c: &mut Client) -> Result<()> {
         }
     }
 }
+
+/// Frames the soak's well-formed clients cycle through (sphere 1 at one of this many
+/// places), each rendered once locally as `lucent run` would.
+const SOAK_POSES: u64 = 16;
+/// The soak's frame size: small, so that the protocol and the server, not rendering, are
+/// what is exercised.
+const SOAK_SIZE: (u32, u32) = (48, 32);
+
+/// The frame `lucent run` makes after the setup and pose `k` (RGB8, as sent with
+/// `PixelFormat::Rgb8`).
+fn soak_reference(k: u64) -> Result<Vec<u8>> {
+    use lucent_engine::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
+    let mut words = bench_setup();
+    words.extend(bench_move(k));
+    let mut p = Processor::new(words, lucent_isa::CameraTable::Final)?;
+    anyhow::ensure!(p.run_to_frame(1_000_000) == Step::Frame, "the soak program has no frame");
+    let fs = FrameSettings {
+        width: SOAK_SIZE.0,
+        height: SOAK_SIZE.1,
+        mode: Mode::Raytrace,
+        sets: SetKind::for_mode(Mode::Raytrace),
+        painter: false,
+        spp: 1,
+    };
+    Ok(render_frame(&p.state, &fs)?.0.to_srgb8())
+}
+
+/// What one hostile client does, again and again, until the soak ends.
+#[derive(Clone, Copy, Debug)]
+enum Hostile {
+    Garbage,
+    Truncated,
+    Oversize,
+    StalledReader,
+    AbruptDisconnect,
+    SlowWriter,
+}
+
+const HOSTILE: [Hostile; 6] =
+    [Hostile::Garbage, Hostile::Truncated, Hostile::Oversize, Hostile::StalledReader, Hostile::AbruptDisconnect, Hostile::SlowWriter];
+
+fn hostile_round(kind: Hostile, addr: SocketAddr, round: u64, stop: &std::sync::atomic::AtomicBool) {
+    use std::io::Write;
+    use std::sync::atomic::Ordering;
+    let hello =
+        Hello { input: Input::Words, format: PixelFormat::Rgb8, old_camera_table: false, width: 0, height: 0, mode: WireMode::Raytrace };
+    let Ok(mut s) = std::net::TcpStream::connect(addr) else { return };
+    let _ = s.set_write_timeout(Some(Duration::from_secs(2)));
+    let mut x = round.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut noise = |n: usize| -> Vec<u8> {
+        (0..n)
+            .map(|_| {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                x as u8
+            })
+            .collect()
+    };
+    match kind {
+        Hostile::Garbage => {
+            let _ = s.write_all(&noise(64 + (round % 4000) as usize));
+        }
+        Hostile::Truncated => {
+            let _ = s.write_all(&hello.encode());
+            let _ = s.write_all(&[lucent_net::protocol::MSG_DATA, 0, 0, 0x10, 0]); // 4096 bytes announced
+            let _ = s.write_all(&noise(100));
+        }
+        Hostile::Oversize => {
+            let _ = s.write_all(&hello.encode());
+            let _ = s.write_all(&[lucent_net::protocol::MSG_DATA, 0x7F, 0xFF, 0xFF, 0xFF]);
+            let _ = s.write_all(&noise(4096));
+        }
+        Hostile::StalledReader => {
+            // Asks for many frames and never reads them.
+            let _ = s.write_all(&hello.encode());
+            let mut words = bench_setup();
+            for i in 0..200 {
+                words.extend(bench_move(i));
+            }
+            let _ =
+                lucent_net::protocol::write_message(&mut s, lucent_net::protocol::MSG_DATA, &lucent_net::protocol::words_to_bytes(&words));
+            for _ in 0..40 {
+                if stop.load(Ordering::Relaxed) {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        }
+        Hostile::AbruptDisconnect => {
+            let _ = s.write_all(&hello.encode()[..7]);
+        }
+        Hostile::SlowWriter => {
+            for b in hello.encode() {
+                if s.write_all(&[b]).is_err() || stop.load(Ordering::Relaxed) {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        }
+    }
+    drop(s);
+}
+
+/// `lucent bench net --soak`.
+pub fn soak(clients: usize, frames: u64) -> Result<()> {
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    use std::sync::Arc;
+    let panics = Arc::new(AtomicU64::new(0));
+    {
+        let panics = panics.clone();
+        let old = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            panics.fetch_add(1, Ordering::Relaxed);
+            old(info);
+        }));
+    }
+    let refs: Arc<Vec<Vec<u8>>> = Arc::new((0..SOAK_POSES).map(soak_reference).collect::<Result<_>>()?);
+    let cfg = ServerConfig {
+        listen: SocketAddr::from(([127, 0, 0, 1], 0)),
+        udp: None,
+        http: None,
+        width: SOAK_SIZE.0,
+        height: SOAK_SIZE.1,
+        max_connections: clients + 16,
+        idle_timeout: Duration::from_secs(3),
+        write_timeout: Duration::from_secs(2),
+        ..ServerConfig::default()
+    };
+    let per_session = u64::from(cfg.max_message) + 3 * u64::from(SOAK_SIZE.0 * SOAK_SIZE.1 * 4);
+    let server = Arc::new(Server::start(cfg.clone())?);
+    let addr = server.tcp_addr;
+    let n_hostile = clients.div_ceil(10).min(clients.saturating_sub(1));
+    let n_good = clients - n_hostile;
+    println!(
+        "soak: {n_good} well-formed clients × {frames} frames, {n_hostile} hostile clients, {}x{} raytraced, loopback {addr}",
+        SOAK_SIZE.0, SOAK_SIZE.1
+    );
+    let stop = Arc::new(AtomicBool::new(false));
+    let done_frames = Arc::new(AtomicU64::new(0));
+    let rss0 = crate::stats::proc_status_kib("VmRSS:").unwrap_or(0);
+    let bar = indicatif::ProgressBar::new(n_good as u64 * frames);
+    bar.set_style(indicatif::ProgressStyle::with_template("soak {bar:40} {pos}/{len} frames ({eta})")?);
+    let hostile: Vec<_> = (0..n_hostile)
+        .map(|h| {
+            let stop = stop.clone();
+            let kind = HOSTILE[h % HOSTILE.len()];
+            std::thread::spawn(move || {
+                let mut round = 0u64;
+                while !stop.load(Ordering::Relaxed) {
+                    hostile_round(kind, addr, round * 64 + h as u64, &stop);
+                    round += 1;
+                }
+                (kind, round)
+            })
+        })
+        .collect();
+    let good: Vec<_> = (0..n_good)
+        .map(|k| {
+            let (refs, done_frames, bar) = (refs.clone(), done_frames.clone(), bar.clone());
+            std::thread::spawn(move || -> Result<(u64, u64, Vec<f64>, u64)> {
+                let hello = Hello {
+                    input: Input::Words,
+                    format: PixelFormat::Rgb8,
+                    old_camera_table: false,
+                    width: 0,
+                    height: 0,
+                    mode: WireMode::Raytrace,
+                };
+                // A busy server refuses a connection (hostile clients may hold every slot for
+                // a moment): a well-formed client waits and tries again, as a real one would.
+                let mut refused = 0u64;
+                let mut c = loop {
+                    match Client::connect(addr, &hello, Duration::from_secs(60)) {
+                        Ok(c) => break c,
+                        Err(lucent_net::client::ClientError::Refused(e))
+                            if e.code == lucent_net::protocol::ErrorCode::Busy && refused < 1000 =>
+                        {
+                            refused += 1;
+                            std::thread::sleep(Duration::from_millis(5 + 5 * refused.min(20)));
+                        }
+                        Err(e) => anyhow::bail!("client {k}: {e}"),
+                    }
+                };
+                c.send_words(&bench_setup())?;
+                wait_done(&mut c)?;
+                let (mut lost, mut wrong, mut lat) = (0u64, 0u64, Vec::with_capacity(frames as usize));
+                for i in 0..frames {
+                    let pose = (i + k as u64) % SOAK_POSES;
+                    let t = Instant::now();
+                    c.send_words(&bench_move(pose))?;
+                    let mut got = 0;
+                    loop {
+                        match c.recv()? {
+                            Event::Frame(_, px) => {
+                                got += 1;
+                                lat.push(t.elapsed().as_secs_f64() * 1e3);
+                                wrong += u64::from(px != refs[pose as usize]);
+                            }
+                            Event::Done(_) => break,
+                            Event::Error(e) => anyhow::bail!("client {k}: server error: {e}"),
+                            Event::Closed => anyhow::bail!("client {k}: the server closed the connection at frame {i}"),
+                        }
+                    }
+                    lost += u64::from(got != 1);
+                    done_frames.fetch_add(1, Ordering::Relaxed);
+                    bar.inc(1);
+                }
+                Ok((lost, wrong, lat, refused))
+            })
+        })
+        .collect();
+    // The server's memory (this process's RSS) over time.
+    let sampler = {
+        let (stop, done_frames, server) = (stop.clone(), done_frames.clone(), server.clone());
+        std::thread::spawn(move || {
+            let t0 = Instant::now();
+            let mut series = Vec::new();
+            while !stop.load(Ordering::Relaxed) {
+                let rss = crate::stats::proc_status_kib("VmRSS:").unwrap_or(0);
+                series.push((t0.elapsed().as_secs_f64(), done_frames.load(Ordering::Relaxed), rss, server.connections()));
+                std::thread::sleep(Duration::from_millis(if std::env::var_os("LUCENT_SOAK_TRACE").is_some() { 5 } else { 250 }));
+            }
+            series
+        })
+    };
+    let t0 = Instant::now();
+    let (mut lost, mut wrong, mut lat, mut failed, mut refused) = (0u64, 0u64, Vec::new(), Vec::new(), 0u64);
+    for g in good {
+        match g.join() {
+            Ok(Ok((l, w, v, r))) => {
+                lost += l;
+                wrong += w;
+                lat.extend(v);
+                refused += r;
+            }
+            Ok(Err(e)) => failed.push(e.to_string()),
+            Err(_) => failed.push("a client thread panicked".into()),
+        }
+    }
+    let secs = t0.elapsed().as_secs_f64();
+    stop.store(true, Ordering::Relaxed);
+    bar.finish_and_clear();
+    let rounds: Vec<(Hostile, u64)> = hostile.into_iter().filter_map(|h| h.join().ok()).collect();
+    let series = sampler.join().unwrap_or_default();
+    server.stop();
+    let expected = n_good as u64 * frames;
+    // Frames of a failed client count as lost.
+    let received = lat.len() as u64;
+    let lost = lost + expected.saturating_sub(done_frames.load(Ordering::Relaxed));
+    let p50 = median(&mut lat);
+    let p95 = pct(&lat, 0.95);
+    let mb = |kib: u64| kib as f64 / 1024.0;
+    let peak = series.iter().map(|s| s.2).max().unwrap_or(rss0);
+    println!("time {secs:.1} s, {:.0} frames/s", received as f64 / secs);
+    println!("frames: expected {expected}, received {received}, lost {lost}, wrong {wrong}");
+    println!("latency per frame: p50 {p50:.2} ms, p95 {p95:.2} ms");
+    println!("connections of well-formed clients refused as busy (then retried): {refused}");
+    println!("hostile rounds: {}", rounds.iter().map(|(k, n)| format!("{k:?} {n}")).collect::<Vec<_>>().join(", "));
+    println!(
+        "server RSS: start {:.1} MB, peak {:.1} MB (bound from the limits: {} sessions × {:.1} MB = {:.1} MB above the start)",
+        mb(rss0),
+        mb(peak),
+        cfg.max_connections,
+        per_session as f64 / 1048576.0,
+        (cfg.max_connections as u64 * per_session) as f64 / 1048576.0
+    );
+    let step = (series.len() / 10).max(1);
+    for s in series.iter().step_by(step) {
+        println!("  t {:>7.2} s  frames {:>9}  RSS {:>7.1} MB  connections {:>4}", s.0, s.1, mb(s.2), s.3);
+    }
+    let n_panics = panics.load(Ordering::Relaxed);
+    println!("panics: {n_panics}");
+    println!(
+        "{}",
+        serde_json::json!({"kind": "net_soak", "clients": clients, "hostile": n_hostile, "frames_per_client": frames,
+            "expected": expected, "received": received, "lost": lost, "wrong": wrong, "latency_p50_ms": p50, "latency_p95_ms": p95,
+            "rss_start_mb": mb(rss0), "rss_peak_mb": mb(peak), "panics": n_panics, "seconds": secs, "busy_refusals": refused})
+    );
+    for f in &failed {
+        eprintln!("soak: {f}");
+    }
+    let bound = rss0 + cfg.max_connections as u64 * per_session / 1024;
+    anyhow::ensure!(
+        failed.is_empty() && lost == 0 && wrong == 0 && n_panics == 0,
+        "soak failed: {lost} lost, {wrong} wrong, {n_panics} panics"
+    );
+    anyhow::ensure!(peak <= bound, "server memory {:.1} MB above the documented bound {:.1} MB", mb(peak), mb(bound));
+    Ok(())
+}

@@ -388,3 +388,15 @@ fn every_regression_input_loads_and_renders() {
         assert!(colours.len() > 8, "render {}: only {} colours", f.display(), colours.len());
     }
 }
+
+/// The short soak (CI's version of `lucent bench net --soak`): 16 clients on loopback, two
+/// of them hostile, the others checking every frame against `lucent run`'s. It fails on a
+/// lost or wrong frame, a panic, or server memory above the limits' bound.
+#[test]
+fn the_server_soak_loses_no_frame() {
+    let o = lucent().args(["bench", "net", "--soak", "--soak-clients", "16", "--soak-frames", "60"]).output().expect("run");
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{text}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains("lost 0, wrong 0") && text.contains("panics: 0"), "{text}");
+    assert!(text.contains("received 840"), "{text}");
+}

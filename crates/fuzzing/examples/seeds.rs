@@ -45,7 +45,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let len = std::fs::metadata(f)?.len();
         let rel = f.strip_prefix(&shared).unwrap_or(f).display().to_string();
         let name = f.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
-        let ext = name.rsplit('.').next().unwrap_or("");
         if name.ends_with(".obj.gz") {
             // Unpacked, cut to the first 256 KB of lines.
             let mut text = Vec::new();
@@ -57,17 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if len > MAX_SEED {
             continue;
         }
-        let target = match ext {
-            "obj" => "obj",
-            "mtl" => "mtl",
-            "ply" => "ply",
-            "gltf" => "gltf",
-            "glb" => "glb",
-            "png" | "jpg" | "jpeg" => "image",
-            "rdr" | "asm" | "s" => "asm",
-            "mem" => "mem",
-            _ => continue,
-        };
+        let Some(target) = lucent_fuzzing::target_for(f) else { continue };
         let data = std::fs::read(f)?;
         put(target, rel.clone(), &data)?;
         if target == "mem" {
