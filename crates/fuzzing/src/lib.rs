@@ -81,9 +81,15 @@ fn build_all(scene: &lucent_scene::Scene) {
     }
 }
 
-/// Wavefront OBJ (with `mtllib` naming a file that does not exist, or `s.mtl`, empty).
+/// A folder that does not exist: what an in-memory input names beside it is missing.
+const NOWHERE: &str = "/nonexistent/lucent-fuzz";
+
+/// Wavefront OBJ, in memory (an `mtllib` or texture it names is missing: a warning).
 pub fn obj(data: &[u8]) {
-    load_file(&[("s.obj", data), ("s.mtl", b"")], "s.obj");
+    let Ok(text) = std::str::from_utf8(data) else { return };
+    if let Ok(scene) = lucent_scene::parse_obj(Path::new("fuzz.obj"), Path::new(NOWHERE), text) {
+        build_all(&scene);
+    }
 }
 
 /// An MTL file, read through an OBJ that names it and uses its first material.
@@ -97,19 +103,24 @@ pub fn mtl(data: &[u8]) {
     load_file(&[("m.mtl", data), ("m.obj", obj.as_bytes())], "m.obj");
 }
 
-/// PLY, ASCII or binary (the header says which).
+/// PLY, ASCII or binary (the header says which), in memory.
 pub fn ply(data: &[u8]) {
-    load_file(&[("s.ply", data)], "s.ply");
+    if let Ok(scene) = lucent_scene::parse_ply(Path::new("fuzz.ply"), data) {
+        build_all(&scene);
+    }
 }
 
-/// glTF JSON (buffers and images as data URIs, or files that do not exist).
+/// glTF JSON, in memory (buffers and images as data URIs; files it names are missing).
 pub fn gltf(data: &[u8]) {
-    load_file(&[("s.gltf", data)], "s.gltf");
+    if let Ok(scene) = lucent_scene::parse_gltf(Path::new("fuzz.gltf"), Path::new(NOWHERE), data) {
+        build_all(&scene);
+    }
 }
 
-/// GLB: JSON chunk, binary chunk, embedded images.
+/// GLB, in memory: JSON chunk, binary chunk, embedded images. (The glTF reader tells GLB
+/// from JSON by the first bytes, so the targets differ only in their corpora.)
 pub fn glb(data: &[u8]) {
-    load_file(&[("s.glb", data)], "s.glb");
+    gltf(data);
 }
 
 /// An image as a texture: decoded as the glTF loader decodes embedded images

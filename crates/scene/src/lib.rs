@@ -18,10 +18,10 @@ mod texture;
 
 pub use demo::{demo_scene, torus};
 pub use error::ImportError;
-pub use gltf::load_gltf;
+pub use gltf::{load_gltf, parse_gltf};
 pub use model::*;
 pub use obj::{load_obj, parse_obj};
-pub use ply::load_ply;
+pub use ply::{load_ply, parse_ply};
 pub use sunflowers::{sunflower_mesh, sunflower_scene, FLOWERS};
 pub use texture::{decode_image, open_image, srgb_to_linear, texture_from_image, MAX_TEXTURE_BYTES, MAX_TEXTURE_SIDE};
 

@@ -25,9 +25,15 @@ fn list(p: &Property) -> Option<Vec<i64>> {
 /// Loads a PLY file into a scene with one mesh.
 pub fn load_ply(path: &Path) -> Result<Scene, ImportError> {
     let bytes = crate::obj::read_maybe_gz(path)?;
+    parse_ply(path, &bytes)
+}
+
+/// Reads PLY `bytes` (ASCII or binary) into a scene with one mesh; `path` names the file
+/// in errors and the mesh.
+pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Scene, ImportError> {
     let invalid = |at: String, msg: String| ImportError::Invalid { path: path.to_path_buf(), at, msg };
     let parser = ply_rs_bw::parser::Parser::<DefaultElement>::new();
-    let ply = parser.read_ply(&mut bytes.as_slice()).map_err(|e| invalid("file".into(), e.to_string()))?;
+    let ply = parser.read_ply(&mut &bytes[..]).map_err(|e| invalid("file".into(), e.to_string()))?;
     let verts = ply.payload.get("vertex").ok_or_else(|| invalid("header".into(), "no 'vertex' element".into()))?;
     let mut mesh = Mesh { name: path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(), ..Mesh::default() };
     let mut normals = Vec::new();

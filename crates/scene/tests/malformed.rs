@@ -89,11 +89,11 @@ fn gltf_with_missing_buffer() {
         "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}],"scene":0}"#;
     let p = write(d.path(), "m.gltf", json);
     let e = err_of(&p);
-    assert!(e.contains("m.gltf") && e.contains("buffers[0]") && e.contains("gone.bin"), "{e}");
+    assert!(e.contains("m.gltf") && e.contains("/buffers/0") && e.contains("gone.bin"), "{e}");
     // The same file with the buffer present but too short.
     write(d.path(), "gone.bin", &[0u8; 12]);
     let e = err_of(&p);
-    assert!(e.contains("buffers[0]") && e.contains("byteLength"), "{e}");
+    assert!(e.contains("/buffers/0") && e.contains("byteLength"), "{e}");
     // And complete: it loads one triangle.
     let mut bin = Vec::new();
     for v in [0f32, 0., 0., 1., 0., 0., 0., 1., 0.] {
@@ -148,4 +148,71 @@ fn random_bytes_never_panic() {
             let _ = load(&p);
         }
     }
+}
+
+/// Peak resident memory of this process so far (kB), from /proc (Linux); None elsewhere.
+fn peak_rss_kib() -> Option<u64> {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()?
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:")?.trim().strip_suffix("kB")?.trim().parse().ok())
+}
+
+/// Sizes claimed by a header are checked against the data before anything that size is
+/// allocated: a PLY header of 10^9 vertices, a glTF accessor larger than its buffer view, a
+/// texture of 10^5 × 10^5 pixels each get a clear error (the texture a warning and the plain
+/// colour), and the process stays small.
+#[test]
+fn claimed_sizes_are_checked_before_allocating() {
+    let d = tempfile::tempdir().expect("tmp");
+    let before = peak_rss_kib();
+    for (name, fmt) in [("big_binary.ply", "binary_little_endian"), ("big_ascii.ply", "ascii")] {
+        let head = format!("ply\nformat {fmt} 1.0\nelement vertex 1000000000\nproperty float x\nproperty float y\nproperty float z\nelement face 1000000000\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n");
+        let e = err_of(&write(d.path(), name, head.as_bytes()));
+        assert!(e.contains(name) && e.contains("1000000000"), "{e}");
+    }
+    let gltf = r#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":12,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAA"}],
+        "bufferViews":[{"buffer":0,"byteLength":12}],"accessors":[{"bufferView":0,"componentType":5126,"count":1000000000,"type":"VEC3"}],
+        "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0}]}"#;
+    let e = err_of(&write(d.path(), "big_accessor.gltf", gltf.as_bytes()));
+    assert!(e.contains("/accessors/0") && e.contains("do not fit buffer view 0"), "{e}");
+    let no_view = gltf.replace(r#""bufferView":0,"#, "");
+    let e = err_of(&write(d.path(), "big_zeros.gltf", no_view.as_bytes()));
+    assert!(e.contains("/accessors/0") && e.contains("exceed the limit"), "{e}");
+    // A PNG whose header claims 100,000 × 100,000 RGBA pixels.
+    let chunk = |t: &[u8], data: &[u8]| {
+        let mut c = (data.len() as u32).to_be_bytes().to_vec();
+        c.extend(t);
+        c.extend(data);
+        c.extend(crc32(&[t, data].concat()).to_be_bytes());
+        c
+    };
+    let mut ihdr = 100_000u32.to_be_bytes().to_vec();
+    ihdr.extend(100_000u32.to_be_bytes());
+    ihdr.extend([8, 6, 0, 0, 0]);
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.extend(chunk(b"IHDR", &ihdr));
+    png.extend(chunk(b"IEND", b""));
+    let e = lucent_scene::decode_image(&png).expect_err("a 10^5 x 10^5 texture is refused");
+    assert!(e.to_string().to_lowercase().contains("limit"), "{e}");
+    write(d.path(), "huge.png", &png);
+    write(d.path(), "huge.mtl", b"newmtl m\nmap_Kd huge.png\n");
+    let p = write(d.path(), "huge.obj", b"mtllib huge.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n");
+    let s = load(&p).expect("loads without its texture");
+    assert!(s.textures.is_empty() && s.materials.iter().all(|m| m.diffuse_tex.is_none()));
+    if let (Some(a), Some(b)) = (before, peak_rss_kib()) {
+        assert!(b.saturating_sub(a) < 256 * 1024, "peak memory grew by {} MB", (b - a) / 1024);
+    }
+}
+
+/// CRC-32 (ISO-HDLC, as PNG uses), bit by bit.
+fn crc32(data: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in data {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+        }
+    }
+    !c
 }

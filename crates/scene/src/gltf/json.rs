@@ -60,6 +60,21 @@ impl Values {
     }
 }
 
+/// What an accessor claims, checked ([`Doc::accessor_layout`]).
+struct Layout {
+    comp: u64,
+    csize: usize,
+    ncomp: usize,
+    rows: usize,
+    col_size: usize,
+    elem: usize,
+    normalized: bool,
+    count: usize,
+    view: Option<usize>,
+    offset: usize,
+    stride: usize,
+}
+
 /// `/a/0/b` from parts.
 pub(crate) fn ptr(parts: &[&dyn std::fmt::Display]) -> String {
     parts.iter().map(|p| format!("/{p}")).collect()
@@ -83,6 +98,7 @@ impl<'a> Doc<'a> {
         }
         doc.buffers = doc.read_buffers(blob)?;
         doc.views = doc.read_views()?;
+        doc.check_references()?;
         Ok(doc)
     }
 
@@ -140,18 +156,25 @@ impl<'a> Doc<'a> {
         for (i, b) in self.items("buffers")?.iter().enumerate() {
             let at = ptr(&[&"buffers", &i]);
             let len = self.uint(b, "byteLength", &at)?.ok_or_else(|| self.err(&format!("{at}/byteLength"), "missing"))? as usize;
+            // Missing data (no uri outside a GLB, a network uri) is an error only where
+            // something reads it; a file that cannot be read, or holds fewer bytes than
+            // byteLength, is an error now.
             let data = match b.get("uri").and_then(Value::as_str) {
-                None if i == 0 && blob.is_some() => Ok(blob.take().unwrap_or_default()),
-                None => Err(format!("{at} has no uri and is not the GLB binary chunk")),
-                Some(uri) => self.read_uri(uri, &format!("{at}/uri")).map_err(|e| e.to_string()),
-            };
-            out.push(data.and_then(|d| {
-                if d.len() < len {
-                    Err(format!("{at} has {} bytes, but byteLength says {len}", d.len()))
-                } else {
-                    Ok(d)
+                None if i == 0 && blob.is_some() => blob.take().unwrap_or_default(),
+                None => {
+                    out.push(Err(format!("{at} has no uri and is not the GLB binary chunk")));
+                    continue;
                 }
-            }));
+                Some(uri) if uri.contains("://") => {
+                    out.push(Err(format!("{at}: {uri:?} is not a relative path; lucent reads no network resources")));
+                    continue;
+                }
+                Some(uri) => self.read_uri(uri, &format!("{at}/uri"))?,
+            };
+            if data.len() < len {
+                return Err(self.err(&at, format!("has {} bytes, but byteLength says {len}", data.len())));
+            }
+            out.push(Ok(data));
         }
         Ok(out)
     }
@@ -214,13 +237,10 @@ impl<'a> Doc<'a> {
         self.views.len()
     }
 
-    /// Reads accessor `i` (values converted to f32, see [`Values`]); `None`, with a
-    /// warning, when a buffer it needs has no data (a buffer without a uri outside a GLB,
-    /// or one that could not be read): what uses it is then skipped.
-    pub fn accessor(&self, i: usize) -> R<Option<Values>> {
+    /// The layout accessor `i` (the JSON `a`) claims, checked: known component and element
+    /// types, and its elements inside its buffer view (whose bytes need not be available).
+    fn accessor_layout(&self, i: usize, a: &Value) -> R<Layout> {
         let at = ptr(&[&"accessors", &i]);
-        let list = self.items("accessors")?;
-        let a = list.get(i).ok_or_else(|| self.err(&at, format!("does not exist (there are {})", list.len())))?;
         let comp = self.uint(a, "componentType", &at)?.ok_or_else(|| self.err(&format!("{at}/componentType"), "missing"))?;
         let csize =
             comp_size(comp).ok_or_else(|| self.err(&format!("{at}/componentType"), format!("{comp} is not a glTF component type")))?;
@@ -237,27 +257,55 @@ impl<'a> Doc<'a> {
         };
         let normalized = a.get("normalized").and_then(Value::as_bool).unwrap_or(false);
         let count = self.uint(a, "count", &at)?.ok_or_else(|| self.err(&format!("{at}/count"), "missing"))? as usize;
+        if count == 0 {
+            return Err(self.err(&format!("{at}/count"), "must be at least 1"));
+        }
         // Matrix columns of 1- and 2-byte components start on 4-byte boundaries.
         let rows = ncomp / cols;
         let col_size = if cols > 1 { (rows * csize).div_ceil(4) * 4 } else { rows * csize };
         let elem = cols * col_size;
+        let view = self.index(a, "bufferView", &at, self.views.len(), "buffer view")?;
+        let offset = self.uint(a, "byteOffset", &at)?.unwrap_or(0) as usize;
+        let stride = view.and_then(|v| self.views[v].stride).unwrap_or(elem);
+        if let Some(vi) = view {
+            let len = self.views[vi].len;
+            if stride < elem {
+                return Err(self.err(&at, format!("elements of {elem} bytes in buffer view {vi} of stride {stride}")));
+            }
+            // The last element ends with its last column (no padding after it).
+            let used = elem - col_size + rows * csize;
+            let end = (count - 1).checked_mul(stride).and_then(|x| x.checked_add(offset + used));
+            if end.is_none_or(|e| e > len) {
+                return Err(self.err(
+                    &at,
+                    format!(
+                        "{count} elements of {used} bytes (stride {stride}, offset {offset}) do not fit buffer view {vi} ({len} bytes)"
+                    ),
+                ));
+            }
+        } else if count.checked_mul(ncomp).is_none_or(|n| n > MAX_ZERO_VALUES) {
+            return Err(self.err(&at, format!("{count} elements without a buffer view exceed the limit of {MAX_ZERO_VALUES} values")));
+        }
+        Ok(Layout { comp, csize, ncomp, rows, col_size, elem, normalized, count, view, offset, stride })
+    }
+
+    /// Reads accessor `i` (values converted to f32, see [`Values`]); `None`, with a
+    /// warning, when a buffer it needs has no data (a buffer without a uri outside a GLB,
+    /// or one that could not be read): what uses it is then skipped.
+    pub fn accessor(&self, i: usize) -> R<Option<Values>> {
+        let at = ptr(&[&"accessors", &i]);
+        let list = self.items("accessors")?;
+        let a = list.get(i).ok_or_else(|| self.err(&at, format!("does not exist (there are {})", list.len())))?;
+        let Layout { comp, csize, ncomp, rows, col_size, elem, normalized, count, view, offset, stride } = self.accessor_layout(i, a)?;
         let read = |bytes: &[u8], base: usize, out: &mut [f32]| {
             for (k, o) in out.iter_mut().enumerate() {
                 let (c, r) = (k / rows, k % rows);
                 *o = component(bytes, base + c * col_size + r * csize, comp, normalized);
             }
         };
-        let mut data = match self.index(a, "bufferView", &at, self.views.len(), "buffer view")? {
-            None => {
-                if count.checked_mul(ncomp).is_none_or(|n| n > MAX_ZERO_VALUES) {
-                    return Err(
-                        self.err(&at, format!("{count} elements without a buffer view exceed the limit of {MAX_ZERO_VALUES} values"))
-                    );
-                }
-                vec![0.0; count * ncomp]
-            }
+        let mut data = match view {
+            None => vec![0.0; count * ncomp],
             Some(vi) => {
-                let v = self.views[vi];
                 let bytes = match self.view_bytes(vi) {
                     Ok(b) => b,
                     Err(e) => {
@@ -265,18 +313,6 @@ impl<'a> Doc<'a> {
                         return Ok(None);
                     }
                 };
-                let offset = self.uint(a, "byteOffset", &at)?.unwrap_or(0) as usize;
-                let stride = v.stride.unwrap_or(elem);
-                let end = count.checked_sub(1).map_or(Some(0), |last| last.checked_mul(stride).and_then(|x| x.checked_add(offset + elem)));
-                if end.is_none_or(|e| e > bytes.len()) {
-                    return Err(self.err(
-                        &at,
-                        format!(
-                            "{count} elements of {elem} bytes (stride {stride}, offset {offset}) do not fit buffer view {vi} ({} bytes)",
-                            bytes.len()
-                        ),
-                    ));
-                }
                 let mut data = vec![0.0; count * ncomp];
                 for (e, out) in data.chunks_exact_mut(ncomp).enumerate() {
                     read(bytes, offset + e * stride, out);
@@ -408,26 +444,128 @@ fn glb(b: &[u8]) -> Result<Chunks<'_>, (&'static str, String)> {
     if version != 2 {
         return Err(("GLB header", format!("container version {version}; only 2 is read")));
     }
-    let total = u32_at(8).unwrap_or(0).min(b.len());
+    // Bytes after the container's length are ignored; fewer bytes are an error.
+    let total = u32_at(8).unwrap_or(0);
+    if total > b.len() {
+        return Err(("GLB header", format!("says the file has {total} bytes; it has {}", b.len())));
+    }
     let mut at = 12;
     let mut json = None;
     let mut bin = None;
-    while at + 8 <= total {
-        let (len, kind) = (u32_at(at).unwrap_or(0), u32_at(at + 4).unwrap_or(0));
+    while at < total {
+        let (Some(len), Some(kind)) = (u32_at(at), u32_at(at + 4)) else {
+            return Err(("GLB chunk", format!("chunk header at byte {at} runs past the end")));
+        };
+        if len % 4 != 0 {
+            return Err(("GLB chunk", format!("chunk at byte {at} has length {len}, not a multiple of 4")));
+        }
         let data = b
-            .get(at + 8..(at + 8).saturating_add(len))
-            .filter(|_| at + 8 + len <= total)
+            .get(at + 8..)
+            .and_then(|r| r.get(..len))
             .ok_or(("GLB chunk", format!("chunk at byte {at} of {len} bytes runs past the end")))?;
         match kind {
-            0x4E4F_534A if json.is_none() => json = Some(data),
+            0x4E4F_534A if at == 12 => json = Some(data),
+            0x4E4F_534A => return Err(("GLB chunk", format!("a second JSON chunk at byte {at}"))),
             0x004E_4942 if json.is_some() && bin.is_none() => bin = Some(data.to_vec()),
+            0x004E_4942 => return Err(("GLB chunk", format!("an unexpected binary chunk at byte {at}"))),
             _ => {}
         }
-        at += 8 + len.div_ceil(4) * 4;
+        at += 8 + len;
     }
-    Ok((json.ok_or(("GLB chunk", "no JSON chunk".to_string()))?, bin))
+    Ok((json.ok_or(("GLB chunk", "the first chunk is not JSON".to_string()))?, bin))
 }
 
+/// Where one glTF object refers to another: (collection, JSON pointer inside an element
+/// with `*` for every array element or object member, the collection referred to).
+const REFERENCES: &[(&str, &str, &str)] = &[
+    ("accessors", "/bufferView", "bufferViews"),
+    ("accessors", "/sparse/indices/bufferView", "bufferViews"),
+    ("accessors", "/sparse/values/bufferView", "bufferViews"),
+    ("bufferViews", "/buffer", "buffers"),
+    ("images", "/bufferView", "bufferViews"),
+    ("textures", "/sampler", "samplers"),
+    ("textures", "/source", "images"),
+    ("materials", "/pbrMetallicRoughness/baseColorTexture/index", "textures"),
+    ("materials", "/pbrMetallicRoughness/metallicRoughnessTexture/index", "textures"),
+    ("materials", "/normalTexture/index", "textures"),
+    ("materials", "/occlusionTexture/index", "textures"),
+    ("materials", "/emissiveTexture/index", "textures"),
+    ("meshes", "/primitives/*/attributes/*", "accessors"),
+    ("meshes", "/primitives/*/indices", "accessors"),
+    ("meshes", "/primitives/*/material", "materials"),
+    ("meshes", "/primitives/*/targets/*/*", "accessors"),
+    ("nodes", "/camera", "cameras"),
+    ("nodes", "/children/*", "nodes"),
+    ("nodes", "/skin", "skins"),
+    ("nodes", "/mesh", "meshes"),
+    ("skins", "/inverseBindMatrices", "accessors"),
+    ("skins", "/skeleton", "nodes"),
+    ("skins", "/joints/*", "nodes"),
+    ("animations", "/channels/*/target/node", "nodes"),
+    ("animations", "/samplers/*/input", "accessors"),
+    ("animations", "/samplers/*/output", "accessors"),
+    ("scenes", "/nodes/*", "nodes"),
+];
+
+impl Doc<'_> {
+    /// Every reference of [`REFERENCES`] names an object that exists (glTF 2.0 §3.7: ids
+    /// are indices into the top-level arrays), and the sizes every accessor claims fit
+    /// its buffer view; also the root's `scene` and the animation channels' samplers.
+    pub fn check_references(&self) -> R<()> {
+        fn walk<'v>(v: &'v Value, parts: &[&str], at: String, out: &mut Vec<(String, &'v Value)>) {
+            let Some((&first, rest)) = parts.split_first() else {
+                out.push((at, v));
+                return;
+            };
+            match (first, v) {
+                ("*", Value::Array(a)) => a.iter().enumerate().for_each(|(i, x)| walk(x, rest, format!("{at}/{i}"), out)),
+                ("*", Value::Object(o)) => o.iter().for_each(|(k, x)| walk(x, rest, format!("{at}/{k}"), out)),
+                ("*", _) => {}
+                (key, _) => {
+                    if let Some(x) = v.get(key) {
+                        walk(x, rest, format!("{at}/{key}"), out);
+                    }
+                }
+            }
+        }
+        let len = |c: &str| self.root.get(c).and_then(Value::as_array).map_or(0, Vec::len);
+        for &(coll, path, target) in REFERENCES {
+            let parts: Vec<&str> = path.split('/').filter(|p| !p.is_empty()).collect();
+            let mut refs = Vec::new();
+            for (i, item) in self.items(coll)?.iter().enumerate() {
+                walk(item, &parts, format!("/{coll}/{i}"), &mut refs);
+            }
+            let n = len(target);
+            for (at, v) in refs {
+                match as_uint(v) {
+                    Some(k) if (k as usize) < n => {}
+                    Some(k) => return Err(self.err(&at, format!("{target} {k} does not exist (there are {n})"))),
+                    None => return Err(self.err(&at, format!("must be an index into {target}, is {v}"))),
+                }
+            }
+        }
+        self.index(&self.root, "scene", "", len("scenes"), "scene")?;
+        for (ai, a) in self.items("animations")?.iter().enumerate() {
+            let at = ptr(&[&"animations", &ai]);
+            let n = self.list(a, "samplers", &at)?.len();
+            for (ci, c) in self.list(a, "channels", &at)?.iter().enumerate() {
+                self.index(c, "sampler", &format!("{at}/channels/{ci}"), n, "sampler")?;
+            }
+        }
+        // Sizes of every accessor (one of an unknown type is an error only where read).
+        for (i, a) in self.items("accessors")?.iter().enumerate() {
+            let known = a
+                .get("type")
+                .and_then(Value::as_str)
+                .is_some_and(|t| ["SCALAR", "VEC2", "VEC3", "VEC4", "MAT2", "MAT3", "MAT4"].contains(&t))
+                && a.get("componentType").and_then(as_uint).and_then(comp_size).is_some();
+            if known {
+                self.accessor_layout(i, a)?;
+            }
+        }
+        Ok(())
+    }
+}
 pub(crate) fn percent_decode(s: &str) -> String {
     String::from_utf8_lossy(&percent_decode_bytes(s)).into_owned()
 }

@@ -37,8 +37,13 @@ fn floats<const N: usize>(v: &Value, key: &str) -> Option<[f32; N]> {
 /// Loads a glTF or GLB file.
 pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
     let bytes = std::fs::read(path).map_err(|source| ImportError::Io { path: path.to_path_buf(), source })?;
-    let base = path.parent().unwrap_or(Path::new("."));
-    let doc = Doc::parse(&bytes, path, base)?;
+    parse_gltf(path, path.parent().unwrap_or(Path::new(".")), &bytes)
+}
+
+/// Reads glTF JSON or GLB `bytes`; `path` names the file in errors, and relative URIs are
+/// read from `base`.
+pub fn parse_gltf(path: &Path, base: &Path, bytes: &[u8]) -> Result<Scene, ImportError> {
+    let doc = Doc::parse(bytes, path, base)?;
     let scene = build(&doc)?;
     if scene.instances.is_empty() {
         tracing::warn!("{}: nothing to draw (no node places a mesh with triangles)", path.display());
@@ -328,6 +333,17 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
         };
         local.push(trs);
     }
+    // A loop in which every node has one parent has no root: walking up never ends.
+    for i in 0..nodes.len() {
+        let (mut up, mut steps) = (parents[i], 0);
+        while let Some(p) = up {
+            steps += 1;
+            if steps > nodes.len() {
+                return Err(doc.err(&ptr(&[&"nodes", &i]), "is its own ancestor (the node hierarchy has a loop)"));
+            }
+            up = parents[p as usize];
+        }
+    }
     let matrix_of = |i: usize| -> Mat4 {
         match floats::<16>(&nodes[i], "matrix") {
             Some(m) => Mat4::from_cols_array(&m),
@@ -516,8 +532,8 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
                 return Err(doc.err(&format!("{sat}/input"), "must be a SCALAR accessor"));
             }
             let times = times.data;
-            if times.iter().any(|t| !t.is_finite()) || times.windows(2).any(|w| w[1] < w[0]) {
-                return Err(doc.err(&format!("{sat}/input"), "key times must be finite and ascending"));
+            if times.iter().any(|t| !t.is_finite() || *t < 0.0) || times.windows(2).any(|w| w[1] < w[0]) {
+                return Err(doc.err(&format!("{sat}/input"), "key times must be finite, non-negative and ascending"));
             }
             let interp = match s.get("interpolation").and_then(Value::as_str).unwrap_or("LINEAR") {
                 "STEP" => Interp::Step,
