@@ -32,6 +32,7 @@ pub fn load_ply(path: &Path) -> Result<Scene, ImportError> {
 /// in errors and the mesh.
 pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Scene, ImportError> {
     let invalid = |at: String, msg: String| ImportError::Invalid { path: path.to_path_buf(), at, msg };
+    check_claims(bytes).map_err(|msg| invalid("header".into(), msg))?;
     let parser = ply_rs_bw::parser::Parser::<DefaultElement>::new();
     let ply = parser.read_ply(&mut &bytes[..]).map_err(|e| invalid("file".into(), e.to_string()))?;
     let verts = ply.payload.get("vertex").ok_or_else(|| invalid("header".into(), "no 'vertex' element".into()))?;
@@ -82,4 +83,67 @@ pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Scene, ImportError> {
     let mut scene = Scene { materials: vec![Material::default()], ambient: crate::model::DEFAULT_AMBIENT, ..Scene::default() };
     scene.add_mesh(mesh);
     Ok(scene)
+}
+
+/// Bytes of a PLY scalar type (`None`: not a PLY type).
+fn type_size(t: &str) -> Option<u64> {
+    Some(match t {
+        "char" | "int8" | "uchar" | "uint8" => 1,
+        "short" | "int16" | "ushort" | "uint16" => 2,
+        "int" | "int32" | "uint" | "uint32" | "float" | "float32" => 4,
+        "double" | "float64" => 8,
+        _ => return None,
+    })
+}
+
+/// Checks what the header claims against the bytes after it, before the parser allocates
+/// anything for it: every element's items need at least some bytes each (binary: their
+/// scalars and list counts; ASCII: a token and a separator per property), and all of them
+/// must fit in what follows the header. An element with items but no properties is refused
+/// (its items would take no bytes: a parser would make them forever). A fuzzed header of
+/// 6.7e18 such vertices made the parser allocate until memory ran out.
+fn check_claims(bytes: &[u8]) -> Result<(), String> {
+    let Some(end) = bytes.windows(10).position(|w| w == b"end_header") else {
+        return Ok(()); // The parser reports a missing end_header itself.
+    };
+    let rest = bytes.len().saturating_sub(end + 10) as u64;
+    let head = String::from_utf8_lossy(&bytes[..end]);
+    let binary = head.lines().any(|l| l.trim_start().starts_with("format binary"));
+    // (name, count, minimum bytes per item, properties)
+    let mut elements: Vec<(String, u64, u64, u32)> = Vec::new();
+    for line in head.lines() {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        match w.as_slice() {
+            ["element", name, count, ..] => {
+                let n = count.parse::<u64>().map_err(|_| format!("element '{name}': count '{count}' is not a number"))?;
+                elements.push(((*name).to_string(), n, 0, 0));
+            }
+            ["property", "list", count_type, ..] => {
+                if let Some(e) = elements.last_mut() {
+                    e.2 += if binary { type_size(count_type).unwrap_or(1) } else { 2 };
+                    e.3 += 1;
+                }
+            }
+            ["property", ty, ..] => {
+                if let Some(e) = elements.last_mut() {
+                    e.2 += if binary { type_size(ty).unwrap_or(1) } else { 2 };
+                    e.3 += 1;
+                }
+            }
+            _ => {}
+        }
+    }
+    let mut need: u64 = 0;
+    for (name, n, min, props) in &elements {
+        if *n > 0 && *props == 0 {
+            return Err(format!("element '{name}' claims {n} items but has no properties"));
+        }
+        need = need.saturating_add(n.saturating_mul(*min));
+        if need > rest {
+            return Err(format!(
+                "element '{name}' claims {n} items of at least {min} bytes each; the file has {rest} bytes after the header"
+            ));
+        }
+    }
+    Ok(())
 }
