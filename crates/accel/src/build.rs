@@ -289,8 +289,8 @@ fn blocks(n: usize, block: usize) -> usize {
 /// Nothing else can be hit, and one non-finite box would spread into every box above it.
 #[inline]
 fn usable(p: &PrimRef) -> bool {
-    let (lo, hi) = (p.min(), p.max());
-    lo.is_finite() && hi.is_finite() && lo.cmple(hi).all()
+    let b = Aabb { min: p.min(), max: p.max() };
+    b.is_finite() && !b.is_empty()
 }
 
 /// `prims` without those that are not [`usable`] (their ids are kept, so the rest still

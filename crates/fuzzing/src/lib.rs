@@ -157,14 +157,19 @@ pub fn mem(data: &[u8]) {
 
 /// Runs `words` through a processor for a bounded number of steps (no frames rendered).
 fn run_words(words: &[u32]) {
-    use lucent_engine::{Processor, Step};
-    if let Ok(mut p) = Processor::new(words.to_vec(), lucent_isa::CameraTable::Final) {
-        for _ in 0..64 {
-            match p.run_to_frame(10_000) {
-                Step::Frame => {}
-                Step::Busy => p.stop(),
-                _ => break,
-            }
+    if let Ok(mut p) = lucent_engine::Processor::new(words.to_vec(), lucent_isa::CameraTable::Final) {
+        run_steps(&mut p);
+    }
+}
+
+/// At most 64 frames of at most 10,000 words each (a busy loop is stopped).
+fn run_steps(p: &mut lucent_engine::Processor) {
+    use lucent_engine::Step;
+    for _ in 0..64 {
+        match p.run_to_frame(10_000) {
+            Step::Frame => {}
+            Step::Busy => p.stop(),
+            _ => break,
         }
     }
 }
@@ -183,7 +188,7 @@ pub fn decode(data: &[u8]) {
 /// The TCP/UDP wire protocol: a hello, then messages whose payloads are run as
 /// instruction batches by a streaming processor, plus every server-message decoder.
 pub fn net(data: &[u8]) {
-    use lucent_engine::{Processor, Step};
+    use lucent_engine::Processor;
     use lucent_net::protocol::{self, Chunk, Done, FrameHeader, Hello, Welcome, WireError, HELLO_LEN};
     if data.len() >= HELLO_LEN {
         let mut h = [0u8; HELLO_LEN];
@@ -196,13 +201,7 @@ pub fn net(data: &[u8]) {
     while let Ok(Some((_, payload))) = protocol::read_message(&mut r, 4096) {
         let words = protocol::words_from_bytes(&payload);
         if lucent_isa::decode(&words).is_ok() && p.push(&words).is_ok() {
-            for _ in 0..64 {
-                match p.run_to_frame(10_000) {
-                    Step::Frame => {}
-                    Step::Busy => p.stop(),
-                    _ => break,
-                }
-            }
+            run_steps(&mut p);
         }
     }
 }

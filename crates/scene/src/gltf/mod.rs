@@ -309,7 +309,9 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
     let lights = doc.root.pointer("/extensions/KHR_lights_punctual/lights").and_then(Value::as_array).map_or(&[][..], Vec::as_slice);
     let mut parents: Vec<Option<u32>> = vec![None; nodes.len()];
     let mut children: Vec<Vec<usize>> = Vec::with_capacity(nodes.len());
+    // Each node's local matrix, and its translation, rotation and scale (for animation).
     let mut local: Vec<(Vec3, Quat, Vec3)> = Vec::with_capacity(nodes.len());
+    let mut local_matrix: Vec<Mat4> = Vec::with_capacity(nodes.len());
     for (i, n) in nodes.iter().enumerate() {
         let at = ptr(&[&"nodes", &i]);
         let c = doc.indices(n, "children", &at, nodes.len(), "node")?;
@@ -320,39 +322,33 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
             parents[k] = Some(i as u32);
         }
         children.push(c);
-        let trs = match floats::<16>(n, "matrix") {
+        let (m, trs) = match floats::<16>(n, "matrix") {
             Some(m) => {
-                let (s, r, t) = Mat4::from_cols_array(&m).to_scale_rotation_translation();
-                (t, r, s)
+                let m = Mat4::from_cols_array(&m);
+                let (s, r, t) = m.to_scale_rotation_translation();
+                (m, (t, r, s))
             }
-            None => (
-                Vec3::from(floats::<3>(n, "translation").unwrap_or([0.0; 3])),
-                Quat::from_array(floats::<4>(n, "rotation").unwrap_or([0.0, 0.0, 0.0, 1.0])),
-                Vec3::from(floats::<3>(n, "scale").unwrap_or([1.0; 3])),
-            ),
+            None => {
+                let t = Vec3::from(floats::<3>(n, "translation").unwrap_or([0.0; 3]));
+                let r = Quat::from_array(floats::<4>(n, "rotation").unwrap_or([0.0, 0.0, 0.0, 1.0]));
+                let s = Vec3::from(floats::<3>(n, "scale").unwrap_or([1.0; 3]));
+                (Mat4::from_scale_rotation_translation(s, r, t), (t, r, s))
+            }
         };
+        local_matrix.push(m);
         local.push(trs);
     }
-    // A loop in which every node has one parent has no root: walking up never ends.
-    for i in 0..nodes.len() {
-        let (mut up, mut steps) = (parents[i], 0);
-        while let Some(p) = up {
-            steps += 1;
-            if steps > nodes.len() {
-                return Err(doc.err(&ptr(&[&"nodes", &i]), "is its own ancestor (the node hierarchy has a loop)"));
-            }
-            up = parents[p as usize];
-        }
+    // A loop in which every node has one parent has no root: its nodes (and those below
+    // them) are the ones no walk down from a parentless node reaches. One linear walk.
+    let mut rooted = vec![false; nodes.len()];
+    let mut down: Vec<usize> = (0..nodes.len()).filter(|&k| parents[k].is_none()).collect();
+    while let Some(k) = down.pop() {
+        rooted[k] = true;
+        down.extend(&children[k]);
     }
-    let matrix_of = |i: usize| -> Mat4 {
-        match floats::<16>(&nodes[i], "matrix") {
-            Some(m) => Mat4::from_cols_array(&m),
-            None => {
-                let (t, r, s) = local[i];
-                Mat4::from_scale_rotation_translation(s, r, t)
-            }
-        }
-    };
+    if let Some(i) = rooted.iter().position(|&r| !r) {
+        return Err(doc.err(&ptr(&[&"nodes", &i]), "is its own ancestor (the node hierarchy has a loop)"));
+    }
     let mut anim = SceneAnimation {
         nodes: (0..nodes.len()).map(|i| Node { parent: parents[i], t: local[i].0, r: local[i].1, s: local[i].2 }).collect(),
         ..SceneAnimation::default()
@@ -383,7 +379,7 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
         }
         let node = &nodes[ni];
         let at = ptr(&[&"nodes", &ni]);
-        let world = parent * matrix_of(ni);
+        let world = parent * local_matrix[ni];
         let affine = Affine3A::from_mat4(world);
         if let Some(mi) = doc.index(node, "mesh", &at, meshes.len(), "mesh")? {
             if let Some(first) = mesh_map[mi] {
