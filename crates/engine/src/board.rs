@@ -343,8 +343,7 @@ impl Board {
     pub fn frame(&mut self) -> Film {
         let st = &self.processor.state;
         let cap = if self.build == Build::Raytracing { 2 } else { 8 };
-        let mut sets = st.sets.clone();
-        sets.resize(cap.max(sets.len()), crate::Record::default());
+        let sets = st.sets.dense(cap);
         match self.build {
             Build::Raytracing => self.fb = trace_frame(&sets[..cap], &st.lights, &st.camera, self.switches, &mut self.best),
             Build::Raster => raster_frame(&sets[..cap], &mut self.fb),

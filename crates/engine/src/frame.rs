@@ -256,7 +256,7 @@ pub fn scene(state: &DeviceState, sets: SetKind) -> (Scene, usize) {
     };
     match sets {
         SetKind::Shapes => {
-            for r in &state.sets {
+            for r in state.sets.iter() {
                 let kind = match r.u(13) & 15 {
                     0 => continue,
                     1 => ShapeKind::Sphere,

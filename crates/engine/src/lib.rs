@@ -13,4 +13,4 @@ mod processor;
 pub mod raster;
 
 pub use frame::{camera, render_frame, rgb565, scene, set_kind_of_source, FrameInfo, FrameSettings, Mode, SetKind};
-pub use processor::{DeviceState, Processor, Record, Step, LIGHTS, MAX_SETS};
+pub use processor::{DeviceState, Processor, Record, Sets, Step, LIGHTS, MAX_SETS};

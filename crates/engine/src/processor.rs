@@ -49,6 +49,55 @@ pub const LIGHTS: usize = 64;
 /// Most shape/triangle records (the 19-bit index).
 pub const MAX_SETS: usize = 1 << 19;
 
+/// Shape or triangle records by index, kept sparse: a program that writes record 524,287
+/// alone costs one record, not 2^19 of them (36 MB), so one SE/SD pair from the network
+/// cannot make a session allocate the whole index range.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Sets {
+    map: std::collections::BTreeMap<u32, Record>,
+}
+
+/// The record every slot holds before a program writes it.
+static UNWRITTEN: Record = Record { vals: [0; 32], written: 0 };
+
+impl Sets {
+    /// Writes property `p` of record `i`.
+    pub fn set(&mut self, i: usize, p: u8, v: u16) {
+        self.map.entry(i as u32).or_default().set(p, v);
+    }
+    /// Record `i` (the unwritten record when the program never wrote it).
+    #[must_use]
+    pub fn get(&self, i: usize) -> &Record {
+        u32::try_from(i).ok().and_then(|i| self.map.get(&i)).unwrap_or(&UNWRITTEN)
+    }
+    /// One past the highest index written (0 when none): the length of the dense table.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.map.last_key_value().map_or(0, |(&i, _)| i as usize + 1)
+    }
+    /// True when no record was written.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.map.is_empty()
+    }
+    /// The written records in index order.
+    pub fn iter(&self) -> impl Iterator<Item = &Record> {
+        self.map.values()
+    }
+    /// Slots `0..n` as a dense table (unwritten slots default), as a board's fixed table.
+    #[must_use]
+    pub fn dense(&self, n: usize) -> Vec<Record> {
+        (0..n).map(|i| *self.get(i)).collect()
+    }
+}
+
+impl std::ops::Index<usize> for Sets {
+    type Output = Record;
+    fn index(&self, i: usize) -> &Record {
+        self.get(i)
+    }
+}
+
 /// Everything a program has set.
 #[derive(Clone, Debug)]
 pub struct DeviceState {
@@ -59,14 +108,14 @@ pub struct DeviceState {
     /// Lights 0..64.
     pub lights: Vec<Record>,
     /// Shape or triangle records set by SE/SD (interpreted at render time).
-    pub sets: Vec<Record>,
+    pub sets: Sets,
 }
 
 impl DeviceState {
     /// The reset state: everything zero, nothing written.
     #[must_use]
     pub fn new(camera_table: CameraTable) -> Self {
-        Self { camera: Record::default(), camera_table, lights: vec![Record::default(); LIGHTS], sets: Vec::new() }
+        Self { camera: Record::default(), camera_table, lights: vec![Record::default(); LIGHTS], sets: Sets::default() }
     }
     /// Set records written so far.
     #[must_use]
@@ -215,11 +264,8 @@ impl Processor {
             }
             Instr::Set { index, p1, p2, d1, d2 } => {
                 let i = index as usize % self.board.map_or(MAX_SETS, |b| b.0);
-                if self.state.sets.len() <= i {
-                    self.state.sets.resize(i + 1, Record::default());
-                }
-                self.state.sets[i].set(p1, d1);
-                self.state.sets[i].set(p2, d2);
+                self.state.sets.set(i, p1, d1);
+                self.state.sets.set(i, p2, d2);
             }
             Instr::Raw(_) => self.ignored += 1,
         }

@@ -206,6 +206,8 @@ fn processor_semantics() {
     let mut p = program("lt 63, int, 2\nsp 524287, type, col, 1, 1\nnf\ner\ner");
     assert_eq!(p.run_to_frame(100), Step::Frame);
     assert_eq!(p.state.sets.len(), 524288);
+    assert_eq!(p.state.sets.iter().count(), 1, "the slots below it are not stored");
+    assert!(!p.state.sets[1000].used());
     assert_eq!(p.state.lights[63].f(8), 2.0);
     // An SE word without its SD word is refused up front.
     assert!(Processor::new(vec![0x200, 0x0000_6805], CameraTable::Final).is_err());

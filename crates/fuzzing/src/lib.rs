@@ -162,11 +162,12 @@ fn run_words(words: &[u32]) {
     }
 }
 
-/// At most 64 frames of at most 10,000 words each (a busy loop is stopped).
+/// At most 16 frames of at most 4,096 words each (a busy loop is stopped): enough to reach
+/// every instruction, `lr` loops and `nr` resets, while an endless loop costs 65,536 steps.
 fn run_steps(p: &mut lucent_engine::Processor) {
     use lucent_engine::Step;
-    for _ in 0..64 {
-        match p.run_to_frame(10_000) {
+    for _ in 0..16 {
+        match p.run_to_frame(4_096) {
             Step::Frame => {}
             Step::Busy => p.stop(),
             _ => break,

@@ -89,6 +89,7 @@ impl<'a> Doc<'a> {
         if !root.is_object() {
             return Err(invalid("JSON", "the document is not a JSON object".into()));
         }
+        super::schema::check(&root).map_err(|(at, m)| invalid(&at, m))?;
         let mut doc = Doc { root, file, base, buffers: Vec::new(), views: Vec::new() };
         let version = doc.root.pointer("/asset/version").and_then(Value::as_str).map(str::to_owned);
         match version {

@@ -10,6 +10,7 @@
 //! malformed is an error naming the JSON pointer.
 
 mod json;
+mod schema;
 
 use crate::anim::{Channel, Interp, Morph, Node, SceneAnimation, Skin, Target};
 use crate::error::ImportError;
