@@ -64,6 +64,10 @@ pub struct DemoArg {
     /// A built-in scene instead of a file.
     #[arg(long, value_enum)]
     pub demo: Option<Demo>,
+    /// Refuse a glTF file that breaks any rule of the glTF 2.0 specification, naming the
+    /// JSON pointer of the first one. By default lucent warns and renders what it can read.
+    #[arg(long)]
+    pub strict: bool,
 }
 
 impl DemoArg {
@@ -81,7 +85,7 @@ pub fn load_scene(path: Option<&Path>, demo: DemoArg) -> Result<Scene> {
         (Some(_), Some(_)) => bail!("give a scene file or --demo, not both"),
         (None, Some(Demo::Sunflowers)) => Ok(lucent_scene::sunflower_scene()),
         (None, _) => Ok(lucent_scene::demo_scene()),
-        (Some(p), None) => lucent_scene::load(p).map_err(anyhow::Error::from),
+        (Some(p), None) => lucent_scene::load_with(p, &lucent_scene::LoadOptions { strict: demo.strict }).map_err(anyhow::Error::from),
     }
 }
 

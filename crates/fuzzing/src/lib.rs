@@ -111,7 +111,11 @@ pub fn ply(data: &[u8]) {
 }
 
 /// glTF JSON, in memory (buffers and images as data URIs; files it names are missing).
+/// Read strictly (every rule of the specification, and the data checks) and as by
+/// default (warnings, reading what can be read).
 pub fn gltf(data: &[u8]) {
+    let strict = lucent_scene::LoadOptions { strict: true };
+    let _ = lucent_scene::parse_gltf_with(Path::new("fuzz.gltf"), Path::new(NOWHERE), data, &strict);
     if let Ok(scene) = lucent_scene::parse_gltf(Path::new("fuzz.gltf"), Path::new(NOWHERE), data) {
         build_all(&scene);
     }

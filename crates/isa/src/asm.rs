@@ -34,6 +34,8 @@ pub fn assemble(src: &str, opts: AsmOptions) -> Result<Vec<Instr>, AsmError> {
     let mut out = Vec::new();
     // Where the last instruction started (for the end-of-program check below).
     let mut last_at = (0, 0);
+    // Where each instruction of `out` starts.
+    let mut starts = Vec::new();
     for (ln, raw) in src.lines().enumerate() {
         let line = ln + 1;
         let lead = raw.len() - raw.trim_start().len();
@@ -103,20 +105,37 @@ pub fn assemble(src: &str, opts: AsmOptions) -> Result<Vec<Instr>, AsmError> {
         };
         out.push(instr);
         last_at = (line, lead + 1);
+        starts.push(last_at);
     }
-    // A `.word` with opcode 101 takes the next word as its data word; as the last word of a
-    // program it would have none, and no decoder could read the result. (A raw data word
-    // after a raw SE word is fine whatever its bits: ask the decoder, not the opcode.)
-    if let (Some(Instr::Raw(w)), Err(crate::instr::DecodeError::MissingData { .. })) =
-        (out.last(), crate::instr::decode_lenient(&encode(&out)))
-    {
-        return Err(AsmError {
-            line: last_at.0,
-            column: last_at.1,
-            msg: format!(
-                ".word {w:#010x} has opcode 101 (shape/triangle set), which needs a data word after it, but the program ends here"
+    // A `.word` with opcode 101 takes the next word as its data word. As the last word of a
+    // program it has none; elsewhere it swallows the next instruction's first word, and
+    // the stream may then end in a set instruction without its data word. No decoder could
+    // read such a program: refuse it, naming the line whose word is left without data.
+    // (A raw data word after a raw SE word is fine whatever its bits: ask the decoder, not
+    // the opcode.)
+    let words = encode(&out);
+    if let Err(crate::instr::DecodeError::MissingData { offset, word }) = crate::instr::decode_lenient(&words) {
+        // The instruction that emitted word `offset` (a set instruction is two words).
+        let mut first = 0;
+        let mut culprit = (last_at, out.last());
+        for (ins, &pos) in out.iter().zip(&starts) {
+            let n = if matches!(ins, Instr::Set { .. }) { 2 } else { 1 };
+            if offset < first + n {
+                culprit = (pos, Some(ins));
+                break;
+            }
+            first += n;
+        }
+        let ((line, column), ins) = culprit;
+        let msg = match ins {
+            Some(Instr::Raw(w)) => {
+                format!(".word {w:#010x} has opcode 101 (shape/triangle set), which needs a data word after it, but the program ends here")
+            }
+            _ => format!(
+                "word {offset} ({word:#010x}) is read as a shape/triangle set (opcode 101) without a data word after it: an earlier `.word` with opcode 101 took the word after it as its data, so the words from there on are read out of step"
             ),
-        });
+        };
+        return Err(AsmError { line, column, msg });
     }
     Ok(out)
 }

@@ -111,6 +111,10 @@ fn errors_say_where_and_what() {
     assert_eq!(assemble_words(".word 5\n.word 0x3c000000", AsmOptions::default()).expect("SE then its SD"), [5, 0x3C00_0000]);
     // The data word may itself look like a shape set.
     assert_eq!(assemble_words(".word 5\n.word 5", AsmOptions::default()).expect("SE then its SD"), [5, 5]);
+    // Found by the fuzzer (fuzz/regressions/asm/): a raw shape-set word swallows the first
+    // word of the `tr` after it, whose data word is then read as a set without data.
+    let msg = e(".word 5\ntr 0, x1, y1, 5267, 0.3");
+    assert!(msg.starts_with("2:1: word 2 (") && msg.contains("read out of step"), "{msg}");
 }
 
 #[test]

@@ -185,3 +185,235 @@ mod srgb_tests {
         assert!((0..=255u8).all(|k| t.encode(t.first[usize::from(k)]) == k));
     }
 }
+
+/// A part of an image's work: the pixels `x0..x1` × `y0..y1` and the sample indices
+/// `s0..s1` of each (the unit the tile renderer, the viewer's passes and, later, other
+/// processes hand out).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Region {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+    /// First sample index.
+    pub s0: u32,
+    /// One past the last sample index.
+    pub s1: u32,
+}
+
+impl Region {
+    /// The whole `width` × `height` image, samples `s0..s1`.
+    #[must_use]
+    pub const fn full(width: u32, height: u32, s0: u32, s1: u32) -> Self {
+        Self { x0: 0, y0: 0, x1: width, y1: height, s0, s1 }
+    }
+    /// Pixels in the region.
+    #[must_use]
+    pub fn pixels(&self) -> usize {
+        self.x1.saturating_sub(self.x0) as usize * self.y1.saturating_sub(self.y0) as usize
+    }
+    /// Whether the region holds no pixel or no sample.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.pixels() == 0 || self.s1 <= self.s0
+    }
+    /// Whether two regions share a pixel and a sample index.
+    #[must_use]
+    pub fn overlaps(&self, o: &Self) -> bool {
+        self.x0 < o.x1 && o.x0 < self.x1 && self.y0 < o.y1 && o.y0 < self.y1 && self.s0 < o.s1 && o.s0 < self.s1
+    }
+}
+
+/// The weighted sums of one region's samples: per pixel (row-major inside the region), the
+/// sum of weight × radiance and the sum of weights.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RegionFilm {
+    /// What was rendered.
+    pub region: Region,
+    /// Σ weight · radiance per pixel.
+    pub sum: Vec<Vec3>,
+    /// Σ weight per pixel.
+    pub weight: Vec<f32>,
+}
+
+impl RegionFilm {
+    /// An empty (all-zero) film of `region`.
+    #[must_use]
+    pub fn new(region: Region) -> Self {
+        let n = region.pixels();
+        Self { region, sum: vec![Vec3::ZERO; n], weight: vec![0.0; n] }
+    }
+    /// Adds a sample of `weight` to pixel `(x, y)` (image coordinates, inside the region).
+    pub fn add(&mut self, x: u32, y: u32, radiance: Vec3, weight: f32) {
+        let r = &self.region;
+        let i = ((y - r.y0) * (r.x1 - r.x0) + (x - r.x0)) as usize;
+        self.sum[i] += radiance * weight;
+        self.weight[i] += weight;
+    }
+}
+
+/// Errors of merging regions.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum MergeError {
+    /// The region reaches outside the image.
+    #[error("region {0:?} lies outside the {1} x {2} image")]
+    Outside(Region, u32, u32),
+    /// The region's sums do not have one entry per pixel.
+    #[error("region {0:?} has {1} sums for {2} pixels")]
+    Length(Region, usize, usize),
+    /// Two regions share pixels and samples (the work was handed out twice).
+    #[error("region {0:?} overlaps region {1:?}, merged before")]
+    Overlap(Region, Region),
+}
+
+/// Gathers [`RegionFilm`]s into an image. Pixels' sums are added in a fixed order (by
+/// first sample index, then row, then column of their regions), so the image is bit for
+/// bit the same whatever order the regions arrive in: from tiles on threads, passes of the
+/// viewer, or other processes.
+#[derive(Clone, Debug)]
+pub struct FilmAccumulator {
+    width: u32,
+    height: u32,
+    parts: std::collections::BTreeMap<(u32, u32, u32, u32), RegionFilm>,
+}
+
+impl FilmAccumulator {
+    /// An empty `width` × `height` image.
+    #[must_use]
+    pub fn new(width: u32, height: u32) -> Self {
+        Self { width, height, parts: Default::default() }
+    }
+
+    /// Adds a rendered region (checked: inside the image, one sum per pixel, no overlap
+    /// with a region merged before).
+    pub fn merge(&mut self, part: RegionFilm) -> Result<(), MergeError> {
+        let r = part.region;
+        if r.x1 > self.width || r.y1 > self.height || r.x0 > r.x1 || r.y0 > r.y1 {
+            return Err(MergeError::Outside(r, self.width, self.height));
+        }
+        let n = r.pixels();
+        if part.sum.len() != n || part.weight.len() != n {
+            return Err(MergeError::Length(r, part.sum.len().min(part.weight.len()), n));
+        }
+        if let Some(o) = self.parts.values().find(|o| o.region.overlaps(&r)) {
+            return Err(MergeError::Overlap(r, o.region));
+        }
+        self.parts.insert((r.s0, r.y0, r.x0, r.s1), part);
+        Ok(())
+    }
+
+    /// Regions merged so far.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.parts.len()
+    }
+
+    /// Whether nothing was merged.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.parts.is_empty()
+    }
+
+    /// The image: each pixel's weighted mean, or `background` where no sample landed.
+    #[must_use]
+    pub fn resolve(&self, background: Vec3) -> Film {
+        let n = self.width as usize * self.height as usize;
+        let mut sum = vec![Vec3::ZERO; n];
+        let mut weight = vec![0f32; n];
+        for p in self.parts.values() {
+            let r = p.region;
+            let w = (r.x1 - r.x0) as usize;
+            for y in r.y0..r.y1 {
+                let row = (y * self.width) as usize;
+                let src = (y - r.y0) as usize * w;
+                for k in 0..w {
+                    sum[row + r.x0 as usize + k] += p.sum[src + k];
+                    weight[row + r.x0 as usize + k] += p.weight[src + k];
+                }
+            }
+        }
+        let pixels = sum.iter().zip(&weight).map(|(s, &w)| if w > 0.0 { *s / w } else { background }).collect();
+        Film { width: self.width, height: self.height, pixels }
+    }
+}
+
+#[cfg(test)]
+mod region_tests {
+    use super::*;
+
+    /// A fake render of a region: sample `s` of pixel (x, y) is a hash of the three.
+    fn render(r: Region) -> RegionFilm {
+        let mut f = RegionFilm::new(r);
+        for y in r.y0..r.y1 {
+            for x in r.x0..r.x1 {
+                for s in r.s0..r.s1 {
+                    let h = crate::sampler::hash32(x * 7 + y * 131 + s * 9973);
+                    f.add(x, y, Vec3::new(h as f32 / 4e9, (h >> 8) as f32 / 1.6e7, 0.1 * s as f32), 1.0 + (s % 3) as f32);
+                }
+            }
+        }
+        f
+    }
+
+    fn split(w: u32, h: u32, spp: u32) -> Vec<Region> {
+        let mut v = Vec::new();
+        for s0 in (0..spp).step_by(4) {
+            for y0 in (0..h).step_by(16) {
+                for x0 in (0..w).step_by(16) {
+                    v.push(Region { x0, y0, x1: (x0 + 16).min(w), y1: (y0 + 16).min(h), s0, s1: (s0 + 4).min(spp) });
+                }
+            }
+        }
+        v
+    }
+
+    /// Regions merged in any order give the same bits; tiles cover the image exactly.
+    #[test]
+    fn merge_order_does_not_change_a_bit() {
+        let (w, h, spp) = (50, 37, 10);
+        let parts = split(w, h, spp);
+        let mut a = FilmAccumulator::new(w, h);
+        for r in &parts {
+            a.merge(render(*r)).expect("merge");
+        }
+        let first = a.resolve(Vec3::ZERO);
+        for seed in 1..6u32 {
+            let mut order = parts.clone();
+            // A seeded shuffle.
+            for i in (1..order.len()).rev() {
+                order.swap(i, crate::sampler::hash32(seed * 1000 + i as u32) as usize % (i + 1));
+            }
+            let mut b = FilmAccumulator::new(w, h);
+            for r in order {
+                b.merge(render(r)).expect("merge");
+            }
+            let img = b.resolve(Vec3::ZERO);
+            assert!(img.pixels.iter().zip(&first.pixels).all(|(p, q)| p.to_array().map(f32::to_bits) == q.to_array().map(f32::to_bits)));
+        }
+        // Every pixel was covered: the weighted mean of its samples, nothing left as background.
+        assert!(first.pixels.iter().all(|p| p.z > 0.0));
+    }
+
+    /// Regions outside the image, of the wrong length, or rendered twice are refused.
+    #[test]
+    fn bad_regions_are_refused() {
+        let mut a = FilmAccumulator::new(8, 8);
+        let r = Region { x0: 0, y0: 0, x1: 4, y1: 4, s0: 0, s1: 2 };
+        a.merge(render(r)).expect("merge");
+        assert!(matches!(a.merge(render(Region { x1: 9, ..r })), Err(MergeError::Outside(..))));
+        assert!(matches!(a.merge(render(Region { x0: 3, x1: 6, ..r })), Err(MergeError::Overlap(..))));
+        let mut short = render(Region { x0: 4, x1: 8, ..r });
+        short.sum.pop();
+        assert!(matches!(a.merge(short), Err(MergeError::Length(..))));
+        // The same pixels with other samples are fine; unrendered pixels show the background.
+        a.merge(render(Region { s0: 2, s1: 3, ..r })).expect("more samples");
+        let img = a.resolve(Vec3::splat(7.0));
+        assert_eq!(img.get(7, 7), Vec3::splat(7.0));
+        assert_ne!(img.get(0, 0), Vec3::splat(7.0));
+        assert_eq!(a.len(), 2);
+    }
+}

@@ -10,13 +10,15 @@ mod coverage;
 pub mod film;
 pub mod integrator;
 mod render;
+pub mod sampler;
 mod shading;
 pub mod texture;
 mod world;
 
 pub use camera::{framing_camera, Camera};
 pub use coverage::{Coverage, BLOCK_EDGE};
-pub use film::{Film, OutputError};
+pub use film::{Film, FilmAccumulator, MergeError, OutputError, Region, RegionFilm};
 pub use integrator::{Integrator, WhittedSettings};
 pub use render::{jitter, pcg_hash, render, render_pass, render_pixel, RenderSettings, TILE};
+pub use sampler::Sampler;
 pub use world::{shape_of, vertex_normals, Surface, World, WorldError};

@@ -18,17 +18,34 @@ mod texture;
 
 pub use demo::{demo_scene, torus};
 pub use error::ImportError;
-pub use gltf::{load_gltf, parse_gltf};
+pub use gltf::{load_gltf, load_gltf_with, parse_gltf, parse_gltf_with};
 pub use model::*;
 pub use obj::{load_obj, parse_obj};
 pub use ply::{load_ply, parse_ply};
 pub use sunflowers::{sunflower_mesh, sunflower_scene, FLOWERS};
-pub use texture::{decode_image, open_image, srgb_to_linear, texture_from_image, MAX_TEXTURE_BYTES, MAX_TEXTURE_SIDE};
+pub use texture::{
+    decode_image, open_image, srgb_to_linear, texture_from_image, FREE_TEXEL_BYTES, MAX_EXPANSION, MAX_TEXTURE_BYTES, MAX_TEXTURE_SIDE,
+};
 
 use std::path::Path;
 
+/// How scene files are read.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LoadOptions {
+    /// Refuse a glTF file that breaks any rule of the specification (what the Khronos
+    /// validator calls an error), naming the JSON pointer. Off: lucent warns about the
+    /// first broken rule and reads what it can (it still refuses what it cannot read
+    /// safely: bad references, sizes, formats, containers).
+    pub strict: bool,
+}
+
 /// Loads a scene file, choosing the importer by extension.
 pub fn load(path: &Path) -> Result<Scene, ImportError> {
+    load_with(path, &LoadOptions::default())
+}
+
+/// [`load`] with options.
+pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Scene, ImportError> {
     let name = path.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
     let stem = name.strip_suffix(".gz").unwrap_or(&name);
     if stem.ends_with(".obj") {
@@ -36,7 +53,7 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
     } else if stem.ends_with(".ply") {
         load_ply(path)
     } else if name.ends_with(".gltf") || name.ends_with(".glb") {
-        load_gltf(path)
+        load_gltf_with(path, options)
     } else {
         Err(ImportError::UnknownFormat(path.to_path_buf()))
     }

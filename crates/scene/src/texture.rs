@@ -27,10 +27,28 @@ fn limits() -> image::Limits {
     l
 }
 
+/// How many bytes of RGBA texels one encoded byte may claim, beyond
+/// [`FREE_TEXEL_BYTES`]. No real PNG or JPEG comes near it (deflate expands at most about
+/// 1032 to 1; a flat 4:2:0 JPEG needs some 12 bits per 16×16 block, about 700 to 1), but a
+/// truncated file whose header claims 16k × 16k pixels does: its decoder fills the
+/// missing rows, so 520 bytes would make 1 GB (found by the fuzz campaign).
+pub const MAX_EXPANSION: u64 = 4096;
+/// Texel bytes any image may claim whatever its size (a 2048 × 2048 RGBA texture).
+pub const FREE_TEXEL_BYTES: u64 = 1 << 24;
+
 /// Decodes an encoded image (PNG or JPEG, by its first bytes) within the texture limits: an
-/// image whose header claims more than [`MAX_TEXTURE_SIDE`] pixels a side, or more than
-/// [`MAX_TEXTURE_BYTES`] to decode, is an error before anything is allocated.
+/// image whose header claims more than [`MAX_TEXTURE_SIDE`] pixels a side, more than
+/// [`MAX_TEXTURE_BYTES`] to decode, or more texels than its bytes can hold (see
+/// [`MAX_EXPANSION`]) is an error before anything is allocated.
 pub fn decode_image(bytes: &[u8]) -> image::ImageResult<image::DynamicImage> {
+    // (A header the probe cannot read goes on to the decoder, which names what is wrong.)
+    if let Ok((w, h)) = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format()?.into_dimensions() {
+        let claimed = 4 * u64::from(w) * u64::from(h);
+        if claimed > FREE_TEXEL_BYTES + MAX_EXPANSION * bytes.len() as u64 {
+            tracing::warn!("an image of {} bytes claims {w} x {h} pixels: truncated or hostile", bytes.len());
+            return Err(image::ImageError::Limits(image::error::LimitError::from_kind(image::error::LimitErrorKind::DimensionError)));
+        }
+    }
     let mut r = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format()?;
     r.limits(limits());
     r.decode()
@@ -38,9 +56,7 @@ pub fn decode_image(bytes: &[u8]) -> image::ImageResult<image::DynamicImage> {
 
 /// Opens and decodes an image file within the texture limits (see [`decode_image`]).
 pub fn open_image(path: &Path) -> image::ImageResult<image::DynamicImage> {
-    let mut r = image::ImageReader::open(path)?.with_guessed_format()?;
-    r.limits(limits());
-    r.decode()
+    decode_image(&std::fs::read(path)?)
 }
 
 /// Decodes an image into a texture (`srgb`: colour data to linearize).

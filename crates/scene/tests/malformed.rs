@@ -195,6 +195,21 @@ fn claimed_sizes_are_checked_before_allocating() {
     png.extend(chunk(b"IEND", b""));
     let e = lucent_scene::decode_image(&png).expect_err("a 10^5 x 10^5 texture is refused");
     assert!(e.to_string().to_lowercase().contains("limit"), "{e}");
+    // Within the side limit, but more texels than its bytes could hold (a truncated file:
+    // the decoder would fill 1 GB of missing rows): refused too. A small real image
+    // (a thumbnail of a shared texture) still decodes.
+    let mut ihdr = 16_000u32.to_be_bytes().to_vec();
+    ihdr.extend(16_000u32.to_be_bytes());
+    ihdr.extend([8, 6, 0, 0, 0]);
+    let mut truncated = b"\x89PNG\r\n\x1a\n".to_vec();
+    truncated.extend(chunk(b"IHDR", &ihdr));
+    truncated.extend(chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]));
+    let e = lucent_scene::decode_image(&truncated).expect_err("16,000² pixels from 60 bytes are refused");
+    assert!(e.to_string().to_lowercase().contains("limit"), "{e}");
+    let mut small = std::io::Cursor::new(Vec::new());
+    image::RgbaImage::from_pixel(300, 200, image::Rgba([9, 8, 7, 255])).write_to(&mut small, image::ImageFormat::Png).expect("encode");
+    let img = lucent_scene::decode_image(small.get_ref()).expect("a flat 300 x 200 PNG decodes");
+    assert_eq!((img.width(), img.height()), (300, 200));
     write(d.path(), "huge.png", &png);
     write(d.path(), "huge.mtl", b"newmtl m\nmap_Kd huge.png\n");
     let p = write(d.path(), "huge.obj", b"mtllib huge.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n");

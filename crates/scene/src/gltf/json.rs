@@ -26,6 +26,8 @@ pub(crate) struct Doc<'a> {
     /// (a buffer no view reads may lack its data, as the specification allows).
     buffers: Vec<Result<Vec<u8>, String>>,
     views: Vec<View>,
+    /// Whether the document came in a GLB container.
+    glb: bool,
 }
 
 #[derive(Clone, Copy)]
@@ -77,20 +79,47 @@ struct Layout {
 
 /// `/a/0/b` from parts.
 pub(crate) fn ptr(parts: &[&dyn std::fmt::Display]) -> String {
-    parts.iter().map(|p| format!("/{p}")).collect()
+    parts.iter().map(|p| format!("/{}", esc(&p.to_string()))).collect()
+}
+
+/// A JSON object key as a JSON pointer token (RFC 6901 §3: `~` as `~0`, `/` as `~1`).
+pub(crate) fn esc(key: &str) -> String {
+    key.replace('~', "~0").replace('/', "~1")
 }
 
 impl<'a> Doc<'a> {
     /// Parses `bytes` (a `.gltf` JSON text or a `.glb` container) and reads its buffers.
-    pub fn parse(bytes: &[u8], file: &'a Path, base: &'a Path) -> R<Self> {
+    ///
+    /// With `strict`, a file that breaks any rule of the specification is refused (the
+    /// schema, [`super::rules`] and the data checks, as the Khronos validator reports
+    /// errors); without, lucent warns once, naming the first broken rule, and reads what
+    /// it can: what it needs to read safely (references, sizes, formats, the container) is
+    /// checked either way. Exporters commonly write files that break a rule harmlessly
+    /// (weights that do not sum to 1, `min`/`max` a little off), and such a scene should
+    /// render.
+    pub fn parse(bytes: &[u8], file: &'a Path, base: &'a Path, strict: bool) -> R<Self> {
         let invalid = |at: &str, msg: String| ImportError::Invalid { path: file.to_path_buf(), at: at.into(), msg };
         let (json, blob) = if bytes.starts_with(b"glTF") { glb(bytes).map_err(|(at, m)| invalid(at, m))? } else { (bytes, None) };
         let root: Value = serde_json::from_slice(json).map_err(|e| invalid("JSON", format!("{e}")))?;
         if !root.is_object() {
             return Err(invalid("JSON", "the document is not a JSON object".into()));
         }
-        super::schema::check(&root).map_err(|(at, m)| invalid(&at, m))?;
-        let mut doc = Doc { root, file, base, buffers: Vec::new(), views: Vec::new() };
+        // Conformance: an error when strict; otherwise the first broken rule is a warning.
+        let mut warned = false;
+        let mut conform = |r: R<()>| -> R<()> {
+            match r {
+                Err(e) if !strict => {
+                    if !warned {
+                        tracing::warn!("not valid glTF ({e}); loading what can be read (--strict refuses such files)");
+                        warned = true;
+                    }
+                    Ok(())
+                }
+                r => r,
+            }
+        };
+        conform(super::schema::check(&root).map_err(|(at, m)| invalid(&at, m)))?;
+        let mut doc = Doc { root, file, base, buffers: Vec::new(), views: Vec::new(), glb: bytes.starts_with(b"glTF") };
         let version = doc.root.pointer("/asset/version").and_then(Value::as_str).map(str::to_owned);
         match version {
             None => return Err(doc.err("/asset/version", "missing: glTF needs an asset with a version")),
@@ -100,6 +129,11 @@ impl<'a> Doc<'a> {
         doc.buffers = doc.read_buffers(blob)?;
         doc.views = doc.read_views()?;
         doc.check_references()?;
+        conform(doc.check_rules())?;
+        // The data checks read every accessor once more: only when strict.
+        if strict {
+            doc.check_data()?;
+        }
         Ok(doc)
     }
 
@@ -162,6 +196,7 @@ impl<'a> Doc<'a> {
             // byteLength, is an error now.
             let data = match b.get("uri").and_then(Value::as_str) {
                 None if i == 0 && blob.is_some() => blob.take().unwrap_or_default(),
+                None if i == 0 && self.glb => return Err(self.err(&at, "has no uri, and the GLB file has no binary chunk")),
                 None => {
                     out.push(Err(format!("{at} has no uri and is not the GLB binary chunk")));
                     continue;
@@ -294,10 +329,17 @@ impl<'a> Doc<'a> {
     /// warning, when a buffer it needs has no data (a buffer without a uri outside a GLB,
     /// or one that could not be read): what uses it is then skipped.
     pub fn accessor(&self, i: usize) -> R<Option<Values>> {
+        self.accessor_values(i, true)
+    }
+
+    /// Accessor `i` as [`Doc::accessor`] reads it, or with `normalize` false the stored
+    /// integers as they are (what its `min` and `max` describe).
+    pub fn accessor_values(&self, i: usize, normalize: bool) -> R<Option<Values>> {
         let at = ptr(&[&"accessors", &i]);
         let list = self.items("accessors")?;
         let a = list.get(i).ok_or_else(|| self.err(&at, format!("does not exist (there are {})", list.len())))?;
         let Layout { comp, csize, ncomp, rows, col_size, elem, normalized, count, view, offset, stride } = self.accessor_layout(i, a)?;
+        let normalized = normalized && normalize;
         let read = |bytes: &[u8], base: usize, out: &mut [f32]| {
             for (k, o) in out.iter_mut().enumerate() {
                 let (c, r) = (k / rows, k % rows);
@@ -453,6 +495,7 @@ fn glb(b: &[u8]) -> Result<Chunks<'_>, (&'static str, String)> {
     let mut at = 12;
     let mut json = None;
     let mut bin = None;
+    let mut second = false;
     while at < total {
         let (Some(len), Some(kind)) = (u32_at(at), u32_at(at + 4)) else {
             return Err(("GLB chunk", format!("chunk header at byte {at} runs past the end")));
@@ -461,16 +504,18 @@ fn glb(b: &[u8]) -> Result<Chunks<'_>, (&'static str, String)> {
             return Err(("GLB chunk", format!("chunk at byte {at} has length {len}, not a multiple of 4")));
         }
         let data = b
-            .get(at + 8..)
+            .get(at + 8..total)
             .and_then(|r| r.get(..len))
-            .ok_or(("GLB chunk", format!("chunk at byte {at} of {len} bytes runs past the end")))?;
+            .ok_or(("GLB chunk", format!("chunk at byte {at} of {len} bytes runs past the container's end ({total} bytes)")))?;
         match kind {
             0x4E4F_534A if at == 12 => json = Some(data),
             0x4E4F_534A => return Err(("GLB chunk", format!("a second JSON chunk at byte {at}"))),
-            0x004E_4942 if json.is_some() && bin.is_none() => bin = Some(data.to_vec()),
+            // The binary chunk, if any, is the second one (glTF 2.0 §4.4.3.2).
+            0x004E_4942 if json.is_some() && bin.is_none() && second => bin = Some(data.to_vec()),
             0x004E_4942 => return Err(("GLB chunk", format!("an unexpected binary chunk at byte {at}"))),
             _ => {}
         }
+        second = at == 12;
         at += 8 + len;
     }
     Ok((json.ok_or(("GLB chunk", "the first chunk is not JSON".to_string()))?, bin))

@@ -10,6 +10,7 @@
 //! malformed is an error naming the JSON pointer.
 
 mod json;
+mod rules;
 mod schema;
 
 use crate::anim::{Channel, Interp, Morph, Node, SceneAnimation, Skin, Target};
@@ -35,16 +36,28 @@ fn floats<const N: usize>(v: &Value, key: &str) -> Option<[f32; N]> {
     (a.len() == N).then(|| std::array::from_fn(|i| a[i].as_f64().unwrap_or(0.0) as f32))
 }
 
-/// Loads a glTF or GLB file.
+/// Loads a glTF or GLB file, reading what it can of a file that breaks a rule of the
+/// specification (with a warning); see [`load_gltf_with`].
 pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
+    load_gltf_with(path, &crate::LoadOptions::default())
+}
+
+/// Loads a glTF or GLB file; with `options.strict` a file that breaks any rule of the
+/// specification is refused, with the JSON pointer of what is wrong.
+pub fn load_gltf_with(path: &Path, options: &crate::LoadOptions) -> Result<Scene, ImportError> {
     let bytes = std::fs::read(path).map_err(|source| ImportError::Io { path: path.to_path_buf(), source })?;
-    parse_gltf(path, path.parent().unwrap_or(Path::new(".")), &bytes)
+    parse_gltf_with(path, path.parent().unwrap_or(Path::new(".")), &bytes, options)
 }
 
 /// Reads glTF JSON or GLB `bytes`; `path` names the file in errors, and relative URIs are
 /// read from `base`.
 pub fn parse_gltf(path: &Path, base: &Path, bytes: &[u8]) -> Result<Scene, ImportError> {
-    let doc = Doc::parse(bytes, path, base)?;
+    parse_gltf_with(path, base, bytes, &crate::LoadOptions::default())
+}
+
+/// [`parse_gltf`] with options (`strict`: refuse any file that breaks a rule).
+pub fn parse_gltf_with(path: &Path, base: &Path, bytes: &[u8], options: &crate::LoadOptions) -> Result<Scene, ImportError> {
+    let doc = Doc::parse(bytes, path, base, options.strict)?;
     let scene = build(&doc)?;
     if scene.instances.is_empty() {
         tracing::warn!("{}: nothing to draw (no node places a mesh with triangles)", path.display());
@@ -201,12 +214,11 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
                 return Err(doc.err(&format!("{aat}/POSITION"), "must be a VEC3 accessor"));
             }
             let n = pos.count();
-            let same = |v: &json::Values, name: &str, ncomp: usize| -> R<()> {
+            let same = |v: &json::Values, at: &str, ncomp: usize| -> R<()> {
                 if v.ncomp != ncomp || v.count() != n {
-                    return Err(doc.err(
-                        &format!("{aat}/{name}"),
-                        format!("{} elements of {} components; POSITION has {n} of 3, expected {ncomp}", v.count(), v.ncomp),
-                    ));
+                    return Err(
+                        doc.err(at, format!("{} elements of {} components; POSITION has {n} of 3, expected {ncomp}", v.count(), v.ncomp))
+                    );
                 }
                 Ok(())
             };
@@ -234,7 +246,7 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
             let mat = doc.index(p, "material", &at, materials.len(), "material")?.map_or(0, |i| i as u32 + 1);
             match attr("NORMAL")?.map(|a| doc.accessor(a)).transpose()?.flatten() {
                 Some(v) => {
-                    same(&v, "NORMAL", 3)?;
+                    same(&v, &format!("{aat}/NORMAL"), 3)?;
                     normals.extend(v.elements::<3>().map(Vec3::from));
                 }
                 None => {
@@ -245,7 +257,7 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
             match attr("TEXCOORD_0")?.map(|a| doc.accessor(a)).transpose()?.flatten() {
                 // glTF's v runs down the image; ours runs up (OBJ convention).
                 Some(v) => {
-                    same(&v, "TEXCOORD_0", 2)?;
+                    same(&v, &format!("{aat}/TEXCOORD_0"), 2)?;
                     uvs.extend(v.elements::<2>().map(|[u, v]| Vec2::new(u, 1.0 - v)));
                 }
                 None => {
@@ -256,8 +268,8 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
             let read = |name: &str| -> R<Option<json::Values>> { Ok(attr(name)?.map(|a| doc.accessor(a)).transpose()?.flatten()) };
             match (read("JOINTS_0")?, read("WEIGHTS_0")?) {
                 (Some(j), Some(w)) => {
-                    same(&j, "JOINTS_0", 4)?;
-                    same(&w, "WEIGHTS_0", 4)?;
+                    same(&j, &format!("{aat}/JOINTS_0"), 4)?;
+                    same(&w, &format!("{aat}/WEIGHTS_0"), 4)?;
                     vjoints.extend(j.elements::<4>().map(|e| e.map(|x| x.clamp(0.0, 65535.0) as u16)));
                     vweights.extend(w.elements::<4>());
                 }
@@ -276,7 +288,7 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
                     .flatten()
                 {
                     Some(v) => {
-                        same(&v, &format!("../targets/{ti}/POSITION"), 3)?;
+                        same(&v, &format!("{tat}/POSITION"), 3)?;
                         v.elements::<3>().map(Vec3::from).collect()
                     }
                     None => vec![Vec3::ZERO; n],

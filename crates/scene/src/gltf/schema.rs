@@ -72,10 +72,8 @@ const fn obj(kind: &'static str, props: &'static [(&'static str, T, bool)]) -> S
 }
 
 static TEXTURE_INFO: Schema = obj("textureInfo", &[("index", INDEX, true), ("texCoord", INDEX, false)]);
-static NORMAL_TEXTURE: Schema =
-    obj("textureInfo", &[("index", INDEX, true), ("texCoord", INDEX, false), ("scale", ANY_NUM, false)]);
-static OCCLUSION_TEXTURE: Schema =
-    obj("textureInfo", &[("index", INDEX, true), ("texCoord", INDEX, false), ("strength", UNIT, false)]);
+static NORMAL_TEXTURE: Schema = obj("textureInfo", &[("index", INDEX, true), ("texCoord", INDEX, false), ("scale", ANY_NUM, false)]);
+static OCCLUSION_TEXTURE: Schema = obj("textureInfo", &[("index", INDEX, true), ("texCoord", INDEX, false), ("strength", UNIT, false)]);
 const TEX: T = T::Obj(&TEXTURE_INFO);
 const COLOR3: T = T::Arr(&UNIT, 3, 3, false);
 const COLOR4: T = T::Arr(&UNIT, 4, 4, false);
@@ -121,7 +119,10 @@ static ANIM_SAMPLER: Schema = obj(
 );
 static ANIMATION: Schema = obj(
     "animation",
-    &[("channels", T::Arr(&T::Obj(&CHANNEL), 1, usize::MAX, false), true), ("samplers", T::Arr(&T::Obj(&ANIM_SAMPLER), 1, usize::MAX, false), true)],
+    &[
+        ("channels", T::Arr(&T::Obj(&CHANNEL), 1, usize::MAX, false), true),
+        ("samplers", T::Arr(&T::Obj(&ANIM_SAMPLER), 1, usize::MAX, false), true),
+    ],
 );
 static ASSET: Schema = obj(
     "asset",
@@ -138,10 +139,8 @@ static BUFFER_VIEW: Schema = obj(
         ("target", T::Ints(&[34962, 34963]), false),
     ],
 );
-static ORTHOGRAPHIC: Schema = obj(
-    "cameraOrthographic",
-    &[("xmag", ANY_NUM, true), ("ymag", ANY_NUM, true), ("zfar", above(0.0), true), ("znear", NONNEG, true)],
-);
+static ORTHOGRAPHIC: Schema =
+    obj("cameraOrthographic", &[("xmag", ANY_NUM, true), ("ymag", ANY_NUM, true), ("zfar", above(0.0), true), ("znear", NONNEG, true)]);
 static PERSPECTIVE: Schema = obj(
     "cameraPerspective",
     &[("aspectRatio", above(0.0), false), ("yfov", above(0.0), true), ("zfar", above(0.0), false), ("znear", above(0.0), true)],
@@ -224,7 +223,6 @@ static SAMPLER: Schema = obj(
 static SCENE: Schema = obj("scene", &[("nodes", INDICES, false)]);
 static SKIN: Schema = obj("skin", &[("inverseBindMatrices", INDEX, false), ("skeleton", INDEX, false), ("joints", INDICES, true)]);
 static TEXTURE: Schema = obj("texture", &[("sampler", INDEX, false), ("source", INDEX, false)]);
-
 
 /// The document's root (glTF 2.0 §5.17).
 pub(super) static ROOT: Schema = Schema {
@@ -312,7 +310,12 @@ static SPEC_GLOSS: Schema = obj(
 );
 static SHEEN: Schema = obj(
     "KHR_materials_sheen",
-    &[("sheenColorFactor", COLOR3, false), ("sheenColorTexture", TEX, false), ("sheenRoughnessFactor", UNIT, false), ("sheenRoughnessTexture", TEX, false)],
+    &[
+        ("sheenColorFactor", COLOR3, false),
+        ("sheenColorTexture", TEX, false),
+        ("sheenRoughnessFactor", UNIT, false),
+        ("sheenRoughnessTexture", TEX, false),
+    ],
 );
 static SPECULAR: Schema = obj(
     "KHR_materials_specular",
@@ -323,11 +326,17 @@ static SPECULAR: Schema = obj(
         ("specularColorTexture", TEX, false),
     ],
 );
-static TRANSMISSION: Schema = obj("KHR_materials_transmission", &[("transmissionFactor", UNIT, false), ("transmissionTexture", TEX, false)]);
+static TRANSMISSION: Schema =
+    obj("KHR_materials_transmission", &[("transmissionFactor", UNIT, false), ("transmissionTexture", TEX, false)]);
 static UNLIT: Schema = obj("KHR_materials_unlit", &[]);
 static VOLUME: Schema = obj(
     "KHR_materials_volume",
-    &[("thicknessFactor", NONNEG, false), ("thicknessTexture", TEX, false), ("attenuationDistance", above(0.0), false), ("attenuationColor", COLOR3, false)],
+    &[
+        ("thicknessFactor", NONNEG, false),
+        ("thicknessTexture", TEX, false),
+        ("attenuationDistance", above(0.0), false),
+        ("attenuationColor", COLOR3, false),
+    ],
 );
 static VARIANT: Schema = obj("variant", &[("name", T::Str, true)]);
 static VARIANTS_ROOT: Schema = obj("KHR_materials_variants", &[("variants", list!(VARIANT), true)]);
@@ -455,7 +464,7 @@ impl Checker {
     fn extensions(&self, e: &Value, kind: &str, at: &str) -> Res {
         let Some(e) = e.as_object() else { return fail(at, format!("must be an object, is {}", kind_name(e))) };
         for (name, x) in e {
-            let here = format!("{at}/{name}");
+            let here = format!("{at}/{}", super::json::esc(name));
             if !x.is_object() {
                 return fail(&here, format!("an extension must be an object, is {}", kind_name(x)));
             }
@@ -483,8 +492,20 @@ impl Checker {
     fn value(&self, v: &Value, ty: &T, at: String) -> Res {
         let bad = |want: &str| fail(&at, format!("must be {want}, is {v}"));
         match *ty {
-            T::Bool => if v.is_boolean() { Ok(()) } else { bad("true or false") },
-            T::Str => if v.is_string() { Ok(()) } else { bad("a string") },
+            T::Bool => {
+                if v.is_boolean() {
+                    Ok(())
+                } else {
+                    bad("true or false")
+                }
+            }
+            T::Str => {
+                if v.is_string() {
+                    Ok(())
+                } else {
+                    bad("a string")
+                }
+            }
             T::Pointer => match v.as_str() {
                 Some(p) if p.is_empty() || (p.starts_with('/') && valid_escapes(p)) => Ok(()),
                 _ => bad("a JSON pointer (RFC 6901: /a/b/0)"),
@@ -558,7 +579,7 @@ impl Checker {
                 if o.len() < min {
                     return fail(&at, "must not be empty".into());
                 }
-                o.iter().try_for_each(|(k, x)| self.value(x, item, format!("{at}/{k}")))
+                o.iter().try_for_each(|(k, x)| self.value(x, item, format!("{at}/{}", super::json::esc(k))))
             }
             T::Obj(s) => self.object(v, s, at),
             T::Ior => match v.as_f64() {
@@ -603,17 +624,23 @@ impl Checker {
                 }
             }
             "asset" => {
-                let v = |k: &str| o.get(k).and_then(Value::as_str).and_then(|s| s.split_once('.')).and_then(|(a, b)| Some((a.parse::<u64>().ok()?, b.parse::<u64>().ok()?)));
+                let v = |k: &str| {
+                    o.get(k)
+                        .and_then(Value::as_str)
+                        .and_then(|s| s.split_once('.'))
+                        .and_then(|(a, b)| Some((a.parse::<u64>().ok()?, b.parse::<u64>().ok()?)))
+                };
                 if let (Some(min), Some(ver)) = (v("minVersion"), v("version")) {
                     if min > ver {
-                        return fail(&format!("{at}/minVersion"), format!("minVersion {}.{} is greater than version {}.{}", min.0, min.1, ver.0, ver.1));
+                        return fail(
+                            &format!("{at}/minVersion"),
+                            format!("minVersion {}.{} is greater than version {}.{}", min.0, min.1, ver.0, ver.1),
+                        );
                     }
                 }
             }
-            "image" => {
-                if o.contains_key("uri") == o.contains_key("bufferView") {
-                    return fail(at, "an image needs exactly one of 'uri' and 'bufferView'".into());
-                }
+            "image" if o.contains_key("uri") == o.contains_key("bufferView") => {
+                return fail(at, "an image needs exactly one of 'uri' and 'bufferView'".into());
             }
             "node" => {
                 if o.contains_key("matrix") && ["translation", "rotation", "scale"].iter().any(|k| o.contains_key(*k)) {
@@ -621,22 +648,26 @@ impl Checker {
                 }
                 if let Some(Value::Array(q)) = o.get("rotation") {
                     let n2: f64 = q.iter().filter_map(Value::as_f64).map(|x| x * x).sum();
-                    // The validator's tolerance: |length - 1| within 5e-4 (as 2.5e-3 on length²).
+                    // Normalized: |length - 1| within 5e-4.
                     if (n2.sqrt() - 1.0).abs() > 5e-4 {
-                        return fail(&format!("{at}/rotation"), format!("the rotation quaternion has length {:.6}; it must be normalized", n2.sqrt()));
+                        return fail(
+                            &format!("{at}/rotation"),
+                            format!("the rotation quaternion has length {:.6}; it must be normalized", n2.sqrt()),
+                        );
                     }
                 }
             }
-            "light" => {
-                if o.get("type").and_then(Value::as_str) == Some("spot") && !o.contains_key("spot") {
-                    return fail(&format!("{at}/spot"), "missing: a spot light needs 'spot'".into());
-                }
+            "light" if o.get("type").and_then(Value::as_str) == Some("spot") && !o.contains_key("spot") => {
+                return fail(&format!("{at}/spot"), "missing: a spot light needs 'spot'".into());
             }
             "lightSpot" => {
                 let inner = f("innerConeAngle").unwrap_or(0.0);
                 let outer = f("outerConeAngle").unwrap_or(std::f64::consts::FRAC_PI_4);
                 if outer <= inner {
-                    return fail(&format!("{at}/outerConeAngle"), format!("outerConeAngle ({outer}) must be greater than innerConeAngle ({inner})"));
+                    return fail(
+                        &format!("{at}/outerConeAngle"),
+                        format!("outerConeAngle ({outer}) must be greater than innerConeAngle ({inner})"),
+                    );
                 }
             }
             _ => {}

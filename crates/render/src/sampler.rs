@@ -1,0 +1,226 @@
+//! The sampler: sample values as a pure function of (pixel, sample index, dimension), so an
+//! image does not depend on the thread count, the tile order, or how its samples were
+//! split into passes or regions.
+//!
+//! The sequence is the Sobol' (0,2)-sequence in padded pairs of dimensions, Owen-scrambled
+//! by hashing, with each pixel's samples taken in a shuffled order: Brent Burley,
+//! "Practical Hash-based Owen Scrambling", JCGT 9(4), 2020. Its first two dimensions are the
+//! van der Corput sequence and the second Sobol' dimension (primitive polynomial x + 1,
+//! direction numbers m_k = 2 m_(k-1) XOR m_(k-1)); scrambling uses the Laine-Karras
+//! hash-based nested uniform permutation (Laine and Karras, "Stratified sampling for
+//! stochastic transparency", 2011, as refined by Burley). Dimensions 2k and 2k + 1 form
+//! pair k, each pair with its own seeds, so any pair is a (0, m, 2)-net of the first 2^m
+//! samples: every elementary interval of area 2^-m holds exactly one sample.
+
+/// Generator matrix of the second Sobol' dimension, one 32-bit column per bit of the index.
+const SOBOL1: [u32; 32] = {
+    let mut v = [0u32; 32];
+    let mut m: u32 = 1;
+    let mut k = 0;
+    while k < 32 {
+        v[k] = m << (31 - k);
+        m = (m << 1) ^ m;
+        k += 1;
+    }
+    v
+};
+
+/// The unscrambled pair `(dim 0, dim 1)` of Sobol' point `i`, as 32-bit fractions.
+#[inline]
+#[must_use]
+pub fn sobol2(i: u32) -> (u32, u32) {
+    let mut y = 0u32;
+    let mut i2 = i;
+    let mut k = 0;
+    while i2 != 0 {
+        if i2 & 1 != 0 {
+            y ^= SOBOL1[k];
+        }
+        i2 >>= 1;
+        k += 1;
+    }
+    (i.reverse_bits(), y)
+}
+
+/// Burley's Laine-Karras-style permutation: a hash in which each bit depends only on the
+/// bits below it, so applied to bit-reversed values it is a nested uniform (Owen) scramble.
+#[inline]
+fn laine_karras(mut x: u32, seed: u32) -> u32 {
+    x = x.wrapping_add(seed);
+    x ^= x.wrapping_mul(0x6c50_b47c);
+    x ^= x.wrapping_mul(0xb82f_1e52);
+    x ^= x.wrapping_mul(0xc7af_e638);
+    x ^= x.wrapping_mul(0x8d22_f6e6);
+    x
+}
+
+/// Owen scrambling of a 32-bit fraction (its high bits are the coarse ones).
+#[inline]
+#[must_use]
+pub fn owen_scramble(x: u32, seed: u32) -> u32 {
+    laine_karras(x.reverse_bits(), seed).reverse_bits()
+}
+
+/// A 32-bit mixing hash (the "lowbias32" finalizer of Chris Wellons's hash prospector).
+#[inline]
+#[must_use]
+pub fn hash32(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    x
+}
+
+/// A 32-bit fraction as a float in [0, 1): its top 24 bits, so 1.0 is never returned.
+#[inline]
+#[must_use]
+pub fn to_unit(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+}
+
+/// Owen-scrambled Sobol' samples; `seed` tells apart independent images (another seed is
+/// another, equally good, set of samples).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sampler {
+    /// The image's seed.
+    pub seed: u32,
+}
+
+impl Sampler {
+    /// A sampler of seed `seed`.
+    #[must_use]
+    pub const fn new(seed: u32) -> Self {
+        Self { seed }
+    }
+
+    /// Seed of pixel `(x, y)` and dimension pair `pair`, with a salt per use.
+    #[inline]
+    fn key(&self, x: u32, y: u32, pair: u32, salt: u32) -> u32 {
+        hash32(hash32(hash32(hash32(self.seed ^ salt) ^ x) ^ y) ^ pair)
+    }
+
+    /// Dimensions `2 pair` and `2 pair + 1` of sample `index` of pixel `(x, y)`, in [0, 1)².
+    #[inline]
+    #[must_use]
+    pub fn get2(&self, x: u32, y: u32, index: u32, pair: u32) -> (f32, f32) {
+        let (a, b) = self.get2_bits(x, y, index, pair);
+        (to_unit(a), to_unit(b))
+    }
+
+    /// [`Sampler::get2`] as 32-bit fractions.
+    #[inline]
+    #[must_use]
+    pub fn get2_bits(&self, x: u32, y: u32, index: u32, pair: u32) -> (u32, u32) {
+        // The pixel's own order of the samples (a nested uniform scramble of the index), so
+        // that pixels do not share one sequence; then each dimension scrambled on its own.
+        let shuffled = owen_scramble(index, self.key(x, y, pair, 0x5eed_0001));
+        let (a, b) = sobol2(shuffled);
+        (owen_scramble(a, self.key(x, y, pair, 0x5eed_0002)), owen_scramble(b, self.key(x, y, pair, 0x5eed_0003)))
+    }
+
+    /// Dimension `dim` of sample `index` of pixel `(x, y)`, in [0, 1).
+    #[inline]
+    #[must_use]
+    pub fn get1(&self, x: u32, y: u32, index: u32, dim: u32) -> f32 {
+        let (a, b) = self.get2(x, y, index, dim / 2);
+        if dim.is_multiple_of(2) {
+            a
+        } else {
+            b
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The unscrambled sequence starts as the Sobol' sequence does.
+    #[test]
+    fn sobol_points_are_the_known_ones() {
+        let pts: Vec<(f64, f64)> = (0..8).map(sobol2).map(|(a, b)| (f64::from(a) / 2f64.powi(32), f64::from(b) / 2f64.powi(32))).collect();
+        let want = [(0.0, 0.0), (0.5, 0.5), (0.25, 0.75), (0.75, 0.25), (0.125, 0.625), (0.625, 0.125), (0.375, 0.375), (0.875, 0.875)];
+        assert_eq!(pts, want);
+    }
+
+    /// Whether `pts` (2^m 32-bit pairs) form a (0, m, 2)-net: for every split of m into
+    /// i + j, each of the 2^i × 2^j boxes holds exactly one point.
+    fn is_net(pts: &[(u32, u32)]) -> bool {
+        let m = pts.len().trailing_zeros();
+        (0..=m).all(|i| {
+            let j = m - i;
+            let mut seen = vec![false; pts.len()];
+            pts.iter().all(|&(a, b)| {
+                // (u64 shifts, so a shift by 32 gives 0.)
+                let cell = ((u64::from(a) >> (32 - i)) << j | (u64::from(b) >> (32 - j))) as usize;
+                !std::mem::replace(&mut seen[cell], true)
+            })
+        })
+    }
+
+    /// Scrambling keeps the net property, in every pixel and dimension pair, for the first
+    /// 2^m samples (m up to 10), and for any aligned block of 2^m samples.
+    #[test]
+    fn every_pixel_and_pair_is_a_net() {
+        let s = Sampler::new(7);
+        assert!(is_net(&(0..256).map(sobol2).collect::<Vec<_>>()));
+        for (x, y, pair) in [(0, 0, 0), (13, 7, 0), (13, 7, 1), (1023, 511, 5), (4, 9, 31)] {
+            for m in [2u32, 4, 6, 8, 10] {
+                let pts: Vec<(u32, u32)> = (0..1 << m).map(|i| s.get2_bits(x, y, i, pair)).collect();
+                assert!(is_net(&pts), "pixel ({x}, {y}) pair {pair}: the first 2^{m} samples are not a net");
+                let pts: Vec<(u32, u32)> = (3 << m..4 << m).map(|i| s.get2_bits(x, y, i, pair)).collect();
+                assert!(is_net(&pts), "pixel ({x}, {y}) pair {pair}: samples 3·2^{m}.. are not a net");
+            }
+        }
+    }
+
+    /// Pixels, pairs and seeds get different samples (no two share a sequence), and the
+    /// values are uniform: the mean of many pixels' first samples is ½.
+    #[test]
+    fn pixels_pairs_and_seeds_are_decorrelated() {
+        let s = Sampler::new(1);
+        let a: Vec<(u32, u32)> = (0..64).map(|i| s.get2_bits(5, 5, i, 0)).collect();
+        for other in [(6, 5, 0, 1), (5, 6, 0, 1), (5, 5, 1, 1), (5, 5, 0, 2)] {
+            let t = Sampler::new(other.3);
+            let b: Vec<(u32, u32)> = (0..64).map(|i| t.get2_bits(other.0, other.1, i, other.2)).collect();
+            assert_ne!(a, b, "{other:?} repeats pixel (5, 5)'s samples");
+        }
+        let n = 200 * 200;
+        let (mut sx, mut sy, mut sxy) = (0.0f64, 0.0f64, 0.0f64);
+        for p in 0..n {
+            let (u, v) = s.get2(p % 200, p / 200, 0, 0);
+            assert!((0.0..1.0).contains(&u) && (0.0..1.0).contains(&v));
+            sx += f64::from(u);
+            sy += f64::from(v);
+            sxy += f64::from(u) * f64::from(v);
+        }
+        let n = f64::from(n);
+        assert!((sx / n - 0.5).abs() < 0.005 && (sy / n - 0.5).abs() < 0.005, "means {} {}", sx / n, sy / n);
+        // Uncorrelated dimensions: E[uv] = ¼.
+        assert!((sxy / n - 0.25).abs() < 0.005, "E[uv] = {}", sxy / n);
+    }
+
+    /// Sobol' points beat independent ones: integrating a smooth function over the pixel
+    /// with 256 samples errs far less than with 256 hashed random points.
+    #[test]
+    fn low_discrepancy_beats_random_on_a_smooth_integral() {
+        let f = |u: f32, v: f32| (u * 3.0).sin() * (v * 2.0).cos() + u * v;
+        // ∫∫ sin(3u) cos(2v) + uv = (1 - cos 3)/3 · sin 2 / 2 + 1/4.
+        let exact = (1.0 - 3f64.cos()) / 3.0 * 2f64.sin() / 2.0 + 0.25;
+        let s = Sampler::new(3);
+        let (mut e_sobol, mut e_rand) = (0.0, 0.0);
+        for p in 0..64u32 {
+            let sob: f64 = (0..256).map(|i| s.get2(p, 0, i, 0)).map(|(u, v)| f64::from(f(u, v))).sum::<f64>() / 256.0;
+            let rnd: f64 = (0..256u32)
+                .map(|i| (to_unit(hash32(p * 7919 + i * 2)), to_unit(hash32(p * 7919 + i * 2 + 1))))
+                .map(|(u, v)| f64::from(f(u, v)))
+                .sum::<f64>()
+                / 256.0;
+            e_sobol += (sob - exact).powi(2);
+            e_rand += (rnd - exact).powi(2);
+        }
+        assert!(e_sobol * 20.0 < e_rand, "squared errors: Sobol {e_sobol:e}, random {e_rand:e}");
+    }
+}
