@@ -139,7 +139,7 @@ enum Cmd {
         output: PathBuf,
         /// `board`: show what REND3R's FPGA board would have shown (its 32/128-word program
         /// memory, 2 shapes/2 lights/8 triangles, binary16 datapath, one shadow ray, fixed-point
-        /// shading, RGB444 display and documented bugs). See lucent_engine::board.
+        /// shading, RGB444 display and documented bugs). See lucent_device::board.
         #[arg(long, value_parser = ["board"])]
         compat: Option<String>,
         /// With --compat board: the 16 board switches, shown as background (RGB565 bits).
@@ -568,7 +568,7 @@ fn run() -> Result<()> {
                 target_fps,
                 samples,
                 moving_scale,
-                mode: if mode == "raster" { lucent_engine::Mode::Raster } else { lucent_engine::Mode::Raytrace },
+                mode: if mode == "raster" { lucent_device::Mode::Raster } else { lucent_device::Mode::Raytrace },
                 screenshots,
                 report,
                 quit_after,
@@ -578,8 +578,8 @@ fn run() -> Result<()> {
         Cmd::Run { program, mode, sets, size, frames, seconds, painter, spp, camera_table, output, compat, switches } => {
             run_cmd::run(run_cmd::RunArgs {
                 program,
-                mode: if mode == "raster" { lucent_engine::Mode::Raster } else { lucent_engine::Mode::Raytrace },
-                sets: sets.map(|s| if s == "triangles" { lucent_engine::SetKind::Triangles } else { lucent_engine::SetKind::Shapes }),
+                mode: if mode == "raster" { lucent_device::Mode::Raster } else { lucent_device::Mode::Raytrace },
+                sets: sets.map(|s| if s == "triangles" { lucent_device::SetKind::Triangles } else { lucent_device::SetKind::Shapes }),
                 size,
                 frames,
                 seconds,
@@ -611,7 +611,7 @@ fn run() -> Result<()> {
             http: (!a.no_http).then_some(a.http),
             width: a.size.0,
             height: a.size.1,
-            mode: if a.mode == "raster" { lucent_engine::Mode::Raster } else { lucent_engine::Mode::Raytrace },
+            mode: if a.mode == "raster" { lucent_device::Mode::Raster } else { lucent_device::Mode::Raytrace },
             shared: a.shared,
             max_message: a.max_message,
             max_frame_pixels: u64::from(a.max_frame.0) * u64::from(a.max_frame.1),

@@ -28,7 +28,7 @@ pub fn serve(cfg: ServerConfig) -> Result<()> {
         "              {}x{} {}, {}; limits: {} connections, {} B messages, {} shapes, {} lights; Ctrl-C stops",
         cfg.width,
         cfg.height,
-        if cfg.mode == lucent_engine::Mode::Raster { "raster" } else { "raytrace" },
+        if cfg.mode == lucent_device::Mode::Raster { "raster" } else { "raytrace" },
         if cfg.shared { "one shared device" } else { "one device per connection" },
         cfg.max_connections,
         cfg.max_message,
@@ -308,7 +308,7 @@ const SOAK_SIZE: (u32, u32) = (48, 32);
 /// The frame `lucent run` makes after the setup and pose `k` (RGB8, as sent with
 /// `PixelFormat::Rgb8`).
 fn soak_reference(k: u64) -> Result<Vec<u8>> {
-    use lucent_engine::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
+    use lucent_device::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
     let mut words = bench_setup();
     words.extend(bench_move(k));
     let mut p = Processor::new(words, lucent_isa::CameraTable::Final)?;

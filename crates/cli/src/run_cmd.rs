@@ -1,7 +1,7 @@
 //! `lucent run`: executes a REND3R program and writes one PNG per `nf`.
 
 use anyhow::{Context, Result};
-use lucent_engine::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
+use lucent_device::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
 use lucent_isa::{assemble_words, AsmOptions, CameraTable};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -27,7 +27,7 @@ pub fn load_program(path: &Path, camera_table: CameraTable) -> Result<(Vec<u32>,
     if ext == "rdr" {
         let src = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
         let words = assemble_words(&src, AsmOptions { camera_table }).map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))?;
-        Ok((words, lucent_engine::set_kind_of_source(&src)))
+        Ok((words, lucent_device::set_kind_of_source(&src)))
     } else {
         Ok((crate::isa_cmd::read_words(path)?, None))
     }
@@ -100,7 +100,7 @@ fn reached_frame(a: &RunArgs, step: Step, executed: u64, frame: u64) -> Result<b
 }
 
 fn run_board(a: &RunArgs, words: &[u32], switches: u16) -> Result<()> {
-    use lucent_engine::board::{Board, Build};
+    use lucent_device::board::{Board, Build};
     let build = if a.mode == Mode::Raster { Build::Raster } else { Build::Raytracing };
     if words.len() > build.rom_words() {
         println!(

@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result};
 use lucent_accel::MeshOptions;
-use lucent_engine::{FrameSettings, Mode, Processor, SetKind};
+use lucent_device::{FrameSettings, Mode, Processor, SetKind};
 use lucent_render::World;
 use lucent_viewer::{Content, ViewOptions};
 use std::path::{Path, PathBuf};

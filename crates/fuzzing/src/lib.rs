@@ -161,15 +161,15 @@ pub fn mem(data: &[u8]) {
 
 /// Runs `words` through a processor for a bounded number of steps (no frames rendered).
 fn run_words(words: &[u32]) {
-    if let Ok(mut p) = lucent_engine::Processor::new(words.to_vec(), lucent_isa::CameraTable::Final) {
+    if let Ok(mut p) = lucent_device::Processor::new(words.to_vec(), lucent_isa::CameraTable::Final) {
         run_steps(&mut p);
     }
 }
 
 /// At most 16 frames of at most 4,096 words each (a busy loop is stopped): enough to reach
 /// every instruction, `lr` loops and `nr` resets, while an endless loop costs 65,536 steps.
-fn run_steps(p: &mut lucent_engine::Processor) {
-    use lucent_engine::Step;
+fn run_steps(p: &mut lucent_device::Processor) {
+    use lucent_device::Step;
     for _ in 0..16 {
         match p.run_to_frame(4_096) {
             Step::Frame => {}
@@ -193,7 +193,7 @@ pub fn decode(data: &[u8]) {
 /// The TCP/UDP wire protocol: a hello, then messages whose payloads are run as
 /// instruction batches by a streaming processor, plus every server-message decoder.
 pub fn net(data: &[u8]) {
-    use lucent_engine::Processor;
+    use lucent_device::Processor;
     use lucent_net::protocol::{self, Chunk, Done, FrameHeader, Hello, Welcome, WireError, HELLO_LEN};
     if data.len() >= HELLO_LEN {
         let mut h = [0u8; HELLO_LEN];

@@ -10,7 +10,7 @@
 
 use crate::protocol::{Done, ErrorCode, Input, Location, WireError};
 use crossbeam_channel::{Receiver, Sender, TrySendError};
-use lucent_engine::{render_frame, FrameSettings, Processor, SetKind, Step};
+use lucent_device::{render_frame, FrameSettings, Processor, SetKind, Step};
 use lucent_isa::{assemble_words, decode, AsmOptions, CameraTable, Instr};
 use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex};
@@ -180,7 +180,7 @@ impl Device {
                 match assemble_words(src, AsmOptions { camera_table: table }) {
                     Ok(w) => {
                         if self.sets_from_source.is_none() {
-                            self.sets_from_source = lucent_engine::set_kind_of_source(src);
+                            self.sets_from_source = lucent_device::set_kind_of_source(src);
                         }
                         w
                     }

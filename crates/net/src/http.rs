@@ -206,7 +206,7 @@ fn websocket(ctx: &Arc<Ctx>, mut s: TcpStream, key: &str, act: &Activity, _guard
         return;
     }
     let hello = serde_json::json!({"type": "welcome", "width": w, "height": h, "shared": ctx.cfg.shared,
-        "mode": if mode == lucent_engine::Mode::Raster { "raster" } else { "raytrace" }});
+        "mode": if mode == lucent_device::Mode::Raster { "raster" } else { "raytrace" }});
     if ws.send(Message::text(hello.to_string())).is_err() {
         return;
     }

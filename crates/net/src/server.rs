@@ -7,7 +7,7 @@ use crate::protocol::{
     HELLO_LEN, MSG_DATA, MSG_DONE, MSG_ERROR, MSG_FRAME, MSG_WELCOME,
 };
 use crossbeam_channel::Sender;
-use lucent_engine::{FrameSettings, Mode, SetKind};
+use lucent_device::{FrameSettings, Mode, SetKind};
 use std::collections::HashMap;
 use std::io::{self, Read};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream, UdpSocket};

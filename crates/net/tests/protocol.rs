@@ -2,7 +2,7 @@
 //! their places, hostile clients, limits, shared sessions, UDP and the HTTP side.
 #![allow(clippy::unwrap_used)]
 
-use lucent_engine::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
+use lucent_device::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
 use lucent_isa::{assemble_words, AsmOptions, CameraTable};
 use lucent_net::client::{udp_exchange, Event};
 use lucent_net::protocol::{self, ErrorCode, Hello, Input, Location, PixelFormat, WireMode};
@@ -109,7 +109,7 @@ fn tcp_frames_are_identical_to_lucent_run() {
     // A looping program (sphere.rdr ends in `lr`): its first frames, then the client hangs up.
     let src = std::fs::read_to_string(rend3r("raytracing/sw/sphere.rdr")).unwrap();
     // It uses `tr`: its sets are triangles, ray traced (as `lucent run` reads it).
-    assert_eq!(lucent_engine::set_kind_of_source(&src), Some(SetKind::Triangles));
+    assert_eq!(lucent_device::set_kind_of_source(&src), Some(SetKind::Triangles));
     let want = run_locally(&assemble_words(&src, AsmOptions::default()).unwrap(), SetKind::Triangles, Mode::Raytrace);
     let mut c = connect(&s, Input::Assembly, PixelFormat::Rgb8);
     c.send(src.as_bytes()).unwrap();

@@ -5,7 +5,7 @@
 use crate::control::{Accumulator, Adaptive, CameraController, NavMode, Plan};
 use crate::font::draw_text;
 use glam::Vec3;
-use lucent_engine::{render_frame, FrameSettings, Processor, Step};
+use lucent_device::{render_frame, FrameSettings, Processor, Step};
 use lucent_render::{render_pass, Camera, Film, Integrator, RenderSettings, WhittedSettings, World};
 use std::collections::HashSet;
 use std::num::NonZeroU32;

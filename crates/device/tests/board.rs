@@ -1,7 +1,7 @@
 //! `--compat board`: the board model against what SPEC.md says the board does.
 
-use lucent_engine::board::{directions, Board, Build};
-use lucent_engine::Step;
+use lucent_device::board::{directions, Board, Build};
+use lucent_device::Step;
 use lucent_isa::{assemble_words, AsmOptions, CameraTable};
 use std::path::PathBuf;
 

@@ -1,7 +1,7 @@
 //! The REND3R device end to end: programs in, frames out, checked by content.
 
 use glam::Vec3;
-use lucent_engine::*;
+use lucent_device::*;
 use lucent_isa::{assemble_words, AsmOptions, CameraTable};
 use lucent_render::Film;
 use std::path::PathBuf;
@@ -117,7 +117,7 @@ fn svg_points(rel: &str) -> Vec<(f32, f32)> {
 
 fn projected(p: &Processor) -> Vec<(f32, f32)> {
     let cam = camera(&p.state, 512, 384);
-    lucent_engine::raster::project(&p.state, &cam).iter().flat_map(|t| t.v.iter().map(|&(x, y, _)| (x, y))).collect()
+    lucent_device::raster::project(&p.state, &cam).iter().flat_map(|t| t.v.iter().map(|&(x, y, _)| (x, y))).collect()
 }
 
 fn assert_within_one_pixel(ours: &[(f32, f32)], reference: &[(f32, f32)]) {

@@ -1,4 +1,4 @@
-//! # lucent_engine
+//! # lucent_device
 //!
 //! Where everything meets: the REND3R device. [`Processor`] executes instruction words
 //! (from `lucent_isa`) into a [`DeviceState`]; [`render_frame`] turns the state into a

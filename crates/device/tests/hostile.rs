@@ -5,7 +5,7 @@
 //! here are assembled with placeholders (1000 for NaN, ±2000 for ±infinity) whose half-float
 //! bits are then replaced.
 
-use lucent_engine::*;
+use lucent_device::*;
 use lucent_isa::{assemble_words, AsmOptions, CameraTable};
 
 fn frames(src: &str, mode: Mode, sets: SetKind) -> usize {
