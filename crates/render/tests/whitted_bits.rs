@@ -1,0 +1,143 @@
+//! The Whitted images, bit for bit: a 64-bit hash of every pixel's f32 bits for a set of
+//! frames (the demo scene, Cornell, the museum, Sponza with textures; one and several
+//! samples; packets and single rays; the viewer's passes and debug views), recorded before
+//! issue 34 reshapes the renderer (one integrator entry point, regions, the sampler). The
+//! reshaping must leave every hash as it is.
+//!
+//! The hashes were recorded on this project's AVX-512 machine. Every SIMD path must give
+//! the scalar path's answers, so another CPU must give the same bits: a mismatch there is
+//! a finding too.
+
+mod common;
+use common::scene;
+use glam::Vec3;
+use lucent_accel::MeshOptions;
+use lucent_render::{render, render_pass, Camera, Film, Integrator, RenderSettings, WhittedSettings, World};
+use lucent_scene::CameraDesc;
+
+/// FNV-1a over the pixels' bits.
+fn hash(f: &Film) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for p in &f.pixels {
+        for c in p.to_array() {
+            for b in c.to_bits().to_le_bytes() {
+                h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+    }
+    h
+}
+
+fn cam(c: [f32; 10], w: u32, h: u32) -> Camera {
+    let desc = CameraDesc {
+        eye: Vec3::new(c[0], c[1], c[2]),
+        look_at: Vec3::new(c[3], c[4], c[5]),
+        up: Vec3::new(c[6], c[7], c[8]),
+        vfov_deg: c[9],
+        ortho_height: None,
+    };
+    Camera::new(&desc, w, h)
+}
+
+/// (name, hash) of every frame, in order.
+fn frames() -> Vec<(String, u64)> {
+    let (w, h) = (96, 72);
+    let mut out = Vec::new();
+    let worlds = [
+        ("demo", World::new(lucent_scene::demo_scene(), MeshOptions::default()).expect("demo"), None),
+        (
+            "cornell",
+            World::new(lucent_scene::load(&scene("cornell_box/cornell_box.obj")).expect("cornell"), MeshOptions::default()).expect("world"),
+            Some([278.0, 273.0, -800.0, 278.0, 273.0, 0.0, 0.0, 1.0, 0.0, 39.3]),
+        ),
+        (
+            "museum",
+            World::new(lucent_scene::load(&scene("bart/museum/museum5_t0.obj.gz")).expect("museum"), MeshOptions::default())
+                .expect("world"),
+            Some([0.0, 1.6, -6.0, 0.0, 1.6, 0.0, 0.0, 1.0, 0.0, 45.0]),
+        ),
+        (
+            "sponza",
+            World::new(lucent_scene::load(&scene("sponza_dabrovic/sponza.obj.gz")).expect("sponza"), MeshOptions::default())
+                .expect("world"),
+            Some([-10.0, 2.5, 0.0, 0.0, 4.5, 0.0, 0.0, 1.0, 0.0, 70.0]),
+        ),
+    ];
+    for (name, world, view) in &worlds {
+        let camera = match view {
+            Some(v) => cam(*v, w, h),
+            None => {
+                let (lo, hi) = world.scene.bounds().expect("the demo has geometry");
+                let desc = world.scene.camera.unwrap_or_else(|| lucent_render::framing_camera(lo, hi));
+                Camera::new(&desc, w, h)
+            }
+        };
+        for (spp, packets) in [(1, true), (1, false), (4, true), (4, false)] {
+            let rs = RenderSettings { width: w, height: h, spp, whitted: WhittedSettings { packets, ..WhittedSettings::default() } };
+            let (film, _) = render(world, &camera, &rs, &|_| {});
+            out.push((format!("{name} render spp {spp} packets {packets}"), hash(&film)));
+        }
+        let rs = RenderSettings { width: w, height: h, spp: 1, whitted: WhittedSettings::default() };
+        for integrator in [Integrator::Whitted, Integrator::EyeLight, Integrator::Normals] {
+            for index in [0, 3] {
+                let (film, _) = render_pass(world, &camera, &rs, integrator, index);
+                out.push((format!("{name} pass {index} {}", integrator.name()), hash(&film)));
+            }
+        }
+    }
+    out
+}
+
+/// Recorded at f71f068 (before issue 34's reshaping), on the AVX-512 machine.
+const WANT: &[(&str, u64)] = &[
+    ("demo render spp 1 packets true", 0xfcdc68318f56c353),
+    ("demo render spp 1 packets false", 0xfcdc68318f56c353),
+    ("demo render spp 4 packets true", 0x82f6b52583e3c708),
+    ("demo render spp 4 packets false", 0x82f6b52583e3c708),
+    ("demo pass 0 whitted", 0xfcdc68318f56c353),
+    ("demo pass 3 whitted", 0x26141ec5593c7472),
+    ("demo pass 0 eye light", 0xe84081d2d78a9b64),
+    ("demo pass 3 eye light", 0xd31759435f5ffc17),
+    ("demo pass 0 normals", 0x57c3b293ce8f19b9),
+    ("demo pass 3 normals", 0x8c883c2cd979cc8d),
+    ("cornell render spp 1 packets true", 0x2e138c00200c960d),
+    ("cornell render spp 1 packets false", 0x2e138c00200c960d),
+    ("cornell render spp 4 packets true", 0xfabffe6efb319646),
+    ("cornell render spp 4 packets false", 0xfabffe6efb319646),
+    ("cornell pass 0 whitted", 0x2e138c00200c960d),
+    ("cornell pass 3 whitted", 0x750c662d82c01cd8),
+    ("cornell pass 0 eye light", 0x1af9389d85603882),
+    ("cornell pass 3 eye light", 0xba3daabea8224ca8),
+    ("cornell pass 0 normals", 0xf883442f9e4bdb93),
+    ("cornell pass 3 normals", 0xa24bca4f1c5fc70e),
+    ("museum render spp 1 packets true", 0x7766c79037927892),
+    ("museum render spp 1 packets false", 0x7766c79037927892),
+    ("museum render spp 4 packets true", 0xe7b81022a816f355),
+    ("museum render spp 4 packets false", 0xe7b81022a816f355),
+    ("museum pass 0 whitted", 0x7766c79037927892),
+    ("museum pass 3 whitted", 0xd13a0668ce1b5602),
+    ("museum pass 0 eye light", 0xb6518f6be9370c59),
+    ("museum pass 3 eye light", 0x4b249e918c48ebac),
+    ("museum pass 0 normals", 0x067945e0f77c583d),
+    ("museum pass 3 normals", 0x32fa07fb6e27d26c),
+    ("sponza render spp 1 packets true", 0xf9623ec4c01dd5c3),
+    ("sponza render spp 1 packets false", 0xf9623ec4c01dd5c3),
+    ("sponza render spp 4 packets true", 0x442c2a2bf08e4f17),
+    ("sponza render spp 4 packets false", 0x442c2a2bf08e4f17),
+    ("sponza pass 0 whitted", 0xf9623ec4c01dd5c3),
+    ("sponza pass 3 whitted", 0x55bdccc5d59fc3d3),
+    ("sponza pass 0 eye light", 0x077adce21f4de394),
+    ("sponza pass 3 eye light", 0x111b92ba899aac85),
+    ("sponza pass 0 normals", 0xb9725cc8225bc906),
+    ("sponza pass 3 normals", 0xe1dddd9eb181a609),
+];
+
+#[test]
+fn whitted_images_keep_their_bits() {
+    let got = frames();
+    let listing: String = got.iter().map(|(n, h)| format!("    ({n:?}, {h:#018x}),\n")).collect();
+    assert_eq!(got.len(), WANT.len(), "frames changed; now:\n{listing}");
+    for ((n, h), (wn, wh)) in got.iter().zip(WANT) {
+        assert_eq!((n.as_str(), *h), (*wn, *wh), "the image {n} changed; all frames now:\n{listing}");
+    }
+}
