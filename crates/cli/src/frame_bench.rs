@@ -80,14 +80,7 @@ pub fn run(o: &FrameOptions) -> Result<()> {
         // One point light where the harness puts it: above the centre of the bounds.
         let light = (lo + hi) * 0.5 + Vec3::new(0.0, 0.45 * (hi - lo).y, 0.0);
         world.lights = vec![Light { kind: LightKind::Point { position: light }, color: Vec3::ONE, inverse_square: false }];
-        let c = p.cam;
-        let desc = CameraDesc {
-            eye: Vec3::new(c[0], c[1], c[2]),
-            look_at: Vec3::new(c[3], c[4], c[5]),
-            up: Vec3::new(c[6], c[7], c[8]),
-            vfov_deg: c[9],
-            ortho_height: None,
-        };
+        let desc = CameraDesc::from_view(&p.cam);
         for &(w, h) in &o.sizes {
             let cam = Camera::new(&desc, w, h);
             for &threads in &o.threads {

@@ -2,7 +2,6 @@
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use lucent_accel::glam::Vec3;
 use lucent_accel::{MeshOptions, TriangleTest};
 use lucent_render::{framing_camera, render, Camera, RenderSettings, WhittedSettings, World};
 use lucent_scene::{CameraDesc, Scene};
@@ -92,18 +91,10 @@ pub fn load_scene(path: Option<&Path>, demo: DemoArg) -> Result<Scene> {
 /// The camera to use: `--camera`, else the scene's, else one framing the bounds.
 pub fn choose_camera(scene: &Scene, camera: Option<&[f32]>, ortho: bool) -> Result<CameraDesc> {
     let mut desc = match camera {
-        Some(c) => {
-            if c.len() != 10 || c.iter().any(|v| !v.is_finite()) {
-                bail!("--camera needs 10 finite numbers EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV (got {})", c.len());
-            }
-            CameraDesc {
-                eye: Vec3::new(c[0], c[1], c[2]),
-                look_at: Vec3::new(c[3], c[4], c[5]),
-                up: Vec3::new(c[6], c[7], c[8]),
-                vfov_deg: c[9],
-                ortho_height: None,
-            }
-        }
+        Some(c) => match <&[f32; 10]>::try_from(c) {
+            Ok(v) if v.iter().all(|x| x.is_finite()) => CameraDesc::from_view(v),
+            _ => bail!("--camera needs 10 finite numbers EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV (got {})", c.len()),
+        },
         None => match (scene.camera, scene.bounds()) {
             (Some(c), _) => c,
             (None, Some((lo, hi))) => framing_camera(lo, hi),

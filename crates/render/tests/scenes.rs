@@ -154,17 +154,7 @@ fn tile_rays(cam: &Camera, w: u32, h: u32) -> Vec<Ray> {
 }
 
 fn view_camera(c: &[f32; 10], w: u32, h: u32) -> Camera {
-    Camera::new(
-        &CameraDesc {
-            eye: Vec3::new(c[0], c[1], c[2]),
-            look_at: Vec3::new(c[3], c[4], c[5]),
-            up: Vec3::new(c[6], c[7], c[8]),
-            vfov_deg: c[9],
-            ortho_height: None,
-        },
-        w,
-        h,
-    )
+    Camera::new(&CameraDesc::from_view(c), w, h)
 }
 
 /// Packets (8×8 primary tiles, their shadow rays toward a light, and incoherent random rays

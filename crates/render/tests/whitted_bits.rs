@@ -10,7 +10,6 @@
 
 mod common;
 use common::scene;
-use glam::Vec3;
 use lucent_accel::MeshOptions;
 use lucent_render::{render, render_pass, Camera, Film, Integrator, RenderSettings, WhittedSettings, World};
 use lucent_scene::CameraDesc;
@@ -26,17 +25,6 @@ fn hash(f: &Film) -> u64 {
         }
     }
     h
-}
-
-fn cam(c: [f32; 10], w: u32, h: u32) -> Camera {
-    let desc = CameraDesc {
-        eye: Vec3::new(c[0], c[1], c[2]),
-        look_at: Vec3::new(c[3], c[4], c[5]),
-        up: Vec3::new(c[6], c[7], c[8]),
-        vfov_deg: c[9],
-        ortho_height: None,
-    };
-    Camera::new(&desc, w, h)
 }
 
 /// (name, hash) of every frame, in order.
@@ -65,7 +53,7 @@ fn frames() -> Vec<(String, u64)> {
     ];
     for (name, world, view) in &worlds {
         let camera = match view {
-            Some(v) => cam(*v, w, h),
+            Some(v) => Camera::new(&CameraDesc::from_view(v), w, h),
             None => {
                 let (lo, hi) = world.scene.bounds().expect("the demo has geometry");
                 let desc = world.scene.camera.unwrap_or_else(|| lucent_render::framing_camera(lo, hi));

@@ -268,6 +268,21 @@ pub struct CameraDesc {
     pub ortho_height: Option<f32>,
 }
 
+impl CameraDesc {
+    /// A perspective camera from the ten numbers `--camera` and the scene README use:
+    /// eye (3), look-at point (3), up vector (3), vertical field of view in degrees.
+    #[must_use]
+    pub fn from_view(c: &[f32; 10]) -> Self {
+        Self {
+            eye: Vec3::new(c[0], c[1], c[2]),
+            look_at: Vec3::new(c[3], c[4], c[5]),
+            up: Vec3::new(c[6], c[7], c[8]),
+            vfov_deg: c[9],
+            ortho_height: None,
+        }
+    }
+}
+
 /// Everything a renderer needs.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {

@@ -99,7 +99,8 @@ impl<'a> Doc<'a> {
     /// render.
     pub fn parse(bytes: &[u8], file: &'a Path, base: &'a Path, strict: bool) -> R<Self> {
         let invalid = |at: &str, msg: String| ImportError::Invalid { path: file.to_path_buf(), at: at.into(), msg };
-        let (json, blob) = if bytes.starts_with(b"glTF") { glb(bytes).map_err(|(at, m)| invalid(at, m))? } else { (bytes, None) };
+        let is_glb = bytes.starts_with(b"glTF");
+        let (json, blob) = if is_glb { glb(bytes).map_err(|(at, m)| invalid(at, m))? } else { (bytes, None) };
         let root: Value = serde_json::from_slice(json).map_err(|e| invalid("JSON", format!("{e}")))?;
         if !root.is_object() {
             return Err(invalid("JSON", "the document is not a JSON object".into()));
@@ -119,7 +120,7 @@ impl<'a> Doc<'a> {
             }
         };
         conform(super::schema::check(&root).map_err(|(at, m)| invalid(&at, m)))?;
-        let mut doc = Doc { root, file, base, buffers: Vec::new(), views: Vec::new(), glb: bytes.starts_with(b"glTF") };
+        let mut doc = Doc { root, file, base, buffers: Vec::new(), views: Vec::new(), glb: is_glb };
         let version = doc.root.pointer("/asset/version").and_then(Value::as_str).map(str::to_owned);
         match version {
             None => return Err(doc.err("/asset/version", "missing: glTF needs an asset with a version")),
@@ -412,6 +413,13 @@ pub(crate) fn as_uint(x: &Value) -> Option<u64> {
     x.as_u64().or_else(|| x.as_f64().filter(|f| *f >= 0.0 && f.fract() == 0.0 && *f < 9.0e15).map(|f| f as u64))
 }
 
+/// Whether accessor `a` has a known element type and component type (one that does not is
+/// an error only where it is read).
+pub(crate) fn known_layout(a: &Value) -> bool {
+    a.get("type").and_then(Value::as_str).is_some_and(|t| ["SCALAR", "VEC2", "VEC3", "VEC4", "MAT2", "MAT3", "MAT4"].contains(&t))
+        && a.get("componentType").and_then(as_uint).and_then(comp_size).is_some()
+}
+
 fn comp_size(c: u64) -> Option<usize> {
     match c {
         5120 | 5121 => Some(1),
@@ -600,12 +608,7 @@ impl Doc<'_> {
         }
         // Sizes of every accessor (one of an unknown type is an error only where read).
         for (i, a) in self.items("accessors")?.iter().enumerate() {
-            let known = a
-                .get("type")
-                .and_then(Value::as_str)
-                .is_some_and(|t| ["SCALAR", "VEC2", "VEC3", "VEC4", "MAT2", "MAT3", "MAT4"].contains(&t))
-                && a.get("componentType").and_then(as_uint).and_then(comp_size).is_some();
-            if known {
+            if known_layout(a) {
                 self.accessor_layout(i, a)?;
             }
         }

@@ -9,7 +9,7 @@
 //! data itself (declared bounds against the values, unit normals, weights) are in
 //! [`Doc::check_data`].
 
-use super::json::{as_uint, esc, ptr, Doc, R};
+use super::json::{as_uint, esc, known_layout, ptr, Doc, R};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 
@@ -67,6 +67,29 @@ impl Doc<'_> {
 
     fn has_bounds(&self, i: usize) -> bool {
         self.accessor_json(i).is_some_and(|a| a.get("min").is_some() && a.get("max").is_some())
+    }
+
+    /// Attribute `name` (at `here`) parsed as `(semantic, index, whether glTF defines it)`:
+    /// a glTF semantic, indexed (`TEXCOORD_0`) or not (`POSITION`) as the specification
+    /// says, or a custom one beginning with '_'. A morph `target` allows only the
+    /// semantics a target can change.
+    fn attribute<'n>(&self, name: &'n str, target: bool, here: &str) -> R<(&'n str, Option<u64>, bool)> {
+        let bad = |why: &str| Err(self.err(here, format!("{name:?} {why}")));
+        let Some((base, index)) = semantic(name) else { return bad("is not a valid attribute name") };
+        let semantics: &[&str] = if target {
+            &["POSITION", "NORMAL", "TANGENT", "TEXCOORD", "COLOR"]
+        } else {
+            &["POSITION", "NORMAL", "TANGENT", "TEXCOORD", "COLOR", "JOINTS", "WEIGHTS"]
+        };
+        let known = semantics.contains(&base);
+        let unindexed = ["POSITION", "NORMAL", "TANGENT"].contains(&base);
+        match (known, target) {
+            (false, _) if base.starts_with('_') => Ok((base, index, false)),
+            (true, _) if index.is_none() == unindexed => Ok((base, index, true)),
+            (_, true) => bad("is not a morph target attribute"),
+            (false, false) => bad("is not a glTF attribute (custom ones begin with '_')"),
+            (true, false) => bad("is not a valid attribute name"),
+        }
     }
 
     /// Every rule of this module; the first broken one is the error.
@@ -148,14 +171,7 @@ impl Doc<'_> {
                 for (name, acc) in attrs {
                     let here = format!("{at}/attributes/{}", esc(name));
                     let Some(acc) = as_uint(acc).map(|a| a as usize) else { continue };
-                    let (base, index) = semantic(name).ok_or_else(|| self.err(&here, format!("{name:?} is not a valid attribute name")))?;
-                    let known = ["POSITION", "NORMAL", "TANGENT", "TEXCOORD", "COLOR", "JOINTS", "WEIGHTS"].contains(&base);
-                    if !known && !base.starts_with('_') {
-                        return Err(self.err(&here, format!("{name:?} is not a glTF attribute (custom ones begin with '_')")));
-                    }
-                    if known && index.is_none() != ["POSITION", "NORMAL", "TANGENT"].contains(&base) {
-                        return Err(self.err(&here, format!("{name:?} is not a valid attribute name")));
-                    }
+                    let (base, index, known) = self.attribute(name, false, &here)?;
                     if let Some(n) = index {
                         sets.entry(base).or_default().push(n);
                     }
@@ -186,7 +202,7 @@ impl Doc<'_> {
                     }
                     use_view(self, acc, Usage::Vertex, &here)?;
                 }
-                for (base, mut ns) in sets.clone() {
+                for (base, ns) in &mut sets {
                     ns.sort_unstable();
                     if ns.iter().enumerate().any(|(k, &n)| n != k as u64) {
                         return Err(self
@@ -213,14 +229,7 @@ impl Doc<'_> {
                 for (ti, t) in p.get("targets").and_then(Value::as_array).into_iter().flatten().enumerate() {
                     for (name, acc) in t.as_object().into_iter().flatten() {
                         let here = format!("{at}/targets/{ti}/{}", esc(name));
-                        let (base, index) =
-                            semantic(name).ok_or_else(|| self.err(&here, format!("{name:?} is not a valid attribute name")))?;
-                        let known = ["POSITION", "NORMAL", "TANGENT", "TEXCOORD", "COLOR"].contains(&base);
-                        if (!known && !base.starts_with('_'))
-                            || (known && index.is_none() != ["POSITION", "NORMAL", "TANGENT"].contains(&base))
-                        {
-                            return Err(self.err(&here, format!("{name:?} is not a morph target attribute")));
-                        }
+                        let (base, _, _) = self.attribute(name, true, &here)?;
                         if !attrs.contains_key(name) {
                             return Err(self.err(&here, format!("the primitive has no {name} for this target to change")));
                         }
@@ -426,7 +435,8 @@ impl Doc<'_> {
             }
             out
         };
-        let root_of = |n: usize| *chain(n).last().unwrap_or(&n);
+        // Each node's root, found once.
+        let root: Vec<usize> = (0..nodes.len()).map(|n| *chain(n).last().unwrap_or(&n)).collect();
         for (si, s) in self.items("skins")?.iter().enumerate() {
             let at = ptr(&[&"skins", &si]);
             let joints: Vec<usize> =
@@ -445,21 +455,21 @@ impl Doc<'_> {
             }
             let Some(&first) = joints.first() else { continue };
             // A common root: some node that is an ancestor (or self) of every joint.
-            let common: Vec<usize> = chain(first).into_iter().filter(|a| joints.iter().all(|&j| chain(j).contains(a))).collect();
-            if common.is_empty() {
+            let chains: Vec<Vec<usize>> = joints.iter().map(|&j| chain(j)).collect();
+            if !chains[0].iter().any(|a| chains.iter().all(|c| c.contains(a))) {
                 return Err(self.err(&format!("{at}/joints"), "the joints have no common root"));
             }
             if let Some(sk) = self.get_index(s, "skeleton") {
-                if !joints.iter().all(|&j| chain(j).contains(&sk)) {
+                if !chains.iter().all(|c| c.contains(&sk)) {
                     return Err(self.err(&format!("{at}/skeleton"), format!("node {sk} is not a common root of the joints")));
                 }
             }
             // Every scene that shows a node with this skin also holds its joints.
-            let joint_root = root_of(first);
+            let joint_root = root.get(first).copied().unwrap_or(first);
             for (sci, sc) in self.items("scenes")?.iter().enumerate() {
                 let roots: Vec<usize> =
                     sc.get("nodes").and_then(Value::as_array).into_iter().flatten().filter_map(as_uint).map(|n| n as usize).collect();
-                let shown = |n: usize| roots.contains(&root_of(n));
+                let shown = |n: usize| roots.contains(&root[n]);
                 for (ni, n) in nodes.iter().enumerate() {
                     if self.get_index(n, "skin") == Some(si) && shown(ni) && !roots.contains(&joint_root) {
                         return Err(
@@ -609,7 +619,7 @@ impl Doc<'_> {
 }
 
 /// How far from 1 a unit vector's or quaternion's length may be (the validator's bound).
-const UNIT_TOLERANCE: f32 = 5e-4;
+pub(super) const UNIT_TOLERANCE: f32 = 5e-4;
 
 impl Doc<'_> {
     /// Whether accessor `i` has stored values of a known layout to check: one without a
@@ -617,10 +627,7 @@ impl Doc<'_> {
     /// validator leaves such data unchecked too); one of an unknown type is refused only
     /// where it is read.
     fn has_data(&self, i: usize) -> bool {
-        let Some(a) = self.accessor_json(i) else { return false };
-        let known = matches!(a.get("type").and_then(Value::as_str), Some("SCALAR" | "VEC2" | "VEC3" | "VEC4" | "MAT2" | "MAT3" | "MAT4"))
-            && matches!(a.get("componentType").and_then(as_uint), Some(5120 | 5121 | 5122 | 5123 | 5125 | 5126));
-        known && (a.get("bufferView").is_some() || a.get("sparse").is_some())
+        self.accessor_json(i).is_some_and(|a| known_layout(a) && (a.get("bufferView").is_some() || a.get("sparse").is_some()))
     }
 
     /// Checks of the values themselves: finite floats, declared `min`/`max` equal to the
@@ -656,15 +663,16 @@ impl Doc<'_> {
         }
         let read = |acc: usize| if self.has_data(acc) { self.accessor(acc) } else { Ok(None) };
         let skins = self.items("skins")?;
-        let nodes = self.items("nodes")?;
+        // The fewest joints of any skin a node gives each mesh (one walk over the nodes).
+        let mut fewest_joints: HashMap<usize, usize> = HashMap::new();
+        for n in self.items("nodes")? {
+            let (Some(mesh), Some(skin)) = (self.get_index(n, "mesh"), self.get_index(n, "skin")) else { continue };
+            if let Some(j) = skins.get(skin).and_then(|s| s.get("joints")?.as_array().map(Vec::len)) {
+                fewest_joints.entry(mesh).and_modify(|m| *m = (*m).min(j)).or_insert(j);
+            }
+        }
         for (mi, m) in self.items("meshes")?.iter().enumerate() {
-            // The fewest joints of any skin a node gives this mesh.
-            let joints = nodes
-                .iter()
-                .filter(|n| self.get_index(n, "mesh") == Some(mi))
-                .filter_map(|n| self.get_index(n, "skin"))
-                .filter_map(|s| skins.get(s)?.get("joints")?.as_array().map(Vec::len))
-                .min();
+            let joints = fewest_joints.get(&mi).copied();
             for (pi, p) in m.get("primitives").and_then(Value::as_array).into_iter().flatten().enumerate() {
                 let at = ptr(&[&"meshes", &mi, &"primitives", &pi]);
                 if let Some(ix) = self.get_index(p, "indices") {

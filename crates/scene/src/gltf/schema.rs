@@ -391,14 +391,15 @@ pub(super) fn check(root: &Value) -> Result<(), (String, String)> {
     let root_extensions = root.get("extensions").and_then(Value::as_object).map(|e| e.keys().cloned().collect()).unwrap_or_default();
     let c = Checker { used: strings("extensionsUsed"), root_extensions };
     c.object(root, &ROOT, String::new())?;
-    for (i, r) in strings("extensionsRequired").iter().enumerate() {
+    let required = strings("extensionsRequired");
+    for (i, r) in required.iter().enumerate() {
         if !c.used.contains(r) {
             return fail(&format!("/extensionsRequired/{i}"), format!("{r:?} is required but not in extensionsUsed"));
         }
     }
     // Extensions that change how data is read cannot be optional.
     for (i, u) in c.used.iter().enumerate() {
-        if u == "KHR_mesh_quantization" && !strings("extensionsRequired").contains(u) {
+        if u == "KHR_mesh_quantization" && !required.contains(u) {
             return fail(&format!("/extensionsUsed/{i}"), format!("{u} must also be in extensionsRequired"));
         }
     }
@@ -648,8 +649,7 @@ impl Checker {
                 }
                 if let Some(Value::Array(q)) = o.get("rotation") {
                     let n2: f64 = q.iter().filter_map(Value::as_f64).map(|x| x * x).sum();
-                    // Normalized: |length - 1| within 5e-4.
-                    if (n2.sqrt() - 1.0).abs() > 5e-4 {
+                    if (n2.sqrt() - 1.0).abs() > f64::from(super::rules::UNIT_TOLERANCE) {
                         return fail(
                             &format!("{at}/rotation"),
                             format!("the rotation quaternion has length {:.6}; it must be normalized", n2.sqrt()),
