@@ -5,7 +5,7 @@ use crate::stats::median;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_accel::MeshOptions;
-use lucent_render::{render, Camera, RenderSettings, WhittedSettings, World};
+use lucent_render::{render, Camera, Integrator, RenderSettings, World};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -19,8 +19,7 @@ pub struct AnimateArgs {
     pub size: (u32, u32),
     pub camera: Option<Vec<f32>>,
     pub spp: u32,
-    pub max_depth: u32,
-    pub no_shadows: bool,
+    pub integrator: Integrator,
     pub output: PathBuf,
 }
 
@@ -51,12 +50,7 @@ pub fn run(a: AnimateArgs) -> Result<()> {
     let mut world = World::new(scene, MeshOptions::default())?;
     world.ensure_light(fallback.eye);
     println!("{name}: built in {:.1} ms; {frames} frames from {from:.3} s to {to:.3} s at {} fps", t0.elapsed().as_secs_f64() * 1e3, a.fps);
-    let settings = RenderSettings {
-        width: a.size.0,
-        height: a.size.1,
-        spp: a.spp.max(1),
-        whitted: WhittedSettings { shadows: !a.no_shadows, max_depth: a.max_depth, ..WhittedSettings::default() },
-    };
+    let settings = RenderSettings { spp: a.spp.max(1), integrator: a.integrator, ..RenderSettings::new(a.size.0, a.size.1) };
     let bar = if std::io::stderr().is_terminal() { ProgressBar::new(frames) } else { ProgressBar::hidden() };
     bar.set_style(
         ProgressStyle::with_template("{spinner} frames [{bar:40}] {pos}/{len} {per_sec} eta {eta}")

@@ -5,7 +5,7 @@ use crate::stats::median;
 use anyhow::{Context, Result};
 use lucent_accel::glam::{Affine3A, Quat, Vec3};
 use lucent_accel::{Geometry, Instance, MeshBvh, MeshOptions, TopBuilder, TwoLevel};
-use lucent_render::{render, Camera, RenderSettings, WhittedSettings, World};
+use lucent_render::{render, Camera, Integrator, RenderSettings, WhittedSettings, World};
 use std::path::Path;
 use std::time::Instant;
 
@@ -188,8 +188,8 @@ pub fn run(scenes: &Path, frames: usize, size: (u32, u32)) -> Result<()> {
         let fallback = crate::render_cmd::choose_camera(&scene, None, false)?;
         let mut world = World::new(scene, MeshOptions::default())?;
         world.ensure_light(fallback.eye);
-        world.accel.set_top_builder(builder);
-        let rs = RenderSettings { width: size.0, height: size.1, spp: 1, whitted };
+        world.set_top_builder(builder);
+        let rs = RenderSettings { integrator: Integrator::Whitted(whitted), ..RenderSettings::new(size.0, size.1) };
         let (mut upd, mut ren, mut tot) = (Vec::new(), Vec::new(), Vec::new());
         for f in 0..frames.max(1) {
             let t = t0 + (t1 - t0) * f as f32 / frames.max(1) as f32;

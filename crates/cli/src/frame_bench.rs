@@ -6,7 +6,7 @@ use crate::stats::median;
 use anyhow::{bail, Context, Result};
 use lucent_accel::glam::Vec3;
 use lucent_accel::MeshOptions;
-use lucent_render::{render, Camera, RenderSettings, WhittedSettings, World};
+use lucent_render::{render, Camera, Integrator, RenderSettings, Traversal, WhittedSettings, World};
 use lucent_scene::{CameraDesc, Light, LightKind};
 use std::time::Instant;
 
@@ -79,15 +79,18 @@ pub fn run(o: &FrameOptions) -> Result<()> {
         let mut world = World::new(scene, MeshOptions::default())?;
         // One point light where the harness puts it: above the centre of the bounds.
         let light = (lo + hi) * 0.5 + Vec3::new(0.0, 0.45 * (hi - lo).y, 0.0);
-        world.lights = vec![Light { kind: LightKind::Point { position: light }, color: Vec3::ONE, inverse_square: false }];
+        world.set_lights(vec![Light { kind: LightKind::Point { position: light }, color: Vec3::ONE, inverse_square: false }]);
         let desc = CameraDesc::from_view(&p.cam);
         for &(w, h) in &o.sizes {
             let cam = Camera::new(&desc, w, h);
             for &threads in &o.threads {
                 let pool = crate::threads::pool(threads, o.pin)?;
                 for (api, packets) in [("packet", true), ("single", false)].into_iter().take(1 + o.single as usize) {
-                    let s =
-                        RenderSettings { width: w, height: h, spp: 1, whitted: WhittedSettings { max_depth: 0, shadows: true, packets } };
+                    let s = RenderSettings {
+                        integrator: Integrator::Whitted(WhittedSettings { max_depth: 0, shadows: true }),
+                        traversal: Traversal { packets },
+                        ..RenderSettings::new(w, h)
+                    };
                     let (mut times, rays) = pool.install(|| {
                         let (_, rays) = render(&world, &cam, &s, &|_| {});
                         let times: Vec<f64> = (0..o.frames.max(1))

@@ -56,6 +56,11 @@ enum Cmd {
         /// Output image: .png (8-bit sRGB) or .exr (linear float).
         #[arg(short, long, default_value = "out.png")]
         output: PathBuf,
+        /// What the rays compute: `whitted` (point lights, hard shadows, mirror and glass),
+        /// `eye-light` (a light at the eye, no shadows: the fastest preview) or `normals`
+        /// (shading normals as colours).
+        #[arg(long, default_value = "whitted", value_parser = render_cmd::INTEGRATORS)]
+        integrator: String,
         /// Most reflection/refraction generations.
         #[arg(long, default_value_t = 6)]
         max_depth: u32,
@@ -172,6 +177,9 @@ enum Cmd {
         /// Samples per pixel.
         #[arg(long, default_value_t = 1)]
         spp: u32,
+        /// What the rays compute: `whitted`, `eye-light` or `normals` (as `lucent render`).
+        #[arg(long, default_value = "whitted", value_parser = render_cmd::INTEGRATORS)]
+        integrator: String,
         /// Most reflection/refraction generations (0: primary rays, shadows and shading only).
         #[arg(long, default_value_t = 6)]
         max_depth: u32,
@@ -538,26 +546,39 @@ fn run() -> Result<()> {
         }
     }
     match cli.cmd {
-        Cmd::Render { scene, demo, camera, ortho, size, spp, threads, output, max_depth, no_shadows, watertight, single_rays, quality } => {
-            render_cmd::run(render_cmd::RenderArgs {
-                scene,
-                demo,
-                camera,
-                ortho,
-                size,
-                spp,
-                threads,
-                output,
-                max_depth,
-                no_shadows,
-                watertight,
-                single_rays,
-                quality: quality_of(&quality),
-            })
-        }
+        Cmd::Render {
+            scene,
+            demo,
+            camera,
+            ortho,
+            size,
+            spp,
+            threads,
+            output,
+            integrator,
+            max_depth,
+            no_shadows,
+            watertight,
+            single_rays,
+            quality,
+        } => render_cmd::run(render_cmd::RenderArgs {
+            scene,
+            demo,
+            camera,
+            ortho,
+            size,
+            spp,
+            threads,
+            output,
+            integrator: render_cmd::integrator_of(&integrator, max_depth, no_shadows),
+            watertight,
+            single_rays,
+            quality: quality_of(&quality),
+        }),
         Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo),
-        Cmd::Animate { scene, demo, from, to, fps, size, camera, spp, max_depth, no_shadows, output } => {
-            animate_cmd::run(animate_cmd::AnimateArgs { scene, demo, from, to, fps, size, camera, spp, max_depth, no_shadows, output })
+        Cmd::Animate { scene, demo, from, to, fps, size, camera, spp, integrator, max_depth, no_shadows, output } => {
+            let integrator = render_cmd::integrator_of(&integrator, max_depth, no_shadows);
+            animate_cmd::run(animate_cmd::AnimateArgs { scene, demo, from, to, fps, size, camera, spp, integrator, output })
         }
         Cmd::View { input, demo, camera, size, target_fps, samples, moving_scale, mode, screenshots, report, quit_after } => {
             view_cmd::run(view_cmd::ViewArgs {

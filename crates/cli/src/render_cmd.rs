@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_accel::{MeshOptions, TriangleTest};
-use lucent_render::{framing_camera, render, Camera, RenderSettings, WhittedSettings, World};
+use lucent_render::{framing_camera, render, Camera, Integrator, RenderSettings, Traversal, WhittedSettings, World};
 use lucent_scene::{CameraDesc, Scene};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -19,11 +19,23 @@ pub struct RenderArgs {
     pub spp: u32,
     pub threads: Option<usize>,
     pub output: PathBuf,
-    pub max_depth: u32,
-    pub no_shadows: bool,
+    pub integrator: Integrator,
     pub watertight: bool,
     pub single_rays: bool,
     pub quality: lucent_accel::Quality,
+}
+
+/// The integrators `--integrator` names.
+pub const INTEGRATORS: [&str; 3] = ["whitted", "eye-light", "normals"];
+
+/// The integrator `--integrator NAME` (one of [`INTEGRATORS`]) names, with the Whitted
+/// settings of `--max-depth` and `--no-shadows`.
+pub fn integrator_of(name: &str, max_depth: u32, no_shadows: bool) -> Integrator {
+    match name {
+        "eye-light" => Integrator::EyeLight,
+        "normals" => Integrator::Normals,
+        _ => Integrator::Whitted(WhittedSettings { max_depth, shadows: !no_shadows }),
+    }
 }
 
 /// Parses "WxH".
@@ -130,10 +142,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let build_s = t1.elapsed().as_secs_f64();
     let (w, h) = a.size;
     let settings = RenderSettings {
-        width: w,
-        height: h,
         spp: a.spp.max(1),
-        whitted: WhittedSettings { max_depth: a.max_depth, shadows: !a.no_shadows, packets: !a.single_rays },
+        integrator: a.integrator,
+        traversal: Traversal { packets: !a.single_rays },
+        ..RenderSettings::new(w, h)
     };
     let cam = Camera::new(&desc, w, h);
     let tiles = (w.div_ceil(lucent_render::TILE) * h.div_ceil(lucent_render::TILE)) as u64;
@@ -147,7 +159,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let render_s = t2.elapsed().as_secs_f64();
     bar.finish_and_clear();
     film.save(&a.output)?;
-    println!("scene: {} triangles, {} instances, {} lights", st.triangles, st.instances, world.lights.len());
+    println!("scene: {} triangles, {} instances, {} lights", st.triangles, st.instances, world.lights().len());
     println!(
         "load {:.1} ms, build {:.1} ms, render {:.1} ms ({}x{}, {} spp, {} threads)",
         load_s * 1e3,
@@ -189,7 +201,7 @@ pub fn info(path: Option<&Path>, demo: DemoArg) -> Result<()> {
     }
     let t = Instant::now();
     let world = World::new(scene, MeshOptions::default())?;
-    let (top, bottom) = world.accel.stats();
+    let (top, bottom) = world.accel().stats();
     println!(
         "accel:      {} bytes ({:.1} per triangle): BLAS {} nodes, {} bytes; TLAS {} nodes, {} bytes; built in {:.1} ms",
         top.bytes + bottom.bytes,

@@ -23,7 +23,7 @@ use crate::processor::{DeviceState, Record};
 use glam::{Affine3A, Quat, Vec3};
 use lucent_accel::MeshOptions;
 use lucent_isa::CameraTable;
-use lucent_render::{render, Camera, Film, RenderSettings, WhittedSettings, World, WorldError};
+use lucent_render::{render, Camera, Film, Integrator, RenderSettings, WhittedSettings, World, WorldError};
 use lucent_scene::{Attr, Geom, Instance, Light, LightKind, Material, Mesh, Scene, ShapeKind};
 
 /// How SE/SD records are read (`sp` and `tr` encode identically).
@@ -319,10 +319,9 @@ pub fn render_frame(state: &DeviceState, fs: &FrameSettings) -> Result<(Film, Fr
             let info = FrameInfo { shapes: scene.instances.len(), lights: scene.lights.len(), skipped, rays: 0 };
             let world = World::new(scene, MeshOptions::default())?;
             let rs = RenderSettings {
-                width: fs.width,
-                height: fs.height,
                 spp: fs.spp.max(1),
-                whitted: WhittedSettings { max_depth: 5, shadows: true, ..WhittedSettings::default() },
+                integrator: Integrator::Whitted(WhittedSettings { max_depth: 5, shadows: true }),
+                ..RenderSettings::new(fs.width, fs.height)
             };
             let (film, rays) = render(&world, &cam, &rs, &|_| {});
             Ok((film, FrameInfo { rays, ..info }))

@@ -265,74 +265,153 @@ pub enum MergeError {
     /// The region's sums do not have one entry per pixel.
     #[error("region {0:?} has {1} sums for {2} pixels")]
     Length(Region, usize, usize),
-    /// Two regions share pixels and samples (the work was handed out twice).
-    #[error("region {0:?} overlaps region {1:?}, merged before")]
-    Overlap(Region, Region),
+    /// The region's samples were merged before at a pixel (the work was handed out twice).
+    #[error("region {region:?}: pixel ({x}, {y}) already has samples {s0}..{s1}")]
+    Overlap {
+        /// The region refused.
+        region: Region,
+        /// Column of the first pixel found twice.
+        x: u32,
+        /// Its row.
+        y: u32,
+        /// The sample indices merged there before (the range the two share starts here).
+        s0: u32,
+        /// One past them.
+        s1: u32,
+    },
 }
 
-/// Gathers [`RegionFilm`]s into an image. Pixels' sums are added in a fixed order (by
-/// first sample index, then row, then column of their regions), so the image is bit for
-/// bit the same whatever order the regions arrive in: from tiles on threads, passes of the
-/// viewer, or other processes.
+/// Gathers [`RegionFilm`]s into an image, bit for bit the same whatever order the regions
+/// arrive in (from tiles on threads, passes of the viewer, or other processes): each
+/// pixel's sums are added in the order of their first sample index. A region whose
+/// samples come next at all its pixels is added at once (the usual case: tiles of the same
+/// samples, passes in order), so memory stays one sum, weight and sample count per pixel;
+/// one that arrives early waits until the samples before it are in (or until
+/// [`FilmAccumulator::resolve`], which adds the waiting ones in order on a copy).
 #[derive(Clone, Debug)]
 pub struct FilmAccumulator {
     width: u32,
     height: u32,
-    parts: std::collections::BTreeMap<(u32, u32, u32, u32), RegionFilm>,
+    sum: Vec<Vec3>,
+    weight: Vec<f32>,
+    /// Per pixel: the samples `0..next` are added.
+    next: Vec<u32>,
+    /// Regions waiting for earlier samples, by first sample index.
+    pending: Vec<RegionFilm>,
+    merged: usize,
 }
 
 impl FilmAccumulator {
     /// An empty `width` × `height` image.
     #[must_use]
     pub fn new(width: u32, height: u32) -> Self {
-        Self { width, height, parts: Default::default() }
+        let n = width as usize * height as usize;
+        Self { width, height, sum: vec![Vec3::ZERO; n], weight: vec![0.0; n], next: vec![0; n], pending: Vec::new(), merged: 0 }
     }
 
-    /// Adds a rendered region (checked: inside the image, one sum per pixel, no overlap
-    /// with a region merged before).
+    /// The image's size.
+    #[must_use]
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Pixel indices of region `r`'s rows: (index of the row's first pixel in the image,
+    /// in the region).
+    fn rows(&self, r: Region) -> impl Iterator<Item = (usize, usize)> + '_ {
+        let w = (r.x1 - r.x0) as usize;
+        (r.y0..r.y1).map(move |y| ((y * self.width + r.x0) as usize, (y - r.y0) as usize * w))
+    }
+
+    /// Adds a rendered region (checked: inside the image, one sum per pixel, no sample
+    /// merged before at any of its pixels).
     pub fn merge(&mut self, part: RegionFilm) -> Result<(), MergeError> {
         let r = part.region;
-        if r.x1 > self.width || r.y1 > self.height || r.x0 > r.x1 || r.y0 > r.y1 {
+        if r.x1 > self.width || r.y1 > self.height || r.x0 > r.x1 || r.y0 > r.y1 || r.s0 > r.s1 {
             return Err(MergeError::Outside(r, self.width, self.height));
         }
         let n = r.pixels();
         if part.sum.len() != n || part.weight.len() != n {
             return Err(MergeError::Length(r, part.sum.len().min(part.weight.len()), n));
         }
-        if let Some(o) = self.parts.values().find(|o| o.region.overlaps(&r)) {
-            return Err(MergeError::Overlap(r, o.region));
+        if r.is_empty() {
+            return Ok(());
         }
-        self.parts.insert((r.s0, r.y0, r.x0, r.s1), part);
+        let w = (r.x1 - r.x0) as usize;
+        let mut ready = true;
+        for (row, _) in self.rows(r) {
+            for k in 0..w {
+                let next = self.next[row + k];
+                if r.s0 < next {
+                    let (x, y) = ((row + k) as u32 % self.width, (row + k) as u32 / self.width);
+                    return Err(MergeError::Overlap { region: r, x, y, s0: 0, s1: next });
+                }
+                ready &= next == r.s0;
+            }
+        }
+        if let Some(o) = self.pending.iter().find(|o| o.region.overlaps(&r)) {
+            let (x, y) = (r.x0.max(o.region.x0), r.y0.max(o.region.y0));
+            return Err(MergeError::Overlap { region: r, x, y, s0: o.region.s0, s1: o.region.s1 });
+        }
+        self.merged += 1;
+        if !ready {
+            let at = self.pending.partition_point(|o| o.region.s0 <= r.s0);
+            self.pending.insert(at, part);
+            return Ok(());
+        }
+        self.add(&part);
+        // Regions that waited for these samples.
+        while let Some(i) = self.pending.iter().position(|o| {
+            self.rows(o.region).all(|(row, _)| self.next[row..row + (o.region.x1 - o.region.x0) as usize].iter().all(|&n| n == o.region.s0))
+        }) {
+            let o = self.pending.remove(i);
+            self.add(&o);
+        }
         Ok(())
+    }
+
+    /// Adds a region's sums (its samples come next at each of its pixels).
+    fn add(&mut self, part: &RegionFilm) {
+        let r = part.region;
+        let w = (r.x1 - r.x0) as usize;
+        let rows: Vec<(usize, usize)> = self.rows(r).collect();
+        for (row, src) in rows {
+            for k in 0..w {
+                self.sum[row + k] += part.sum[src + k];
+                self.weight[row + k] += part.weight[src + k];
+                self.next[row + k] = r.s1;
+            }
+        }
     }
 
     /// Regions merged so far.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.parts.len()
+        self.merged
     }
 
     /// Whether nothing was merged.
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.parts.is_empty()
+        self.merged == 0
+    }
+
+    /// Samples added at pixel (x, y) in order from sample 0 (those of regions still
+    /// waiting for earlier ones not counted).
+    #[must_use]
+    pub fn samples_at(&self, x: u32, y: u32) -> u32 {
+        self.next.get((y * self.width + x) as usize).copied().unwrap_or(0)
     }
 
     /// The image: each pixel's weighted mean, or `background` where no sample landed.
     #[must_use]
     pub fn resolve(&self, background: Vec3) -> Film {
-        let n = self.width as usize * self.height as usize;
-        let mut sum = vec![Vec3::ZERO; n];
-        let mut weight = vec![0f32; n];
-        for p in self.parts.values() {
-            let r = p.region;
-            let w = (r.x1 - r.x0) as usize;
-            for y in r.y0..r.y1 {
-                let row = (y * self.width) as usize;
-                let src = (y - r.y0) as usize * w;
+        let (mut sum, mut weight) = (self.sum.clone(), self.weight.clone());
+        for p in &self.pending {
+            let w = (p.region.x1 - p.region.x0) as usize;
+            for (row, src) in self.rows(p.region) {
                 for k in 0..w {
-                    sum[row + r.x0 as usize + k] += p.sum[src + k];
-                    weight[row + r.x0 as usize + k] += p.weight[src + k];
+                    sum[row + k] += p.sum[src + k];
+                    weight[row + k] += p.weight[src + k];
                 }
             }
         }
@@ -405,7 +484,10 @@ mod region_tests {
         let r = Region { x0: 0, y0: 0, x1: 4, y1: 4, s0: 0, s1: 2 };
         a.merge(render(r)).expect("merge");
         assert!(matches!(a.merge(render(Region { x1: 9, ..r })), Err(MergeError::Outside(..))));
-        assert!(matches!(a.merge(render(Region { x0: 3, x1: 6, ..r })), Err(MergeError::Overlap(..))));
+        assert_eq!(
+            a.merge(render(Region { x0: 3, x1: 6, ..r })),
+            Err(MergeError::Overlap { region: Region { x0: 3, x1: 6, ..r }, x: 3, y: 0, s0: 0, s1: 2 })
+        );
         let mut short = render(Region { x0: 4, x1: 8, ..r });
         short.sum.pop();
         assert!(matches!(a.merge(short), Err(MergeError::Length(..))));

@@ -1,8 +1,10 @@
 //! # lucent_render
 //!
 //! Turns a scene into pixels: [`World`] builds the two-level index from a
-//! `lucent_scene::Scene`, [`Camera`] makes primary rays, the [`integrator`] shades them
-//! (Whitted), [`render()`] runs tiles on all cores, and [`Film`] writes PNG or EXR.
+//! `lucent_scene::Scene`, [`Camera`] makes primary rays, an [`Integrator`] shades them
+//! (Whitted, or a debug view), [`render()`] runs tiles on all cores ([`render_region`]
+//! one rectangle × sample range of them, which a [`FilmAccumulator`] merges), and [`Film`]
+//! writes PNG or EXR.
 #![warn(missing_docs)]
 
 pub mod camera;
@@ -18,7 +20,7 @@ mod world;
 pub use camera::{framing_camera, Camera};
 pub use coverage::{Coverage, BLOCK_EDGE};
 pub use film::{Film, FilmAccumulator, MergeError, OutputError, Region, RegionFilm};
-pub use integrator::{Integrator, WhittedSettings};
-pub use render::{jitter, pcg_hash, render, render_pass, render_pixel, RenderSettings, TILE};
+pub use integrator::{Block, Integrator, Traversal, WhittedSettings};
+pub use render::{jitter, pcg_hash, render, render_pixel, render_region, RenderSettings, TILE};
 pub use sampler::Sampler;
 pub use world::{shape_of, vertex_normals, Surface, World, WorldError};

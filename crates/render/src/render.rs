@@ -2,24 +2,36 @@
 
 use crate::camera::Camera;
 use crate::coverage::{Coverage, Prepared};
-use crate::film::Film;
-use crate::integrator::{li, li_packet_among, radiance, Integrator, WhittedSettings, NO_RAYS};
+use crate::film::{Film, Region, RegionFilm};
+use crate::integrator::{Block, Integrator, Traversal, NO_RAYS};
 use crate::world::World;
 use glam::Vec3;
-use lucent_accel::Ray;
 use rayon::prelude::*;
 
-/// Render settings.
-#[derive(Clone, Copy, Debug)]
+/// What to render and how: the image's size and samples per pixel, the integrator (what
+/// the rays compute) and the traversal (how they are traced).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RenderSettings {
     /// Image width.
     pub width: u32,
     /// Image height.
     pub height: u32,
-    /// Samples per pixel (1 = pixel centre; more = jittered).
+    /// Samples per pixel of the image (1 = the pixel centre; more = jittered, see
+    /// [`Integrator::pixel_offset`]).
     pub spp: u32,
-    /// Integrator settings.
-    pub whitted: WhittedSettings,
+    /// What the rays compute.
+    pub integrator: Integrator,
+    /// How they are traced.
+    pub traversal: Traversal,
+}
+
+impl RenderSettings {
+    /// A `width` × `height` image of one sample per pixel with the default integrator
+    /// (Whitted) and traversal (packets).
+    #[must_use]
+    pub fn new(width: u32, height: u32) -> Self {
+        Self { width, height, spp: 1, integrator: Integrator::default(), traversal: Traversal::default() }
+    }
 }
 
 /// Tile edge in pixels.
@@ -42,90 +54,60 @@ pub fn jitter(x: u32, y: u32, s: u32) -> (f32, f32) {
     ((h >> 8) as f32 / (1u32 << 24) as f32, (h2 >> 8) as f32 / (1u32 << 24) as f32)
 }
 
-/// Radiance of pixel (x, y) averaged over its samples.
+/// Radiance of pixel (x, y) averaged over its samples, ray by ray ([`Integrator::li`]):
+/// the reference the tile renderer must match.
 #[must_use]
 pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32) -> Vec3 {
     let spp = s.spp.max(1);
     let mut c = Vec3::ZERO;
     for k in 0..spp {
-        let (jx, jy) = if spp == 1 { (0.5, 0.5) } else { jitter(x, y, k) };
-        c += li(w, &cam.ray(x as f32 + jx, y as f32 + jy), &s.whitted, 0);
+        let (jx, jy) = s.integrator.pixel_offset(x, y, k, spp);
+        c += s.integrator.li(w, &cam.ray(x as f32 + jx, y as f32 + jy));
     }
     c / spp as f32
 }
 
-/// Renders a frame; `progress(tiles_done)` is called after each tile. Returns the film and
+/// Renders the image: every pixel, samples `0..spp`, each pixel the mean of its samples
+/// (the [`RegionFilm`] of the whole image, resolved, with the division done by the tiles
+/// as they go). `progress(tiles_done)` is called after each tile. Returns the film and
 /// the number of rays traced.
 pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u64) + Sync)) -> (Film, u64) {
-    if !s.whitted.packets {
-        let samples = if s.spp.max(1) == 1 { Samples::Centres } else { Samples::Anywhere };
-        return render_tiles(w, cam, samples, s.width, s.height, progress, &|px, _, out| {
-            for (o, &(x, y)) in out.iter_mut().zip(px) {
-                *o = render_pixel(w, cam, s, x, y);
-            }
-        });
-    }
-    let spp = s.spp.max(1);
-    let samples = if spp == 1 { Samples::Centres } else { Samples::Anywhere };
-    render_tiles(w, cam, samples, s.width, s.height, progress, &|px, among, out| {
-        let mut rays = NO_RAYS;
-        let rays = &mut rays[..px.len()];
-        let n = px.len();
-        if spp == 1 {
-            // One sample: straight into the block's output.
-            block_rays(cam, px, spp, 0, rays);
-            li_packet_among(w, rays, among, &s.whitted, out);
-            return;
-        }
-        let mut c = [Vec3::ZERO; BLOCK];
-        out.fill(Vec3::ZERO);
-        for k in 0..spp {
-            block_rays(cam, px, spp, k, rays);
-            li_packet_among(w, rays, among, &s.whitted, &mut c[..n]);
-            for (o, v) in out.iter_mut().zip(&c) {
-                *o += *v;
-            }
-        }
-        for o in out.iter_mut() {
-            *o /= spp as f32;
-        }
-    })
+    let (width, height) = (s.width, s.height);
+    let region = Region::full(width, height, 0, s.spp.max(1));
+    // PERF: the film is not cleared first: the tiles write every pixel, traced or not, in
+    // parallel (clearing 2.4 MB on one thread was a seventh of a sparse REND3R frame).
+    let n_pixels = width as usize * height as usize;
+    let mut pixels: Vec<Vec3> = Vec::with_capacity(n_pixels);
+    let sink = MeanSink { out: FilmPtr(pixels.as_mut_ptr()), width, bg: [w.scene.background; 8], n: region.s1 };
+    let rays = render_tiles(w, cam, s, region, progress, &sink);
+    // SAFETY: every pixel lies in exactly one tile and one of its blocks, and each block
+    // wrote each of its pixels (see `render_tiles`). (Had a tile panicked, the length would
+    // still be zero here.)
+    unsafe { pixels.set_len(n_pixels) };
+    (Film { width, height, pixels }, rays)
 }
 
-/// Sample `k` of `spp` through each pixel of `px` (the centre when `spp` is 1).
-#[inline(always)]
-fn block_rays(cam: &Camera, px: &[(u32, u32)], spp: u32, k: u32, rays: &mut [Ray]) {
-    let mut pts = [(0f32, 0f32); BLOCK];
-    for (p, &(x, y)) in pts.iter_mut().zip(px) {
-        let (jx, jy) = if spp == 1 { (0.5, 0.5) } else { jitter(x, y, k) };
-        *p = (x as f32 + jx, y as f32 + jy);
+/// Renders one region of the image (a rectangle of pixels × a range of sample indices):
+/// per pixel, the sum of its samples' radiance and their weight (1 each), for a
+/// [`crate::FilmAccumulator`] to merge with other regions, from other threads, passes or
+/// processes. The parts of `region` outside the `width` × `height` image are left out. The
+/// samples are those [`render`] takes for an image of `spp` samples per pixel, so the
+/// regions of an image, merged, give its pixels.
+pub fn render_region(w: &World, cam: &Camera, s: &RenderSettings, region: Region, progress: &(dyn Fn(u64) + Sync)) -> (RegionFilm, u64) {
+    let r = Region { x1: region.x1.min(s.width), y1: region.y1.min(s.height), ..region };
+    let r = Region { x0: r.x0.min(r.x1), y0: r.y0.min(r.y1), s1: r.s1.max(r.s0), ..r };
+    let mut film = RegionFilm::new(r);
+    if r.is_empty() {
+        return (film, 0);
     }
-    cam.rays_at(&pts[..px.len().min(BLOCK)], rays);
-}
-
-/// One sample per pixel: sample `index` of every pixel (0 = the pixel centre, then the
-/// jittered samples of [`jitter`]), with the chosen integrator. Averaging passes 0..n gives
-/// an n-sample image that does not depend on how the passes were split (the viewer
-/// accumulates these while the camera stands still).
-pub fn render_pass(w: &World, cam: &Camera, s: &RenderSettings, integrator: Integrator, index: u32) -> (Film, u64) {
-    let ray = |x: u32, y: u32| {
-        let (jx, jy) = if index == 0 { (0.5, 0.5) } else { jitter(x, y, index) };
-        cam.ray(x as f32 + jx, y as f32 + jy)
-    };
-    let samples = if index == 0 { Samples::Centres } else { Samples::Anywhere };
-    render_tiles(w, cam, samples, s.width, s.height, &|_| {}, &|px, among, out| {
-        if integrator == Integrator::Whitted && s.whitted.packets {
-            let mut rays = NO_RAYS;
-            for (r, &(x, y)) in rays.iter_mut().zip(px) {
-                *r = ray(x, y);
-            }
-            li_packet_among(w, &rays[..px.len()], among, &s.whitted, out);
-        } else {
-            for (o, &(x, y)) in out.iter_mut().zip(px) {
-                *o = radiance(w, &ray(x, y), &s.whitted, integrator);
-            }
-        }
-    })
+    let bg = w.scene.background;
+    let n = r.s1 - r.s0;
+    // A pixel whose rays provably miss gets what tracing them would sum: the background,
+    // once per sample.
+    let bg_sum = if n == 1 { bg } else { (0..n).fold(Vec3::ZERO, |a, _| a + bg) };
+    let sink = SumSink { sum: FilmPtr(film.sum.as_mut_ptr()), weight: WeightPtr(film.weight.as_mut_ptr()), region: r, bg_sum, n };
+    let rays = render_tiles(w, cam, s, r, progress, &sink);
+    (film, rays)
 }
 
 /// Where in its pixel a ray of the frame starts: decides which pixels the coverage must
@@ -138,35 +120,124 @@ enum Samples {
     Anywhere,
 }
 
-/// Computes the pixels of a block: `block(pixels, among, out)`, where `among` (when given)
-/// lists the only instances the pixels' primary rays can meet.
-type BlockFn<'a> = dyn Fn(&[(u32, u32)], Option<&[u32]>, &mut [Vec3]) + Sync + 'a;
-
 /// Pixels per block handed to the integrators: 8×8 (one bit each in a coverage mask), one
 /// ray packet.
 const BLOCK: usize = 64;
 const _: () = assert!(BLOCK == lucent_accel::MAX_PACKET, "a block is one packet, and NO_RAYS holds a packet");
 
-/// The tile loop shared by every renderer: tiles on rayon; the pixels of each 8×8 block
-/// that the frame's [`Coverage`] says may meet something are handed out together,
-/// `block(pixels, among, out)` with the block's candidate instances, and the others show
-/// the background.
-fn render_tiles(
-    w: &World,
-    cam: &Camera,
-    samples: Samples,
+/// Where the tiles put their pixels: per pixel, the sum of `n` samples.
+trait Sink: Sync {
+    /// Pixel (x, y) is the sum `sum` of the region's samples (the value itself when there
+    /// is one).
+    fn put(&self, x: u32, y: u32, sum: Vec3);
+    /// Pixels `x0..x1` of row `y` show the background.
+    fn background(&self, y: u32, x0: u32, x1: u32);
+}
+
+/// [`render`]'s sink: the mean of each pixel's samples, straight into a whole-image film.
+struct MeanSink {
+    out: FilmPtr,
     width: u32,
-    height: u32,
-    progress: &(dyn Fn(u64) + Sync),
-    block: &BlockFn,
-) -> (Film, u64) {
-    let (tw, th) = (width.div_ceil(TILE), height.div_ceil(TILE));
-    // PERF: the film is not cleared first: the tiles write every pixel, traced or not, in
-    // parallel (clearing 2.4 MB on one thread was a seventh of a sparse REND3R frame).
-    let n_pixels = width as usize * height as usize;
-    let mut pixels: Vec<Vec3> = Vec::with_capacity(n_pixels);
-    let out = FilmPtr(pixels.as_mut_ptr());
-    let bg = w.scene.background;
+    /// A block's row of background. PERF: made once (made per row on the stack, its
+    /// 4-byte stores then read as 16-byte loads stalled store forwarding: 60% of a
+    /// one-sphere REND3R frame).
+    bg: [Vec3; 8],
+    /// Samples per pixel.
+    n: u32,
+}
+
+/// [`render_region`]'s sink: sums and weights into a [`RegionFilm`].
+struct SumSink {
+    sum: FilmPtr,
+    weight: WeightPtr,
+    region: Region,
+    bg_sum: Vec3,
+    n: u32,
+}
+
+impl Sink for MeanSink {
+    #[inline(always)]
+    fn put(&self, x: u32, y: u32, sum: Vec3) {
+        let mean = if self.n == 1 { sum } else { sum / self.n as f32 };
+        // SAFETY: (x, y) lies inside the image (the film's allocation is `width × height`
+        // long), and only the tile that holds (x, y) writes it; the buffer outlives the
+        // parallel loop.
+        unsafe { self.out.get().add((y * self.width + x) as usize).write(mean) };
+    }
+    #[inline(always)]
+    fn background(&self, y: u32, x0: u32, x1: u32) {
+        // PERF: the background a row at a time (pixel by pixel, the background of sparse
+        // REND3R frames was a tenth of their time); traced pixels overwrite it.
+        let dst = self.out.get().wrapping_add((y * self.width + x0) as usize);
+        // SAFETY: the row's pixels x0..x1 (at most 8, one block's) lie inside the image and
+        // the film's allocation, and no other tile writes them. PERF: a whole row of a
+        // block as a copy of known size, which compiles to a few vector stores (not a call
+        // to `memcpy`).
+        unsafe {
+            if x1 - x0 == 8 {
+                dst.cast::<[Vec3; 8]>().write_unaligned(self.bg);
+            } else {
+                // PERF: pixel by pixel (at most 7): as a copy of variable length, both cases
+                // became calls to `memcpy`, 40% of a one-sphere frame.
+                for k in 0..(x1 - x0) as usize {
+                    dst.add(k).write(self.bg[0]);
+                }
+            }
+        }
+    }
+}
+
+impl SumSink {
+    #[inline(always)]
+    fn index(&self, x: u32, y: u32) -> usize {
+        let r = &self.region;
+        ((y - r.y0) * (r.x1 - r.x0) + (x - r.x0)) as usize
+    }
+}
+
+impl Sink for SumSink {
+    #[inline(always)]
+    fn put(&self, x: u32, y: u32, sum: Vec3) {
+        let i = self.index(x, y);
+        // SAFETY: (x, y) lies inside the region, whose film holds one sum and one weight per
+        // pixel; only the tile that holds (x, y) writes them, and the buffers outlive the
+        // parallel loop.
+        unsafe {
+            self.sum.0.add(i).write(sum);
+            self.weight.0.add(i).write(self.n as f32);
+        }
+    }
+    #[inline(always)]
+    fn background(&self, y: u32, x0: u32, x1: u32) {
+        for x in x0..x1 {
+            let i = self.index(x, y);
+            // SAFETY: as in `put`.
+            unsafe {
+                self.sum.0.add(i).write(self.bg_sum);
+                self.weight.0.add(i).write(self.n as f32);
+            }
+        }
+    }
+}
+
+/// The 8×8 block mask (bit `8·row + column`) of columns `c0..c1` and rows `r0..r1`.
+#[inline]
+fn block_mask(c0: u32, c1: u32, r0: u32, r1: u32) -> u64 {
+    let cols = ((0xffu64 >> (8 - (c1 - c0))) << c0) * 0x0101_0101_0101_0101;
+    let rows = (u64::MAX >> (64 - 8 * (r1 - r0))) << (8 * r0);
+    cols & rows
+}
+
+/// The tile loop shared by [`render`] and [`render_region`]: the tiles that meet `region`
+/// on rayon; the pixels of each 8×8 block (clipped to the region) that the frame's
+/// [`Coverage`] says may meet something are traced together, sample after sample, by the
+/// integrator, and the others show the background. Returns the rays traced.
+fn render_tiles(w: &World, cam: &Camera, s: &RenderSettings, region: Region, progress: &(dyn Fn(u64) + Sync), sink: &impl Sink) -> u64 {
+    let (width, height) = (s.width, s.height);
+    let spp = s.spp.max(1);
+    let samples = if spp == 1 { Samples::Centres } else { Samples::Anywhere };
+    let (s0, s1) = (region.s0, region.s1);
+    let integrator = &s.integrator;
     // Which pixels can meet anything, by projecting the instances (object order): a sparse
     // scene, such as REND3R's 256 small spheres, traces a third of its pixels. `None`
     // (something covers the whole image, or reaches around the eye) traces them all.
@@ -183,53 +254,34 @@ fn render_tiles(
     // gathering per-tile buffers and copying them in afterwards, one thread, took half of a
     // one-sphere REND3R frame.
     let tile = |tx: u32, ty: u32, cover: Option<&Coverage>| -> u64 {
-        let (x0, y0) = (tx * TILE, ty * TILE);
-        let (x1, y1) = ((x0 + TILE).min(width), (y0 + TILE).min(height));
+        let (x0, y0) = ((tx * TILE).max(region.x0), (ty * TILE).max(region.y0));
+        let (x1, y1) = ((tx * TILE + TILE).min(region.x1), (ty * TILE + TILE).min(region.y1));
         let before = crate::world::rays_traced_here();
-        let put = |x: u32, y: u32, c: Vec3| {
-            // SAFETY: (x, y) lies inside this tile and inside the film's allocation
-            // (`n_pixels` long), and no other tile writes this pixel; the buffer
-            // outlives the parallel loop.
-            unsafe { out.get().add((y * width + x) as usize).write(c) };
-        };
-        let mut coords = [(0u32, 0u32); BLOCK];
-        let mut px = [Vec3::ZERO; BLOCK];
-        for by in (y0..y1).step_by(8) {
-            for bx in (x0..x1).step_by(8) {
-                let (bx1, by1) = ((bx + 8).min(x1), (by + 8).min(y1));
+        // Blocks are aligned to the image's 8-pixel grid (the coverage's), clipped to the
+        // tile's part of the region.
+        for by in (y0 & !7..y1).step_by(8) {
+            for bx in (x0 & !7..x1).step_by(8) {
+                let (cx0, cy0) = (bx.max(x0), by.max(y0));
+                let (cx1, cy1) = ((bx + 8).min(x1), (by + 8).min(y1));
                 let mask = cover.map_or(u64::MAX, |c| c.block(bx / 8, by / 8));
-                let (cols, rows) = (bx1 - bx, by1 - by);
-                // The pixels of the block inside the tile (a partial block at the image's
-                // right or bottom edge has fewer).
-                let inside = if cols == 8 && rows == 8 {
-                    u64::MAX
-                } else {
-                    (u64::MAX >> (64 - 8 * rows)) & ((0xffu64 >> (8 - cols)) * 0x0101_0101_0101_0101)
-                };
+                // The block's pixels inside the tile and the region.
+                let inside = block_mask(cx0 - bx, cx1 - bx, cy0 - by, cy1 - by);
                 let trace = mask & inside;
                 if trace != inside {
-                    // PERF: the background a row at a time (pixel by pixel, the background
-                    // of sparse REND3R frames was a tenth of their time); traced pixels
-                    // overwrite it below.
-                    let row = [bg; 8];
-                    for y in by..by1 {
-                        let dst = out.get().wrapping_add((y * width + bx) as usize);
-                        // SAFETY: the row's pixels bx..bx1 lie inside this tile and the
-                        // film's allocation, and no other tile writes them. PERF: a whole
-                        // row of a block as a copy of known size, which compiles to a few
-                        // vector stores (not a call to `memcpy`).
-                        unsafe {
-                            if cols == 8 {
-                                dst.cast::<[Vec3; 8]>().write_unaligned(row);
-                            } else {
-                                std::ptr::copy_nonoverlapping(row.as_ptr(), dst, cols as usize);
-                            }
-                        }
+                    for y in cy0..cy1 {
+                        sink.background(y, cx0, cx1);
                     }
                 }
                 if trace == 0 {
                     continue;
                 }
+                // PERF: the block's buffers only for traced blocks (made per tile, they were 3 KB
+                // to initialise per tile of a sparse REND3R frame).
+                let mut coords = [(0u32, 0u32); BLOCK];
+                let mut sum = [Vec3::ZERO; BLOCK];
+                let mut rays = NO_RAYS;
+                let mut pts = [(0f32, 0f32); BLOCK];
+                let mut c = [Vec3::ZERO; BLOCK];
                 // (`trace` is not zero, so `n` is at least one below.)
                 let mut n = 0;
                 let mut b = trace;
@@ -240,31 +292,49 @@ fn render_tiles(
                     n += 1;
                 }
                 let among = cover.and_then(|c| c.candidates(bx / 8, by / 8));
-                block(&coords[..n], among, &mut px[..n]);
-                for (&(x, y), c) in coords[..n].iter().zip(&px) {
-                    put(x, y, *c);
+                for k in s0..s1 {
+                    for (p, &(x, y)) in pts.iter_mut().zip(&coords[..n]) {
+                        let (jx, jy) = integrator.pixel_offset(x, y, k, spp);
+                        *p = (x as f32 + jx, y as f32 + jy);
+                    }
+                    cam.rays_at(&pts[..n], &mut rays[..n]);
+                    let block = Block { pixels: &coords[..n], sample: k, among };
+                    if s1 - s0 == 1 {
+                        // One sample: straight into the sums.
+                        integrator.li_block(w, &block, &rays[..n], s.traversal, &mut sum[..n]);
+                    } else {
+                        if k == s0 {
+                            sum[..n].fill(Vec3::ZERO);
+                        }
+                        integrator.li_block(w, &block, &rays[..n], s.traversal, &mut c[..n]);
+                        for (o, v) in sum[..n].iter_mut().zip(&c) {
+                            *o += *v;
+                        }
+                    }
+                }
+                for (&(x, y), v) in coords[..n].iter().zip(&sum) {
+                    sink.put(x, y, *v);
                 }
             }
         }
         progress(1);
         crate::world::rays_traced_here() - before
     };
-    let rays = (0..th)
+    if region.is_empty() {
+        return 0;
+    }
+    let (tx0, tx1) = (region.x0 / TILE, region.x1.div_ceil(TILE));
+    let (ty0, ty1) = (region.y0 / TILE, region.y1.div_ceil(TILE));
+    (ty0..ty1)
         .into_par_iter()
         .map(|ty| {
             let cover = prep.as_ref().map(|p| p.band(ty as usize));
-            (0..tw).into_par_iter().map(|tx| tile(tx, ty, cover.as_ref())).sum::<u64>()
+            (tx0..tx1).into_par_iter().map(|tx| tile(tx, ty, cover.as_ref())).sum::<u64>()
         })
-        .sum();
-    // SAFETY: every pixel lies in exactly one tile and one of its blocks, and each block
-    // wrote each of its pixels above: the traced ones from `block` (over the background
-    // where the block was only partly traced), the others the background. (Had a tile
-    // panicked, the length would still be zero here.)
-    unsafe { pixels.set_len(n_pixels) };
-    (Film { width, height, pixels }, rays)
+        .sum()
 }
 
-/// The film's pixels, shared by the tile tasks (each writes only its own tile).
+/// A film's pixels or sums, shared by the tile tasks (each writes only its own tile).
 #[derive(Clone, Copy)]
 struct FilmPtr(*mut Vec3);
 // SAFETY: the tasks write disjoint pixels (see `render_tiles`), so sharing the pointer
@@ -277,3 +347,11 @@ impl FilmPtr {
         self.0
     }
 }
+
+/// A region film's weights, shared as [`FilmPtr`].
+#[derive(Clone, Copy)]
+struct WeightPtr(*mut f32);
+// SAFETY: as for `FilmPtr`.
+unsafe impl Send for WeightPtr {}
+// SAFETY: as above.
+unsafe impl Sync for WeightPtr {}

@@ -57,16 +57,20 @@ impl InstInfo {
 pub const REBUILD_RATIO: f32 = 1.5;
 
 /// A scene with its acceleration structure.
+///
+/// Its fields are private: the index and the per-instance and per-triangle caches must
+/// agree with the scene, so the scene changes only through methods that keep them so
+/// ([`World::set_time`], [`World::set_lights`], [`World::ensure_light`]).
 pub struct World {
     /// The scene.
-    pub scene: Scene,
+    pub(crate) scene: Scene,
     /// Two-level index: geometry `i < meshes.len()` is mesh `i`; shapes follow.
-    pub accel: TwoLevel,
+    pub(crate) accel: TwoLevel,
     info: Vec<InstInfo>,
     /// Lights used for rendering (the scene's, or ones derived from emitters).
-    pub lights: Vec<Light>,
+    pub(crate) lights: Vec<Light>,
     /// Diagonal of the world bounds (for ray offsets).
-    pub scale: f32,
+    pub(crate) scale: f32,
     opts: MeshOptions,
     /// Per mesh, per triangle: the unit geometric normal `(b − a) × (c − a)` in object
     /// space (zero for a degenerate triangle). PERF: `surface` reads this one vector
@@ -242,12 +246,49 @@ impl World {
         Ok(pose.camera.or(self.scene.camera))
     }
 
+    /// The scene (as posed by the last [`World::set_time`]).
+    #[must_use]
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The two-level index.
+    #[must_use]
+    pub fn accel(&self) -> &TwoLevel {
+        &self.accel
+    }
+
+    /// The lights used for rendering: the scene's, or, for a scene without lights, point
+    /// lights at its emitters.
+    #[must_use]
+    pub fn lights(&self) -> &[Light] {
+        &self.lights
+    }
+
+    /// Replaces the lights used for rendering (the top level's shadow-ray grids follow).
+    pub fn set_lights(&mut self, lights: Vec<Light>) {
+        self.lights = lights;
+        self.sync_shadow_grids();
+    }
+
+    /// The diagonal of the scene's bounds.
+    #[must_use]
+    pub fn scale(&self) -> f32 {
+        self.scale
+    }
+
+    /// How the top level is rebuilt when instances move (see `TwoLevel::set_top_builder`).
+    pub fn set_top_builder(&mut self, builder: lucent_accel::TopBuilder) {
+        self.accel.set_top_builder(builder);
+    }
+
     /// Gives a scene with no lights and no emitters a headlight at the camera, so it is
     /// not black; returns true when it did.
     pub fn ensure_light(&mut self, eye: Vec3) -> bool {
         if !self.lights.is_empty() {
             return false;
         }
+        // (A point light: the shadow-ray grids, for directional lights, stay as they are.)
         self.lights.push(Light { kind: LightKind::Point { position: eye }, color: Vec3::splat(0.9), inverse_square: false });
         true
     }

@@ -5,7 +5,7 @@ mod common;
 use common::scene;
 use glam::{Affine3A, Quat, Vec3};
 use lucent_accel::{MeshOptions, Ray};
-use lucent_render::{render, Camera, RenderSettings, WhittedSettings, World};
+use lucent_render::{render, Camera, RenderSettings, Traversal, World};
 use lucent_scene::anim::{sample, Channel, Interp, Node, SceneAnimation, Target};
 use lucent_scene::{load, CameraDesc, Geom, Instance, Material, Scene, ShapeKind};
 use std::sync::Arc;
@@ -103,17 +103,17 @@ fn museum_morph_targets_move_the_animated_triangles() {
     let mut w = World::new(s, MeshOptions::default()).expect("world");
     let (t0, t1) = anim.time_range();
     w.set_time(t0).expect("pose");
-    let a = w.scene.meshes[m.mesh as usize].positions.clone();
+    let a = w.scene().meshes[m.mesh as usize].positions.clone();
     w.set_time(0.5 * (t0 + t1)).expect("pose");
-    let b = w.scene.meshes[m.mesh as usize].positions.clone();
+    let b = w.scene().meshes[m.mesh as usize].positions.clone();
     let moved = a.iter().zip(&b).filter(|(p, q)| (**p - **q).length() > 1e-4).count();
     assert!(moved > a.len() / 2, "{moved} of {} vertices moved", a.len());
     // The rebuilt bottom level finds the triangles where they now are: a ray at a moved
     // triangle's new centroid, along its normal, hits it.
     let geom = m.mesh;
-    let inst = w.scene.instances.iter().position(|i| i.geom == Geom::Mesh(geom)).expect("instanced");
-    let xf = w.scene.instances[inst].world_from_object;
-    let mesh = &w.scene.meshes[m.mesh as usize];
+    let inst = w.scene().instances.iter().position(|i| i.geom == Geom::Mesh(geom)).expect("instanced");
+    let xf = w.scene().instances[inst].world_from_object;
+    let mesh = &w.scene().meshes[m.mesh as usize];
     let mut hits = 0;
     for (ti, tri) in mesh.indices.iter().enumerate().step_by(37) {
         let [p, q, r] = tri.map(|i| xf.transform_point3(mesh.positions[i as usize]));
@@ -136,7 +136,7 @@ fn animation_frames_do_not_depend_on_thread_count() {
     let s = load(&scene("bart/kitchen/kitchen.gltf")).expect("load");
     let mut w = World::new(s, MeshOptions::default()).expect("world");
     let cam: CameraDesc = w.set_time(7.5).expect("pose").expect("animated camera");
-    let st = RenderSettings { width: 64, height: 48, spp: 1, whitted: WhittedSettings::default() };
+    let st = RenderSettings::new(64, 48);
     let c = Camera::new(&cam, 64, 48);
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool").install(|| render(&w, &c, &st, &|_| {}).0);
     let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("pool").install(|| render(&w, &c, &st, &|_| {}).0);
@@ -156,7 +156,7 @@ fn cesium_man_is_skinned_and_walks() {
     let mut w = World::new(s, MeshOptions::default()).expect("world");
     let (t0, t1) = anim.time_range();
     let shape = |w: &World| -> (Vec<Vec3>, Vec3, Vec3) {
-        let p = w.scene.meshes[sk.mesh as usize].positions.clone();
+        let p = w.scene().meshes[sk.mesh as usize].positions.clone();
         let lo = p.iter().fold(Vec3::INFINITY, |a, b| a.min(*b));
         let hi = p.iter().fold(Vec3::NEG_INFINITY, |a, b| a.max(*b));
         (p, lo, hi)
@@ -165,7 +165,7 @@ fn cesium_man_is_skinned_and_walks() {
     let (a, lo, hi) = shape(&w);
     // Upright and man-sized in world space (its instance transform is now the identity).
     assert!((hi.y - lo.y) > 1.0 && (hi.y - lo.y) < 2.5, "height {}", hi.y - lo.y);
-    assert_eq!(w.scene.instances[sk.instance as usize].world_from_object, Affine3A::IDENTITY);
+    assert_eq!(w.scene().instances[sk.instance as usize].world_from_object, Affine3A::IDENTITY);
     w.set_time(0.5 * (t0 + t1)).expect("pose");
     let (b, _, _) = shape(&w);
     let moved = a.iter().zip(&b).filter(|(p, q)| (**p - **q).length() > 1e-3).count();
@@ -190,7 +190,7 @@ fn cesium_man_is_skinned_and_walks() {
     };
     let rest_mesh = load(&scene("gltf_animated/CesiumMan.glb")).expect("load").meshes[sk.mesh as usize].clone();
     let rest = agreement(&rest_mesh);
-    let mesh = &w.scene.meshes[sk.mesh as usize];
+    let mesh = &w.scene().meshes[sk.mesh as usize];
     let normals = &mesh.normals.values;
     assert_eq!(normals.len(), mesh.positions.len(), "a normal per vertex");
     assert!(normals.iter().all(|n| n.length() < 1e-6 || (n.length() - 1.0).abs() < 1e-4), "normals of unit length");
@@ -238,7 +238,7 @@ fn kitchen_frame_with_coplanar_ties_renders() {
     let c = Camera::new(&cam, 512, 384);
     let mut frames = Vec::new();
     for packets in [true, false] {
-        let st = RenderSettings { width: 512, height: 384, spp: 1, whitted: WhittedSettings { packets, ..WhittedSettings::default() } };
+        let st = RenderSettings { traversal: Traversal { packets }, ..RenderSettings::new(512, 384) };
         frames.push(render(&w, &c, &st, &|_| {}).0);
     }
     let differ = frames[0].pixels.iter().zip(&frames[1].pixels).filter(|(a, b)| (**a - **b).abs().max_element() > 1e-3).count();

@@ -3,7 +3,7 @@
 //! whose every pixel is finite.
 
 use lucent_accel::MeshOptions;
-use lucent_render::{framing_camera, render, Camera, RenderSettings, WhittedSettings, World};
+use lucent_render::{framing_camera, render, Camera, RenderSettings, World};
 use std::path::Path;
 
 /// Loads `name` from `dir`, builds its world and renders it small; the frame must be finite.
@@ -23,13 +23,7 @@ fn survive(dir: &Path, name: &str, data: &[u8]) {
     });
     let world = World::new(scene, MeshOptions::default()).unwrap_or_else(|e| panic!("{name}: world: {e}"));
     let (w, h) = (32, 24);
-    let film = render(
-        &world,
-        &Camera::new(&desc, w, h),
-        &RenderSettings { width: w, height: h, spp: 2, whitted: WhittedSettings::default() },
-        &|_| {},
-    )
-    .0;
+    let film = render(&world, &Camera::new(&desc, w, h), &RenderSettings { spp: 2, ..RenderSettings::new(w, h) }, &|_| {}).0;
     for y in 0..h {
         for x in 0..w {
             assert!(film.get(x, y).is_finite(), "{name}: pixel {x},{y} is {:?}", film.get(x, y));

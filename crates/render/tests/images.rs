@@ -5,11 +5,11 @@ use common::scene;
 use glam::{Affine3A, Vec3};
 use lucent_accel::MeshOptions;
 use lucent_render::integrator::{fresnel_dielectric, refract};
-use lucent_render::{render, Camera, Film, RenderSettings, WhittedSettings, World};
+use lucent_render::{render, render_region, Camera, Film, FilmAccumulator, Region, RenderSettings, Traversal, World};
 use lucent_scene::{demo_scene, load, CameraDesc, Geom, Instance, Light, LightKind, Material, Scene, ShapeKind};
 
 fn settings(w: u32, h: u32) -> RenderSettings {
-    RenderSettings { width: w, height: h, spp: 1, whitted: WhittedSettings::default() }
+    RenderSettings::new(w, h)
 }
 
 fn avg(f: &Film, x0: u32, y0: u32, x1: u32, y1: u32) -> Vec3 {
@@ -159,7 +159,7 @@ fn images_do_not_depend_on_thread_count() {
     let s = demo_scene();
     let cam = s.camera.expect("demo camera");
     let world = World::new(s, MeshOptions::default()).expect("world");
-    let st = RenderSettings { width: 96, height: 64, spp: 3, whitted: WhittedSettings::default() };
+    let st = RenderSettings { spp: 3, ..RenderSettings::new(96, 64) };
     let c = Camera::new(&cam, 96, 64);
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool").install(|| render(&world, &c, &st, &|_| {}).0);
     let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("pool").install(|| render(&world, &c, &st, &|_| {}).0);
@@ -211,9 +211,19 @@ fn coverage_never_changes_the_picture() {
     assert!(listed > 20, "only {listed} blocks list their instances");
 }
 
+/// One sample as a whole-image region merged alone (a pass of the viewer).
+fn pass(world: &World, c: &Camera, integrator: lucent_render::Integrator, index: u32) -> (Film, u64) {
+    let (w, h) = c.size();
+    let st = RenderSettings { spp: if index == 0 { 1 } else { 16 }, integrator, ..RenderSettings::new(w, h) };
+    let (part, rays) = render_region(world, c, &st, Region::full(w, h, index, index + 1), &|_| {});
+    let mut acc = FilmAccumulator::new(w, h);
+    acc.merge(part).expect("one region");
+    (acc.resolve(world.scene().background), rays)
+}
+
 #[test]
 fn sample_passes_match_the_renderer_and_the_integrators_differ() {
-    use lucent_render::{render_pass, Integrator};
+    use lucent_render::Integrator;
     let s = demo_scene();
     let cam = s.camera.expect("demo camera");
     let mut world = World::new(s, MeshOptions::default()).expect("world");
@@ -222,23 +232,84 @@ fn sample_passes_match_the_renderer_and_the_integrators_differ() {
     let c = Camera::new(&cam, 96, 64);
     // Pass 0 of the Whitted integrator is exactly the 1-sample image.
     let whole = render(&world, &c, &st, &|_| {}).0;
-    let (pass, rays) = render_pass(&world, &c, &st, Integrator::Whitted, 0);
-    assert_eq!(pass.pixels, whole.pixels);
+    let (p0, rays) = pass(&world, &c, Integrator::default(), 0);
+    assert_eq!(p0.pixels, whole.pixels);
     assert!(rays > 96 * 64 / 2);
     // Later passes are jittered: different, but close on average.
-    let p1 = render_pass(&world, &c, &st, Integrator::Whitted, 1).0;
+    let p1 = pass(&world, &c, Integrator::default(), 1).0;
     assert_ne!(p1.pixels, whole.pixels);
     let mean = |f: &Film| f.pixels.iter().copied().sum::<Vec3>() / f.pixels.len() as f32;
     assert!((mean(&p1) - mean(&whole)).length() < 0.02);
     // Normals: unit-length directions mapped to colours; the sky keeps the background.
-    let n = render_pass(&world, &c, &st, Integrator::Normals, 0).0;
+    let n = pass(&world, &c, Integrator::Normals, 0).0;
     let floor = n.get(48, 60);
     assert!(floor.y > 0.9, "the floor faces up: {floor}");
     assert_eq!(n.get(48, 0), whole.get(48, 0), "background");
     // Eye light: no shadows, so never darker than ambient-only shading on lit geometry.
-    let e = render_pass(&world, &c, &st, Integrator::EyeLight, 0).0;
+    let e = pass(&world, &c, Integrator::EyeLight, 0).0;
     assert_ne!(e.pixels, whole.pixels);
     assert!(e.pixels.iter().all(|p| p.is_finite()));
+}
+
+/// An image cut into regions of any shape (rectangles not aligned to tiles or blocks),
+/// rendered on one thread or two and merged in a shuffled order, is the image `render`
+/// makes: the same bits on every traced pixel, and the background (within a rounding, as a
+/// sum of samples over their count) elsewhere. Split into sample ranges too, the sums are
+/// added in another order (range by range), so the image is the same bits whatever the
+/// threads and arrival order, and `render`'s within a rounding.
+#[test]
+fn regions_merged_in_any_order_are_the_rendered_image() {
+    let s = demo_scene();
+    let desc = s.camera.expect("demo camera");
+    let world = World::new(s, MeshOptions::default()).expect("world");
+    let (w, h, spp) = (77, 45, 4);
+    let cam = Camera::new(&desc, w, h);
+    let st = RenderSettings { spp, ..RenderSettings::new(w, h) };
+    let whole = render(&world, &cam, &st, &|_| {}).0;
+    let bg = world.scene().background;
+    let cut = |samples: &[(u32, u32)]| {
+        let mut regions = Vec::new();
+        for &(s0, s1) in samples {
+            for (y0, y1) in [(0, 13), (13, 30), (30, 45)] {
+                for (x0, x1) in [(0, 5), (5, 40), (40, 77)] {
+                    regions.push(Region { x0, y0, x1, y1, s0, s1 });
+                }
+            }
+        }
+        regions
+    };
+    let merged = |regions: &[Region], threads: usize, seed: u64| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+        let mut parts: Vec<_> = pool.install(|| regions.iter().map(|r| render_region(&world, &cam, &st, *r, &|_| {}).0).collect());
+        // A seeded shuffle (later sample ranges often arrive first).
+        let mut x = seed;
+        for i in (1..parts.len()).rev() {
+            x = x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            parts.swap(i, (x >> 33) as usize % (i + 1));
+        }
+        let mut acc = FilmAccumulator::new(w, h);
+        for p in parts {
+            acc.merge(p).expect("regions are disjoint");
+        }
+        assert!((0..h).all(|y| (0..w).all(|x| acc.samples_at(x, y) == spp)), "every sample was added");
+        acc.resolve(Vec3::ONE)
+    };
+    let bits = |f: &Film| f.pixels.iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+    let close = |a: Vec3, b: Vec3| (a - b).abs().max_element() <= 1e-6 * b.abs().max_element().max(1.0);
+    for (threads, seed) in [(1usize, 3u64), (2, 11)] {
+        let img = merged(&cut(&[(0, spp)]), threads, seed);
+        for (i, (a, b)) in img.pixels.iter().zip(&whole.pixels).enumerate() {
+            if *b == bg {
+                assert!(close(*a, bg), "pixel {i}: {a} vs background {bg}");
+            } else {
+                assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits), "pixel {i} ({threads} threads)");
+            }
+        }
+    }
+    let ranges = cut(&[(0, 1), (1, 4)]);
+    let first = merged(&ranges, 1, 5);
+    assert_eq!(bits(&first), bits(&merged(&ranges, 2, 17)), "sample ranges: the same bits whatever the order");
+    assert!(first.pixels.iter().zip(&whole.pixels).all(|(a, b)| close(*a, *b)));
 }
 
 #[test]
@@ -247,7 +318,7 @@ fn sunflower_field_is_instanced_and_shows_flowers() {
     let cam = s.camera.expect("camera");
     let mut w = World::new(s, MeshOptions::default()).expect("world");
     // Memory follows the unique geometry: one plant BVH, one transform per flower.
-    let (top, bottom) = w.accel.stats();
+    let (top, bottom) = w.accel().stats();
     assert!(bottom.bytes < 8 << 20 && top.bytes < 4 << 20, "BLAS {} B, TLAS {} B", bottom.bytes, top.bytes);
     let f = render(&w, &Camera::new(&cam, 128, 96), &settings(128, 96), &|_| {}).0;
     let sky = avg(&f, 0, 0, 128, 10);
@@ -284,7 +355,7 @@ fn packets_render_the_same_image_as_single_rays() {
         let mut st = settings(w, h);
         st.spp = spp;
         let (packed, rays_p) = render(&world, &c, &st, &|_| {});
-        st.whitted.packets = false;
+        st.traversal = Traversal { packets: false };
         let (single, rays_s) = render(&world, &c, &st, &|_| {});
         assert_eq!(rays_p, rays_s, "{name}: the same rays are traced");
         let differ = packed.pixels.iter().zip(&single.pixels).filter(|(a, b)| a != b).count();

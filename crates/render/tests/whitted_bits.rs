@@ -11,7 +11,7 @@
 mod common;
 use common::scene;
 use lucent_accel::MeshOptions;
-use lucent_render::{render, render_pass, Camera, Film, Integrator, RenderSettings, WhittedSettings, World};
+use lucent_render::{render, render_region, Camera, Film, FilmAccumulator, Integrator, Region, RenderSettings, Traversal, World};
 use lucent_scene::CameraDesc;
 
 /// FNV-1a over the pixels' bits.
@@ -55,21 +55,25 @@ fn frames() -> Vec<(String, u64)> {
         let camera = match view {
             Some(v) => Camera::new(&CameraDesc::from_view(v), w, h),
             None => {
-                let (lo, hi) = world.scene.bounds().expect("the demo has geometry");
-                let desc = world.scene.camera.unwrap_or_else(|| lucent_render::framing_camera(lo, hi));
+                let (lo, hi) = world.scene().bounds().expect("the demo has geometry");
+                let desc = world.scene().camera.unwrap_or_else(|| lucent_render::framing_camera(lo, hi));
                 Camera::new(&desc, w, h)
             }
         };
         for (spp, packets) in [(1, true), (1, false), (4, true), (4, false)] {
-            let rs = RenderSettings { width: w, height: h, spp, whitted: WhittedSettings { packets, ..WhittedSettings::default() } };
+            let rs = RenderSettings { spp, traversal: Traversal { packets }, ..RenderSettings::new(w, h) };
             let (film, _) = render(world, &camera, &rs, &|_| {});
             out.push((format!("{name} render spp {spp} packets {packets}"), hash(&film)));
         }
-        let rs = RenderSettings { width: w, height: h, spp: 1, whitted: WhittedSettings::default() };
-        for integrator in [Integrator::Whitted, Integrator::EyeLight, Integrator::Normals] {
+        // The viewer's passes: the one-sample image (pixel centres), then single samples of
+        // an image of many (jittered), each a region merged into an accumulator.
+        for integrator in [Integrator::default(), Integrator::EyeLight, Integrator::Normals] {
             for index in [0, 3] {
-                let (film, _) = render_pass(world, &camera, &rs, integrator, index);
-                out.push((format!("{name} pass {index} {}", integrator.name()), hash(&film)));
+                let rs = RenderSettings { spp: if index == 0 { 1 } else { 64 }, integrator, ..RenderSettings::new(w, h) };
+                let (part, _) = render_region(world, &camera, &rs, Region::full(w, h, index, index + 1), &|_| {});
+                let mut acc = FilmAccumulator::new(w, h);
+                acc.merge(part).expect("one region");
+                out.push((format!("{name} pass {index} {}", integrator.name()), hash(&acc.resolve(world.scene().background))));
             }
         }
     }

@@ -6,7 +6,7 @@ use crate::control::{Accumulator, Adaptive, CameraController, NavMode, Plan};
 use crate::font::draw_text;
 use glam::Vec3;
 use lucent_device::{render_frame, FrameSettings, Processor, Step};
-use lucent_render::{render_pass, Camera, Film, Integrator, RenderSettings, WhittedSettings, World};
+use lucent_render::{render_region, Camera, Film, Integrator, Region, RenderSettings, WhittedSettings, World};
 use std::collections::HashSet;
 use std::num::NonZeroU32;
 use std::path::PathBuf;
@@ -86,6 +86,9 @@ struct Gfx {
     surface: softbuffer::Surface<Rc<Window>, Rc<Window>>,
 }
 
+/// How many integrators key 4 cycles through.
+const VIEWS: usize = 3;
+
 struct App {
     opts: ViewOptions,
     name: String,
@@ -96,7 +99,8 @@ struct App {
     adaptive: Adaptive,
     acc: Accumulator,
     whitted: WhittedSettings,
-    integrator: Integrator,
+    /// Which integrator shows (key 4 cycles): see [`App::integrator`].
+    view: usize,
     gfx: Option<Gfx>,
     error: Option<ViewerError>,
     keys: HashSet<KeyCode>,
@@ -128,6 +132,15 @@ struct App {
 const DEPTHS: [u32; 6] = [0, 1, 2, 4, 6, 10];
 
 impl App {
+    /// The integrator shown: Whitted with the keys' settings, the eye light, or normals.
+    fn integrator(&self) -> Integrator {
+        match self.view % VIEWS {
+            0 => Integrator::Whitted(self.whitted),
+            1 => Integrator::EyeLight,
+            _ => Integrator::Normals,
+        }
+    }
+
     /// True while the picture changes: the user steers or an animation plays.
     fn moving(&self) -> bool {
         self.steering() || (self.anim_playing && self.program.is_none())
@@ -195,7 +208,7 @@ impl App {
                     c.reset();
                 }
                 // Back to the scene's (animated) camera.
-                self.follow = self.world.as_ref().and_then(|w| w.scene.animation.as_ref()).is_some_and(|a| a.camera.is_some());
+                self.follow = self.world.as_ref().and_then(|w| w.scene().animation.as_ref()).is_some_and(|a| a.camera.is_some());
             }
             KeyCode::Tab => {
                 if let Some(c) = self.cam.as_mut() {
@@ -212,7 +225,7 @@ impl App {
                     c.ortho = !c.ortho;
                 }
             }
-            KeyCode::Digit4 => self.integrator = self.integrator.next(),
+            KeyCode::Digit4 => self.view = (self.view + 1) % VIEWS,
             KeyCode::Space => {
                 if let Some(p) = self.program.as_mut() {
                     p.paused = !p.paused;
@@ -299,14 +312,18 @@ impl App {
         };
         let (Some(world), Some(cam)) = (self.world.as_ref(), self.cam.as_ref()) else { return false };
         let camera = Camera::new(&cam.desc(), plan.width, plan.height);
-        let rs = RenderSettings { width: plan.width, height: plan.height, spp: 1, whitted: self.whitted };
-        let (film, rays) = render_pass(world, &camera, &rs, self.integrator, plan.sample);
+        // The first pass is the one-sample image (pixel centres); the passes after it add the
+        // jittered samples 1, 2, ... of the image of `max_samples` samples.
+        let spp = if plan.sample == 0 { 1 } else { self.adaptive.max_samples };
+        let rs = RenderSettings { spp, integrator: self.integrator(), ..RenderSettings::new(plan.width, plan.height) };
+        let region = Region::full(plan.width, plan.height, plan.sample, plan.sample + 1);
+        let (film, rays) = render_region(world, &camera, &rs, region, &|_| {});
         if moving {
             self.pending = Some((plan, moving, now));
         } else {
             self.adaptive.finished(&plan, 0.0, false);
         }
-        self.acc.add(&film, plan.accumulate);
+        self.acc.add(film, plan.accumulate);
         self.count(rays, moving, plan);
         true
     }
@@ -407,7 +424,7 @@ impl App {
             self.mrays,
             self.adaptive.samples(),
             self.adaptive.max_samples,
-            self.integrator.name(),
+            self.integrator().name(),
             if self.whitted.shadows { "on" } else { "off" },
             self.whitted.max_depth,
             self.stats
@@ -612,7 +629,7 @@ pub fn run(content: Content, opts: ViewOptions) -> Result<(), ViewerError> {
         adaptive,
         acc: Accumulator::default(),
         whitted: WhittedSettings::default(),
-        integrator: Integrator::Whitted,
+        view: 0,
         gfx: None,
         error: None,
         keys: HashSet::new(),
@@ -639,14 +656,14 @@ pub fn run(content: Content, opts: ViewOptions) -> Result<(), ViewerError> {
     };
     match content {
         Content::Scene { world, home, stats, name } => {
-            if let Some(a) = world.scene.animation.as_ref().filter(|a| a.is_animated()) {
+            if let Some(a) = world.scene().animation.as_ref().filter(|a| a.is_animated()) {
                 let r = a.time_range();
                 app.anim_range = Some(r);
                 app.anim_time = r.0;
                 app.anim_playing = true;
                 app.follow = a.camera.is_some();
             }
-            app.cam = Some(CameraController::new(home, world.scale));
+            app.cam = Some(CameraController::new(home, world.scale()));
             app.world = Some(world);
             app.stats = stats;
             app.name = name;

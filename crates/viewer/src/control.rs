@@ -4,7 +4,7 @@
 //! without a display.
 
 use glam::Vec3;
-use lucent_render::Film;
+use lucent_render::{Film, FilmAccumulator, RegionFilm};
 use lucent_scene::CameraDesc;
 
 /// How the mouse moves the camera.
@@ -258,53 +258,65 @@ impl Adaptive {
     }
 }
 
-/// The running average of sample passes.
-#[derive(Clone, Debug, Default)]
+/// The running average of sample passes: each pass is a region of the image (the whole
+/// image, one sample index) merged into the film's accumulator, so the still image is the
+/// one `lucent render` makes of the same samples.
+#[derive(Clone, Debug)]
 pub struct Accumulator {
-    sum: Vec<Vec3>,
-    n: u32,
-    width: u32,
-    height: u32,
+    acc: FilmAccumulator,
+    /// The mean so far (resolved after each pass, for display).
+    image: Film,
+    passes: u32,
+}
+
+impl Default for Accumulator {
+    fn default() -> Self {
+        Self { acc: FilmAccumulator::new(0, 0), image: Film::new(0, 0), passes: 0 }
+    }
 }
 
 impl Accumulator {
-    /// Adds a pass (or starts over with it).
-    pub fn add(&mut self, film: &Film, accumulate: bool) {
-        if !accumulate || film.width != self.width || film.height != self.height {
-            self.sum.clone_from(&film.pixels);
-            self.n = 1;
-            self.width = film.width;
-            self.height = film.height;
-            return;
+    /// Adds a pass (or starts over with it: when `accumulate` is false or its size differs).
+    /// A pass that does not fit (its samples were added before) starts over too.
+    pub fn add(&mut self, part: RegionFilm, accumulate: bool) {
+        let (w, h) = (part.region.x1, part.region.y1);
+        if !accumulate || (w, h) != self.acc.size() {
+            self.acc = FilmAccumulator::new(w, h);
+            self.passes = 0;
         }
-        for (s, p) in self.sum.iter_mut().zip(&film.pixels) {
-            *s += *p;
+        if let Err(e) = self.acc.merge(part.clone()) {
+            tracing::debug!("starting the accumulation over: {e}");
+            self.acc = FilmAccumulator::new(w, h);
+            self.passes = 0;
+            if self.acc.merge(part).is_err() {
+                return;
+            }
         }
-        self.n += 1;
+        self.passes += 1;
+        self.image = self.acc.resolve(Vec3::ZERO);
     }
 
     /// The average as a film.
     #[must_use]
     pub fn film(&self) -> Film {
-        let k = 1.0 / self.n.max(1) as f32;
-        Film { width: self.width, height: self.height, pixels: self.sum.iter().map(|p| *p * k).collect() }
+        self.image.clone()
     }
 
     /// Passes added.
     #[must_use]
     pub fn passes(&self) -> u32 {
-        self.n
+        self.passes
     }
 
     /// Size of the image.
     #[must_use]
     pub fn size(&self) -> (u32, u32) {
-        (self.width, self.height)
+        (self.image.width, self.image.height)
     }
 
     /// Writes the average, scaled to `w`×`h` (nearest pixel), as 0RGB sRGB into `out`.
     pub fn blit(&self, out: &mut [u32], w: u32, h: u32) {
-        blit(&self.sum, self.width, self.height, 1.0 / self.n.max(1) as f32, out, w, h);
+        blit(&self.image.pixels, self.image.width, self.image.height, 1.0, out, w, h);
     }
 }
 
@@ -342,6 +354,7 @@ pub fn blit(pixels: &[Vec3], width: u32, height: u32, scale: f32, out: &mut [u32
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lucent_render::Region;
 
     #[test]
     fn the_window_shows_the_bytes_a_png_would_hold() {
@@ -402,14 +415,20 @@ mod tests {
         assert_eq!(a.plan(false, (640, 480)).map(|p| p.sample), Some(0));
     }
 
+    /// A pass of one sample per pixel.
+    fn pass(w: u32, h: u32, sample: u32, pixels: &[Vec3]) -> RegionFilm {
+        let mut f = RegionFilm::new(Region::full(w, h, sample, sample + 1));
+        for (i, p) in pixels.iter().enumerate() {
+            f.add(i as u32 % w, i as u32 / w, *p, 1.0);
+        }
+        f
+    }
+
     #[test]
     fn accumulator_averages_and_scales() {
         let mut acc = Accumulator::default();
-        let mut f = Film::new(2, 1);
-        f.pixels = vec![Vec3::ONE, Vec3::ZERO];
-        acc.add(&f, false);
-        f.pixels = vec![Vec3::ZERO, Vec3::ZERO];
-        acc.add(&f, true);
+        acc.add(pass(2, 1, 0, &[Vec3::ONE, Vec3::ZERO]), false);
+        acc.add(pass(2, 1, 1, &[Vec3::ZERO, Vec3::ZERO]), true);
         assert_eq!(acc.passes(), 2);
         assert_eq!(acc.film().pixels[0], Vec3::splat(0.5));
         let mut out = vec![0u32; 4 * 2];
@@ -419,9 +438,11 @@ mod tests {
         assert_eq!(out[1], out[0]);
         assert_eq!(out[2], 0);
         assert_eq!(out[4], out[0]);
-        // A new size starts over.
-        acc.add(&Film::new(3, 3), true);
+        // A new size starts over, and so does a sample added twice.
+        acc.add(pass(3, 3, 0, &[Vec3::ZERO; 9]), true);
         assert_eq!((acc.passes(), acc.size()), (1, (3, 3)));
+        acc.add(pass(3, 3, 0, &[Vec3::ONE; 9]), true);
+        assert_eq!((acc.passes(), acc.film().pixels[0]), (1, Vec3::ONE));
     }
 
     #[test]

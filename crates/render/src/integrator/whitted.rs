@@ -3,28 +3,25 @@
 //! every light with a hard shadow ray, plus recursive mirror reflection and refraction
 //! (Snell's law, exact dielectric Fresnel, total internal reflection) up to a depth limit.
 
+use super::{default_material, material, textured_kd};
 use crate::shading::{light_sample, mat_terms, offset, orient, put3, v3, with_scratch, LightConst, LitPoint, Scratch};
-use crate::texture::sample;
 use crate::world::{Surface, World};
 use glam::Vec3;
 use lucent_accel::{Hit, Ray};
 use lucent_scene::{Light, Material};
 
-/// Integrator settings.
-#[derive(Clone, Copy, Debug)]
+/// The Whitted integrator's settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct WhittedSettings {
     /// Most bounces (reflection or refraction generations).
     pub max_depth: u32,
     /// Trace shadow rays.
     pub shadows: bool,
-    /// Trace primary and shadow rays in packets of 8×8 pixels (the default; the same image
-    /// as ray by ray, only faster).
-    pub packets: bool,
 }
 
 impl Default for WhittedSettings {
     fn default() -> Self {
-        Self { max_depth: 6, shadows: true, packets: true }
+        Self { max_depth: 6, shadows: true }
     }
 }
 
@@ -59,62 +56,6 @@ fn reflect(d: Vec3, n: Vec3) -> Vec3 {
     d - n * (2.0 * d.dot(n))
 }
 
-/// What a pixel shows: the viewer cycles through these.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Integrator {
-    /// Whitted ray tracing: lights, shadows, reflection, refraction ([`li`]).
-    #[default]
-    Whitted,
-    /// A light at the eye, no shadows, no secondary rays: the fastest preview.
-    EyeLight,
-    /// Shading normals as colours (0.5 + 0.5 n), for inspecting geometry.
-    Normals,
-}
-
-impl Integrator {
-    /// The next one in the cycle.
-    #[must_use]
-    pub fn next(self) -> Self {
-        match self {
-            Self::Whitted => Self::EyeLight,
-            Self::EyeLight => Self::Normals,
-            Self::Normals => Self::Whitted,
-        }
-    }
-    /// Name for the heads-up line.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Whitted => "whitted",
-            Self::EyeLight => "eye light",
-            Self::Normals => "normals",
-        }
-    }
-}
-
-/// Radiance along `ray` with the chosen integrator.
-#[must_use]
-pub fn radiance(w: &World, ray: &Ray, s: &WhittedSettings, integrator: Integrator) -> Vec3 {
-    match integrator {
-        Integrator::Whitted => li(w, ray, s, 0),
-        Integrator::EyeLight | Integrator::Normals => {
-            let Some(hit) = w.intersect(ray) else {
-                return w.scene.background;
-            };
-            let surf = w.surface(ray, &hit);
-            let d = ray.dir.normalize();
-            let ns = if d.dot(surf.ng) < 0.0 { surf.ns } else { -surf.ns };
-            if integrator == Integrator::Normals {
-                return ns * 0.5 + Vec3::splat(0.5);
-            }
-            let mat = material(w, surf.material);
-            let kd = textured_kd(w, mat, surf.uv);
-            let base = if kd.max_element() > 0.0 { kd } else { mat.specular.max(mat.reflect).max(mat.transmit) };
-            base * (0.15 + 0.85 * (-d).dot(ns).max(0.0)) + mat.emission.min(Vec3::ONE)
-        }
-    }
-}
-
 /// Radiance along `ray`.
 #[must_use]
 pub fn li(w: &World, ray: &Ray, s: &WhittedSettings, depth: u32) -> Vec3 {
@@ -123,18 +64,6 @@ pub fn li(w: &World, ray: &Ray, s: &WhittedSettings, depth: u32) -> Vec3 {
     };
     let surf = w.surface(ray, &hit);
     shade(w, ray, &surf, material(w, surf.material), s, depth)
-}
-
-/// Material `index` of the scene, or the default one for an index out of range (PERF:
-/// borrowed, not cloned: a clone allocates the name on every hit).
-fn material(w: &World, index: u32) -> &Material {
-    w.scene.materials.get(index as usize).unwrap_or_else(|| default_material())
-}
-
-/// `Material::default()`, made once.
-fn default_material() -> &'static Material {
-    static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
-    DEFAULT.get_or_init(Material::default)
 }
 
 /// What shading one hit needs, found before any light is asked.
@@ -171,16 +100,6 @@ impl Local<'_> {
             shininess: self.mat.shininess,
         }
     }
-}
-
-/// The material's diffuse reflectance at `uv`, textured.
-#[inline(always)]
-fn textured_kd(w: &World, mat: &Material, uv: glam::Vec2) -> Vec3 {
-    let mut kd = mat.diffuse;
-    if let Some(t) = mat.diffuse_tex.and_then(|t| w.scene.textures.get(t as usize)) {
-        kd *= sample(t, uv).truncate();
-    }
-    kd
 }
 
 #[inline(always)]

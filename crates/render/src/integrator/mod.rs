@@ -1,0 +1,152 @@
+//! The integrators: what radiance a camera ray carries back. One closed enum,
+//! [`Integrator`], behind one entry point ([`Integrator::li_block`], which the tile
+//! renderer calls with a block of camera rays, and [`Integrator::li`], the single-ray
+//! reference). How rays are traced (packets or one by one) is a [`Traversal`], apart from
+//! what an integrator computes: the same settings give the same image either way.
+//!
+//! - [`whitted`]: Whitted ray tracing (point lights, hard shadows, mirror and glass);
+//! - the debug views, [`Integrator::EyeLight`] and [`Integrator::Normals`].
+
+pub mod whitted;
+
+pub(crate) use whitted::NO_RAYS;
+pub use whitted::{fresnel_dielectric, li_packet, refract, WhittedSettings};
+
+use crate::render::jitter;
+use crate::texture::sample;
+use crate::world::World;
+use glam::Vec3;
+use lucent_accel::Ray;
+use lucent_scene::Material;
+
+/// How rays are traced: choices that change the speed, never the image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Traversal {
+    /// Trace coherent rays (a block's camera rays, their shadow rays toward one light, a
+    /// flat mirror's reflections) as packets of up to 8×8 (the default), rather than one
+    /// by one.
+    pub packets: bool,
+}
+
+impl Default for Traversal {
+    fn default() -> Self {
+        Self { packets: true }
+    }
+}
+
+/// What a pixel shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Integrator {
+    /// Whitted ray tracing: lights, shadows, reflection, refraction ([`whitted`]).
+    Whitted(WhittedSettings),
+    /// A light at the eye, no shadows, no secondary rays: the fastest preview.
+    EyeLight,
+    /// Shading normals as colours (0.5 + 0.5 n), for inspecting geometry.
+    Normals,
+}
+
+impl Default for Integrator {
+    fn default() -> Self {
+        Self::Whitted(WhittedSettings::default())
+    }
+}
+
+/// One block's camera rays as the tile renderer hands them to an integrator: the pixel and
+/// the sample index of each ray (so an integrator's random numbers are a pure function of
+/// pixel, sample and dimension), and the only instances the rays can meet, when known.
+#[derive(Clone, Copy, Debug)]
+pub struct Block<'a> {
+    /// Pixel of each ray.
+    pub pixels: &'a [(u32, u32)],
+    /// Sample index (the same for every ray of the block).
+    pub sample: u32,
+    /// The instances the block's camera rays can meet, when the frame's coverage lists
+    /// them (see [`crate::Coverage::candidates`]); `None`: any.
+    pub among: Option<&'a [u32]>,
+}
+
+impl Integrator {
+    /// Name (the heads-up line, `--integrator`).
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Whitted(_) => "whitted",
+            Self::EyeLight => "eye light",
+            Self::Normals => "normals",
+        }
+    }
+
+    /// Where in pixel (x, y) sample `k` of an image of `spp` samples per pixel lies, as an
+    /// offset in [0, 1)²: the centre when the image has one sample, else a jittered
+    /// position that is a pure function of (x, y, k) ([`jitter`]).
+    #[inline]
+    #[must_use]
+    pub fn pixel_offset(&self, x: u32, y: u32, k: u32, spp: u32) -> (f32, f32) {
+        if spp <= 1 {
+            (0.5, 0.5)
+        } else {
+            jitter(x, y, k)
+        }
+    }
+
+    /// Radiance along one camera ray: the reference every fast path must match.
+    #[must_use]
+    pub fn li(&self, w: &World, ray: &Ray) -> Vec3 {
+        match self {
+            Self::Whitted(s) => whitted::li(w, ray, s, 0),
+            Self::EyeLight | Self::Normals => self.debug_view(w, ray),
+        }
+    }
+
+    /// Radiance along each of a block's camera rays, into `out` (`rays.len()` of them, at
+    /// most [`lucent_accel::MAX_PACKET`]).
+    pub fn li_block(&self, w: &World, block: &Block, rays: &[Ray], traversal: Traversal, out: &mut [Vec3]) {
+        match self {
+            Self::Whitted(s) if traversal.packets => whitted::li_packet_among(w, rays, block.among, s, out),
+            _ => {
+                for (o, r) in out.iter_mut().zip(rays) {
+                    *o = self.li(w, r);
+                }
+            }
+        }
+    }
+
+    /// The eye-light and normal views.
+    fn debug_view(&self, w: &World, ray: &Ray) -> Vec3 {
+        let Some(hit) = w.intersect(ray) else {
+            return w.scene.background;
+        };
+        let surf = w.surface(ray, &hit);
+        let d = ray.dir.normalize();
+        let ns = if d.dot(surf.ng) < 0.0 { surf.ns } else { -surf.ns };
+        if *self == Self::Normals {
+            return ns * 0.5 + Vec3::splat(0.5);
+        }
+        let mat = material(w, surf.material);
+        let kd = textured_kd(w, mat, surf.uv);
+        let base = if kd.max_element() > 0.0 { kd } else { mat.specular.max(mat.reflect).max(mat.transmit) };
+        base * (0.15 + 0.85 * (-d).dot(ns).max(0.0)) + mat.emission.min(Vec3::ONE)
+    }
+}
+
+/// Material `index` of the scene, or the default one for an index out of range (PERF:
+/// borrowed, not cloned: a clone allocates the name on every hit).
+pub(crate) fn material(w: &World, index: u32) -> &Material {
+    w.scene.materials.get(index as usize).unwrap_or_else(|| default_material())
+}
+
+/// `Material::default()`, made once.
+pub(crate) fn default_material() -> &'static Material {
+    static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
+    DEFAULT.get_or_init(Material::default)
+}
+
+/// The material's diffuse reflectance at `uv`, textured.
+#[inline(always)]
+pub(crate) fn textured_kd(w: &World, mat: &Material, uv: glam::Vec2) -> Vec3 {
+    let mut kd = mat.diffuse;
+    if let Some(t) = mat.diffuse_tex.and_then(|t| w.scene.textures.get(t as usize)) {
+        kd *= sample(t, uv).truncate();
+    }
+    kd
+}
