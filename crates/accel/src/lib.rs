@@ -44,6 +44,6 @@ pub use glam;
 pub use kernel::Kernel;
 pub use mesh::{BuildError, BvhStats, MeshBvh, MeshOptions, Quality, TriangleTest, Width};
 pub use packet::{prefetch_blocks, RayBlock, MAX_PACKET};
-pub use shape::{Shape, ShapeHit};
+pub use shape::{gamma, Shape, ShapeHit};
 pub use tlas::{Geometry, Instance, TopBuilder, TwoLevel};
 pub use traverse::TraversalStats;

@@ -209,6 +209,15 @@ impl Shape {
     }
 }
 
+/// `γ(n) = n u / (1 − n u)` with `u = 2^-24`, the unit roundoff of `f32`: a bound on the
+/// relative error of `n` rounded `f32` operations in sequence (Higham, "Accuracy and
+/// Stability of Numerical Algorithms", §3.1; pbrt-v4 §6.8.1).
+#[must_use]
+pub const fn gamma(n: u32) -> f32 {
+    let nu = n as f32 * (f32::EPSILON * 0.5);
+    nu / (1.0 - nu)
+}
+
 /// Real roots of `a t² + 2 b t + c = 0`, ascending, computed without cancellation
 /// (missing roots are NaN, which no range test accepts).
 // PERF: a fixed array, not a Vec: this runs for every shape a ray meets.

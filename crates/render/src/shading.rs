@@ -300,10 +300,6 @@ impl<T: Real> V3<T> {
         max(self.x, max(self.y, self.z))
     }
     #[inline(always)]
-    fn abs(self) -> Self {
-        V3 { x: self.x.abs(), y: self.y.abs(), z: self.z.abs() }
-    }
-    #[inline(always)]
     fn select(m: T::Mask, a: Self, b: Self) -> Self {
         V3 { x: T::select(m, a.x, b.x), y: T::select(m, a.y, b.y), z: T::select(m, a.z, b.z) }
     }
@@ -336,11 +332,12 @@ impl V3<F8> {
     }
 }
 
-/// `p` moved off its surface along `n`, by an amount scaled to the magnitude of the
-/// coordinates (float spacing) and a hair of the scene size `scale`.
+/// `p` moved off its surface along the unit normal `n` by `off`, the hit's error bound
+/// projected on the normal with the margin for rounding this sum
+/// ([`crate::Surface::offset`]).
 #[inline(always)]
-pub(crate) fn offset<T: Real>(p: V3<T>, n: V3<T>, scale: f32) -> V3<T> {
-    p.add(n.scale(p.abs().max_element() * T::splat(4e-6) + T::splat(scale * 1e-6)))
+pub(crate) fn offset<T: Real>(p: V3<T>, n: V3<T>, off: T) -> V3<T> {
+    p.add(n.scale(off))
 }
 
 /// A hit seen from its ray.
@@ -353,21 +350,23 @@ pub(crate) struct Oriented<T: Real> {
     /// Geometric and shading normals turned toward the ray's origin.
     pub ng: V3<T>,
     pub ns: V3<T>,
-    /// Origin of rays leaving on the ray's side, and its distance from the hit point.
+    /// Origin of rays leaving on the ray's side, and how far along the normal it lies from
+    /// the hit point.
     pub p_out: V3<T>,
     pub off: T,
 }
 
 /// Orients a hit at `p` with normals `ng`, `ns` (as the geometry is wound) toward the ray
-/// `dir` came along.
+/// `dir` came along; rays leaving it start `off` (its [`crate::Surface::offset`]) along
+/// the oriented normal.
 #[inline(always)]
-pub(crate) fn orient<T: Real>(dir: V3<T>, ng: V3<T>, ns: V3<T>, p: V3<T>, scale: f32) -> Oriented<T> {
+pub(crate) fn orient<T: Real>(dir: V3<T>, ng: V3<T>, ns: V3<T>, p: V3<T>, off: T) -> Oriented<T> {
     let d = dir.normalize();
     let front = d.dot(ng).lt(T::splat(0.0));
     let ng = V3::select(front, ng, ng.neg());
     let ns = V3::select(front, ns, ns.neg());
-    let p_out = offset(p, ng, scale);
-    Oriented { d, front, ng, ns, p_out, off: p_out.sub(p).length() }
+    let p_out = offset(p, ng, off);
+    Oriented { d, front, ng, ns, p_out, off }
 }
 
 /// What a light is, with its per-light constants worked out once.
@@ -564,8 +563,8 @@ pub(crate) struct HitLanes {
     /// Lanes whose `specular` has a positive component (one bit each).
     pub spec_any: u64,
     pub shininess: [f32; N],
-    /// Filled by `orient`: the rays meeting the front side (one bit each), the exit points
-    /// and their distances from the hits.
+    /// Filled by `orient`: the rays meeting the front side (one bit each) and the exit
+    /// points; `off` is given (each hit's [`crate::Surface::offset`]).
     pub front: u64,
     pub p_out: [[f32; N]; 3],
     pub off: [f32; N],
@@ -690,28 +689,29 @@ impl HitLanes {
 
     /// [`orient`] on every hit (in place: `dir` becomes the unit direction, the normals face
     /// the rays' origins).
-    pub(crate) fn orient(&mut self, scale: f32) {
+    pub(crate) fn orient(&mut self) {
         #[cfg(target_arch = "x86_64")]
         if avx2() {
             // SAFETY: AVX2 and FMA were detected on this CPU.
-            unsafe { self.orient_avx2(scale) };
+            unsafe { self.orient_avx2() };
             return;
         }
-        self.orient_lanes(scale);
+        self.orient_lanes();
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn orient_avx2(&mut self, scale: f32) {
-        self.orient_lanes(scale);
+    unsafe fn orient_avx2(&mut self) {
+        self.orient_lanes();
     }
 
     #[inline(always)]
-    fn orient_lanes(&mut self, scale: f32) {
+    fn orient_lanes(&mut self) {
         self.front = 0;
         for b in 0..self.blocks() {
             let j = b * W;
-            let o = orient(V3::load(&self.dir, j), V3::load(&self.ng, j), V3::load(&self.ns, j), V3::load(&self.p, j), scale);
+            let off = F8::load(&self.off, j);
+            let o = orient(V3::load(&self.dir, j), V3::load(&self.ng, j), V3::load(&self.ns, j), V3::load(&self.p, j), off);
             o.d.store(&mut self.dir, j);
             o.ng.store(&mut self.ng, j);
             o.ns.store(&mut self.ns, j);
@@ -884,6 +884,7 @@ mod tests {
             let ns = (ng + Vec3::new(f(-0.5, 0.5), f(-0.5, 0.5), f(-0.5, 0.5))).normalize();
             put3(&mut h.ns, j, ns);
             h.opaque[j] = f(0.0, 1.0);
+            h.off[j] = f(0.0, 1e-4);
             h.spec_any |= u64::from(v3(&h.specular, j).max_element() > 0.0) << j;
             // Exponents in and out of the series' range (0 and above 4096 go to powf).
             h.shininess[j] = [0.0, 1.0, 10.0, 96.0, 5000.0, f(0.5, 300.0)][j % 6];
@@ -912,12 +913,12 @@ mod tests {
         for m in [1, 7, 8, 13, 64] {
             let raw = random_lanes(&mut rng, m);
             let mut h = raw.clone();
-            h.orient(0.5);
+            h.orient();
             let mut base = raw.clone();
-            base.orient_lanes(0.5);
+            base.orient_lanes();
             for j in 0..m {
                 let v = |rows: &[[f32; N]; 3]| V3::<f32>::from(v3(rows, j));
-                let o = orient(v(&raw.dir), v(&raw.ng), v(&raw.ns), v(&raw.p), 0.5);
+                let o = orient(v(&raw.dir), v(&raw.ng), v(&raw.ns), v(&raw.p), raw.off[j]);
                 for g in [&h, &base] {
                     for (got, want) in [(&g.dir, o.d), (&g.ng, o.ng), (&g.ns, o.ns), (&g.p_out, o.p_out)] {
                         assert_eq!(bits(v3(got, j)), bits(want.into()), "orient, lane {j} of {m}");

@@ -43,12 +43,29 @@ struct InstInfo {
     normal_to_world: Mat3A,
     /// `normal_to_world` is the identity: object normals are world normals as they are.
     identity: bool,
+    /// `world_from_object` is the identity: object points are world points as they are.
+    in_place: bool,
+    /// For the error bounds of hits on the instance (see [`World::surface`]): `|M| |M⁻¹|`
+    /// and `|M| |t⁻¹|`, with `M` the linear part of `world_from_object` and `t⁻¹` the
+    /// translation of its inverse (absolute values entry by entry): how an error of the ray
+    /// carried into object space shows in world space.
+    err_k: Mat3A,
+    err_c: Vec3,
 }
 
 impl InstInfo {
     fn new(geom: Geom, inst: &Instance) -> Self {
         let normal_to_world = normal_matrix(inst);
-        Self { geom, normal_to_world, identity: normal_to_world == Mat3A::IDENTITY }
+        let abs = |m: Mat3A| Mat3A::from_cols(m.x_axis.abs(), m.y_axis.abs(), m.z_axis.abs());
+        let m = abs(inst.world_from_object.matrix3);
+        Self {
+            geom,
+            normal_to_world,
+            identity: normal_to_world == Mat3A::IDENTITY,
+            in_place: inst.world_from_object == glam::Affine3A::IDENTITY,
+            err_k: m * abs(inst.object_from_world.matrix3),
+            err_c: (m * inst.object_from_world.translation.abs()).into(),
+        }
     }
 }
 
@@ -108,6 +125,38 @@ pub struct Surface {
     pub uv: Vec2,
     /// Material index.
     pub material: u32,
+    /// A bound on the floating-point error of each coordinate of `p`, and on how far from
+    /// the surface the intersection tests may still meet a ray starting there: see
+    /// [`Surface::offset`].
+    pub p_err: Vec3,
+}
+
+impl Surface {
+    /// How far along the geometric normal a ray leaving the surface starts: the error
+    /// bound projected on the normal, `|ng| · p_err` (pbrt-v4 §6.8.6, "Robust Spawned Ray
+    /// Origins"), so that every point within `p_err` of `p` lies behind the plane through
+    /// the new origin parallel to the surface, and the new ray cannot meet the surface it
+    /// leaves. Two margins for the addition `p + offset · ng` itself, which is rounded: a
+    /// whole ulp of each coordinate (`ε |ng| · |p|`; rounding costs at most half of one
+    /// along the normal), and the least normal float, so that a zero bound (a point
+    /// computed exactly, on a plane the tests evaluate exactly, such as x = 0) still
+    /// leaves the plane. (pbrt rounds each coordinate on to the next float instead; per
+    /// lane that took 6% of a shaded frame.)
+    #[inline]
+    #[must_use]
+    pub fn offset(&self) -> f32 {
+        self.ng.abs().dot(self.p_err + self.p.abs() * f32::EPSILON) + f32::MIN_POSITIVE
+    }
+
+    /// A ray leaving the surface along `dir`: its origin moved off `p` by
+    /// [`Surface::offset`] to the side `dir` goes. The one way secondary rays start (the
+    /// Whitted shader's lanes do the same arithmetic).
+    #[inline]
+    #[must_use]
+    pub fn spawn(&self, dir: Vec3) -> Ray {
+        let n = if dir.dot(self.ng) < 0.0 { -self.ng } else { self.ng };
+        Ray::new(self.p + n * self.offset(), dir)
+    }
 }
 
 impl World {
@@ -331,11 +380,34 @@ impl World {
     pub fn surface(&self, r: &Ray, h: &Hit) -> Surface {
         let inst = &self.info[h.inst as usize];
         let object_from_world = &self.accel.instances()[h.inst as usize].object_from_world;
-        let p = r.at(h.t);
         match inst.geom {
             Geom::Mesh(m) => {
                 let mesh = &self.scene.meshes[m as usize];
                 let tri = h.prim as usize;
+                // The hit point `o + t d`, and a bound on its distance from the triangle's
+                // plane as the triangle test sees it (the unit-triangle test, `triangle.rs`,
+                // has no error bound on t of its own): its map is rounded to f32 (2^-24 of
+                // each entry) and evaluated at the origin with three fused multiply-adds,
+                // and t = -z(o) / z(d) with z(d) rounded as much, so the point found lies
+                // within γ(9)·(|o| + |t d|) + γ(6)·|p| of the plane in each coordinate (the
+                // plane's own offset, |n · p0| = |n · p| there, counted by the |p| term).
+                // An error in t moves the point along the ray, which is why no division by
+                // the ray's slope appears: what matters is the distance from the plane.
+                // PERF: no vertex is read (rebuilding p from its barycentrics, as pbrt-v4
+                // §6.8.5 does, reads three, and took 10% of a shaded Conference frame).
+                let p = r.at(h.t);
+                let (oa, td) = (r.org.abs(), (r.dir * h.t).abs());
+                let p_err = (oa + td) * lucent_accel::gamma(9) + p.abs() * lucent_accel::gamma(6);
+                let p_err = if inst.in_place {
+                    p_err
+                } else {
+                    // The test ran in object space, on the ray carried there by the inverse
+                    // (rounded: γ(3) of its terms) and against the same bound there, so
+                    // those errors show in world space through |M| (`err_k`, `err_c`).
+                    p_err
+                        + Vec3::from(inst.err_k * glam::Vec3A::from(oa + td + p.abs()) + glam::Vec3A::from(inst.err_c))
+                            * lucent_accel::gamma(12)
+                };
                 let ng_obj = match self.faces.get(m as usize).and_then(|f| f.get(tri)) {
                     Some(f) => *f,
                     None => face_normal(&mesh.positions, &mesh.indices[tri]),
@@ -360,9 +432,19 @@ impl World {
                     None => ng,
                 };
                 let uv = mesh.uvs.corners(tri, &idx).map_or(Vec2::new(h.u, h.v), |[t0, t1, t2]| t0 * w.x + t1 * w.y + t2 * w.z);
-                Surface { p, ng, ns, uv, material: mesh.material.get(tri).copied().unwrap_or(0) }
+                Surface { p, ng, ns, uv, material: mesh.material.get(tri).copied().unwrap_or(0), p_err }
             }
             Geom::Shape { kind, material } => {
+                // The hit point `o + t d`. The shape tests solve in f64 (exact next to
+                // f32, even near tangency, where a root's error is about the square root
+                // of f64's unit roundoff), on the ray carried into object space by the
+                // inverse in f32 (γ(3) of its terms): the point is off the surface by at
+                // most that carried error, seen through |M| (`err_k`, `err_c`), plus the
+                // rounding of t and of `o + t d`.
+                let p = r.at(h.t);
+                let ot = r.org.abs() + (r.dir * h.t).abs();
+                let p_err = ot * lucent_accel::gamma(5)
+                    + Vec3::from(inst.err_k * glam::Vec3A::from(ot) + glam::Vec3A::from(inst.err_c)) * lucent_accel::gamma(4);
                 let p_obj = object_from_world.transform_point3(p);
                 let n_obj = shape_of(kind).normal_local(p_obj, h.prim);
                 let ng: Vec3 = (inst.normal_to_world * glam::Vec3A::from(n_obj)).normalize_or_zero().into();
@@ -375,7 +457,7 @@ impl World {
                 } else {
                     Vec2::ZERO
                 };
-                Surface { p, ng, ns: ng, uv, material }
+                Surface { p, ng, ns: ng, uv, material, p_err }
             }
         }
     }

@@ -105,7 +105,7 @@ impl Local<'_> {
 #[inline(always)]
 fn local<'a>(w: &World, ray: &Ray, surf: Surface, mat: &'a Material) -> (Local<'a>, Vec3) {
     let t = mat_terms(mat, textured_kd(w, mat, surf.uv), w.scene.ambient);
-    let o = orient(ray.dir.into(), surf.ng.into(), surf.ns.into(), surf.p.into(), w.scale);
+    let o = orient(ray.dir.into(), surf.ng.into(), surf.ns.into(), surf.p.into(), surf.offset());
     let h = Local {
         p: surf.p,
         mat,
@@ -141,7 +141,7 @@ fn light_term(l: &Light, h: &Local, s: &WhittedSettings) -> Option<(Vec3, Option
 
 /// The refracted and the reflected ray of a hit, each with its weight (either may be
 /// absent), in the order their light is added.
-fn secondary_rays(w: &World, h: &Local) -> [Option<(Vec3, Ray)>; 2] {
+fn secondary_rays(h: &Local) -> [Option<(Vec3, Ray)>; 2] {
     let (d, mat) = (h.d, h.mat);
     let mut out = [None, None];
     let mut kr = mat.reflect;
@@ -152,7 +152,7 @@ fn secondary_rays(w: &World, h: &Local) -> [Option<(Vec3, Ray)>; 2] {
         let f = if mat.fresnel { fresnel_dielectric(cos_i.abs(), eta) } else { 0.0 };
         match refract(d, h.ns, eta) {
             Some(t) if f < 1.0 => {
-                let p_in: Vec3 = offset(h.p.into(), (-h.ng).into(), w.scale).into();
+                let p_in: Vec3 = offset(h.p.into(), (-h.ng).into(), h.off).into();
                 out[0] = Some((mat.transmit * (1.0 - f), Ray::new(p_in, t)));
                 if mat.fresnel {
                     kr = kr.max(Vec3::splat(f));
@@ -172,7 +172,7 @@ fn secondary(w: &World, h: &Local, s: &WhittedSettings, depth: u32, c: &mut Vec3
     if depth >= s.max_depth {
         return;
     }
-    for (k, r) in secondary_rays(w, h).into_iter().flatten() {
+    for (k, r) in secondary_rays(h).into_iter().flatten() {
         *c += k * li(w, &r, s, depth + 1);
     }
 }
@@ -256,6 +256,7 @@ fn shade_hits(w: &World, rays: &[Ray], hits: &[Option<Hit>], s: &WhittedSettings
         put3(&mut h.kd, m, t.kd);
         put3(&mut h.specular, m, mat.specular);
         h.opaque[m] = t.opaque;
+        h.off[m] = surf.offset();
         h.spec_any |= u64::from(mat.specular.max_element() > 0.0) << m;
         h.shininess[m] = mat.shininess;
         mats[m] = mat;
@@ -263,7 +264,7 @@ fn shade_hits(w: &World, rays: &[Ray], hits: &[Option<Hit>], s: &WhittedSettings
         m += 1;
     }
     h.m = m;
-    h.orient(w.scale);
+    h.orient();
     // Each light at every hit at once, then its shadow rays as one packet.
     if !w.lights.is_empty() {
         let ll = &mut sc.ll;
@@ -309,7 +310,7 @@ fn shade_hits(w: &World, rays: &[Ray], hits: &[Option<Hit>], s: &WhittedSettings
             p_out: v3(&h.p_out, j),
             off: h.off[j],
         };
-        *slot = secondary_rays(w, &local);
+        *slot = secondary_rays(&local);
     }
     let sec = &sec[..m];
     let mut next = NO_RAYS;
