@@ -57,13 +57,23 @@ enum Cmd {
         #[arg(short, long, default_value = "out.png")]
         output: PathBuf,
         /// What the rays compute: `whitted` (point lights, hard shadows, mirror and glass),
-        /// `eye-light` (a light at the eye, no shadows: the fastest preview) or `normals`
-        /// (shading normals as colours).
+        /// `path` (path tracing: emitting surfaces light the scene, soft shadows, light
+        /// bouncing between surfaces; converges as --spp grows), `eye-light` (a light at
+        /// the eye, no shadows: the fastest preview) or `normals` (shading normals as
+        /// colours).
         #[arg(long, default_value = "whitted", value_parser = render_cmd::INTEGRATORS)]
         integrator: String,
-        /// Most reflection/refraction generations.
-        #[arg(long, default_value_t = 6)]
-        max_depth: u32,
+        /// Whitted: most reflection/refraction generations (default 6). Path: most path
+        /// segments, as Mitsuba counts them (1: emitters only, 2: direct light; default
+        /// unlimited).
+        #[arg(long)]
+        max_depth: Option<u32>,
+        /// Path: the depth from which Russian roulette may end paths.
+        #[arg(long, default_value_t = 5)]
+        rr_depth: u32,
+        /// Path: emitters seen directly from the camera show the background.
+        #[arg(long)]
+        hide_emitters: bool,
         /// Turn shadow rays off.
         #[arg(long)]
         no_shadows: bool,
@@ -177,12 +187,14 @@ enum Cmd {
         /// Samples per pixel.
         #[arg(long, default_value_t = 1)]
         spp: u32,
-        /// What the rays compute: `whitted`, `eye-light` or `normals` (as `lucent render`).
+        /// What the rays compute: `whitted`, `path`, `eye-light` or `normals` (as `lucent
+        /// render`).
         #[arg(long, default_value = "whitted", value_parser = render_cmd::INTEGRATORS)]
         integrator: String,
-        /// Most reflection/refraction generations (0: primary rays, shadows and shading only).
-        #[arg(long, default_value_t = 6)]
-        max_depth: u32,
+        /// Whitted: most reflection/refraction generations (0: primary rays, shadows and
+        /// shading only; default 6). Path: most path segments (default unlimited).
+        #[arg(long)]
+        max_depth: Option<u32>,
         /// Turn shadow rays off.
         #[arg(long)]
         no_shadows: bool,
@@ -196,7 +208,7 @@ enum Cmd {
     /// Keys: W/A/S/D/Q/E move (forward/left/back/right/down/up); hold a mouse button and drag
     /// to look (fly) or to orbit (orbit mode); Tab: fly/orbit; scroll: speed; Home: back to
     /// the scene's camera; 1: shadows on/off; 2: reflection depth (0,1,2,4,6,10); 3:
-    /// orthographic/perspective; 4: integrator (whitted, eye light, normals); P or F12:
+    /// orthographic/perspective; 4: integrator (whitted, path, eye light, normals); P or F12:
     /// screenshot PNG; Space: pause a REND3R program; Esc: quit. Needs an X11 display
     /// (DISPLAY); without one it says so and exits.
     View {
@@ -557,6 +569,8 @@ fn run() -> Result<()> {
             output,
             integrator,
             max_depth,
+            rr_depth,
+            hide_emitters,
             no_shadows,
             watertight,
             single_rays,
@@ -570,14 +584,14 @@ fn run() -> Result<()> {
             spp,
             threads,
             output,
-            integrator: render_cmd::integrator_of(&integrator, max_depth, no_shadows),
+            integrator: render_cmd::integrator_of(&integrator, max_depth, no_shadows, rr_depth, hide_emitters),
             watertight,
             single_rays,
             quality: quality_of(&quality),
         }),
         Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo),
         Cmd::Animate { scene, demo, from, to, fps, size, camera, spp, integrator, max_depth, no_shadows, output } => {
-            let integrator = render_cmd::integrator_of(&integrator, max_depth, no_shadows);
+            let integrator = render_cmd::integrator_of(&integrator, max_depth, no_shadows, 5, false);
             animate_cmd::run(animate_cmd::AnimateArgs { scene, demo, from, to, fps, size, camera, spp, integrator, output })
         }
         Cmd::View { input, demo, camera, size, target_fps, samples, moving_scale, mode, screenshots, report, quit_after } => {

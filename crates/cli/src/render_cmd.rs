@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_accel::{MeshOptions, TriangleTest};
-use lucent_render::{framing_camera, render, Camera, Integrator, RenderSettings, Traversal, WhittedSettings, World};
+use lucent_render::{framing_camera, render, Camera, Integrator, PathSettings, RenderSettings, Traversal, WhittedSettings, World};
 use lucent_scene::{CameraDesc, Scene};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -26,15 +26,22 @@ pub struct RenderArgs {
 }
 
 /// The integrators `--integrator` names.
-pub const INTEGRATORS: [&str; 3] = ["whitted", "eye-light", "normals"];
+pub const INTEGRATORS: [&str; 4] = ["whitted", "path", "eye-light", "normals"];
 
-/// The integrator `--integrator NAME` (one of [`INTEGRATORS`]) names, with the Whitted
-/// settings of `--max-depth` and `--no-shadows`.
-pub fn integrator_of(name: &str, max_depth: u32, no_shadows: bool) -> Integrator {
+/// The integrator `--integrator NAME` (one of [`INTEGRATORS`]) names, with the settings of
+/// `--max-depth` and `--no-shadows` (Whitted) or `--max-depth`, `--rr-depth` and
+/// `--hide-emitters` (path).
+pub fn integrator_of(name: &str, max_depth: Option<u32>, no_shadows: bool, rr_depth: u32, hide_emitters: bool) -> Integrator {
     match name {
         "eye-light" => Integrator::EyeLight,
         "normals" => Integrator::Normals,
-        _ => Integrator::Whitted(WhittedSettings { max_depth, shadows: !no_shadows }),
+        "path" => {
+            Integrator::Path(PathSettings { max_depth: max_depth.unwrap_or(u32::MAX), rr_depth, hide_emitters, ..PathSettings::default() })
+        }
+        _ => Integrator::Whitted(WhittedSettings {
+            max_depth: max_depth.unwrap_or(WhittedSettings::default().max_depth),
+            shadows: !no_shadows,
+        }),
     }
 }
 

@@ -62,7 +62,7 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
     let mut c = Vec3::ZERO;
     for k in 0..spp {
         let (jx, jy) = s.integrator.pixel_offset(x, y, k, spp);
-        c += s.integrator.li(w, &cam.ray(x as f32 + jx, y as f32 + jy));
+        c += s.integrator.li(w, &cam.ray(x as f32 + jx, y as f32 + jy), (x, y), k);
     }
     c / spp as f32
 }
@@ -235,7 +235,7 @@ fn block_mask(c0: u32, c1: u32, r0: u32, r1: u32) -> u64 {
 fn render_tiles(w: &World, cam: &Camera, s: &RenderSettings, region: Region, progress: &(dyn Fn(u64) + Sync), sink: &impl Sink) -> u64 {
     let (width, height) = (s.width, s.height);
     let spp = s.spp.max(1);
-    let samples = if spp == 1 { Samples::Centres } else { Samples::Anywhere };
+    let samples = if s.integrator.centred(spp) { Samples::Centres } else { Samples::Anywhere };
     let (s0, s1) = (region.s0, region.s1);
     let integrator = &s.integrator;
     // Which pixels can meet anything, by projecting the instances (object order): a sparse

@@ -25,20 +25,38 @@ const SOBOL1: [u32; 32] = {
     v
 };
 
+/// [`SOBOL1`] by bytes of the index: `SOBOL1_BYTES[k][b]` is the XOR of the columns of the
+/// set bits of `b` at bits `8k..8k + 8`. PERF: four lookups instead of a loop over 32 bits
+/// (scrambled indices have all 32; the loop was half of a path-traced frame).
+const SOBOL1_BYTES: [[u32; 256]; 4] = {
+    let mut t = [[0u32; 256]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let mut b = 0;
+        while b < 256 {
+            let mut y = 0u32;
+            let mut j = 0;
+            while j < 8 {
+                if b >> j & 1 != 0 {
+                    y ^= SOBOL1[8 * k + j];
+                }
+                j += 1;
+            }
+            t[k][b] = y;
+            b += 1;
+        }
+        k += 1;
+    }
+    t
+};
+
 /// The unscrambled pair `(dim 0, dim 1)` of Sobol' point `i`, as 32-bit fractions.
 #[inline]
 #[must_use]
 pub fn sobol2(i: u32) -> (u32, u32) {
-    let mut y = 0u32;
-    let mut i2 = i;
-    let mut k = 0;
-    while i2 != 0 {
-        if i2 & 1 != 0 {
-            y ^= SOBOL1[k];
-        }
-        i2 >>= 1;
-        k += 1;
-    }
+    let b = i.to_le_bytes();
+    let y =
+        SOBOL1_BYTES[0][b[0] as usize] ^ SOBOL1_BYTES[1][b[1] as usize] ^ SOBOL1_BYTES[2][b[2] as usize] ^ SOBOL1_BYTES[3][b[3] as usize];
     (i.reverse_bits(), y)
 }
 
@@ -95,29 +113,25 @@ impl Sampler {
         Self { seed }
     }
 
-    /// Seed of pixel `(x, y)` and dimension pair `pair`, with a salt per use.
+    /// The samples of pixel `(x, y)` (its seed hashed once, for many draws).
     #[inline]
-    fn key(&self, x: u32, y: u32, pair: u32, salt: u32) -> u32 {
-        hash32(hash32(hash32(hash32(self.seed ^ salt) ^ x) ^ y) ^ pair)
+    #[must_use]
+    pub fn pixel(&self, x: u32, y: u32) -> PixelSampler {
+        PixelSampler { key: hash32(hash32(hash32(self.seed) ^ x) ^ y) }
     }
 
     /// Dimensions `2 pair` and `2 pair + 1` of sample `index` of pixel `(x, y)`, in [0, 1)².
     #[inline]
     #[must_use]
     pub fn get2(&self, x: u32, y: u32, index: u32, pair: u32) -> (f32, f32) {
-        let (a, b) = self.get2_bits(x, y, index, pair);
-        (to_unit(a), to_unit(b))
+        self.pixel(x, y).get2(index, pair)
     }
 
     /// [`Sampler::get2`] as 32-bit fractions.
     #[inline]
     #[must_use]
     pub fn get2_bits(&self, x: u32, y: u32, index: u32, pair: u32) -> (u32, u32) {
-        // The pixel's own order of the samples (a nested uniform scramble of the index), so
-        // that pixels do not share one sequence; then each dimension scrambled on its own.
-        let shuffled = owen_scramble(index, self.key(x, y, pair, 0x5eed_0001));
-        let (a, b) = sobol2(shuffled);
-        (owen_scramble(a, self.key(x, y, pair, 0x5eed_0002)), owen_scramble(b, self.key(x, y, pair, 0x5eed_0003)))
+        self.pixel(x, y).get2_bits(index, pair)
     }
 
     /// Dimension `dim` of sample `index` of pixel `(x, y)`, in [0, 1).
@@ -130,6 +144,35 @@ impl Sampler {
         } else {
             b
         }
+    }
+}
+
+/// One pixel's samples (see [`Sampler::pixel`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelSampler {
+    key: u32,
+}
+
+impl PixelSampler {
+    /// Dimensions `2 pair` and `2 pair + 1` of sample `index`, in [0, 1)².
+    #[inline]
+    #[must_use]
+    pub fn get2(&self, index: u32, pair: u32) -> (f32, f32) {
+        let (a, b) = self.get2_bits(index, pair);
+        (to_unit(a), to_unit(b))
+    }
+
+    /// [`PixelSampler::get2`] as 32-bit fractions.
+    #[inline]
+    #[must_use]
+    pub fn get2_bits(&self, index: u32, pair: u32) -> (u32, u32) {
+        // The pair's seed; from it, one salt per use: the pixel's own order of the samples
+        // (a nested uniform scramble of the index, so that pixels do not share one
+        // sequence), then each dimension scrambled on its own.
+        let k = hash32(self.key ^ pair.wrapping_mul(0x9e37_79b9));
+        let shuffled = owen_scramble(index, hash32(k ^ 0x5eed_0001));
+        let (a, b) = sobol2(shuffled);
+        (owen_scramble(a, hash32(k ^ 0x5eed_0002)), owen_scramble(b, hash32(k ^ 0x5eed_0003)))
     }
 }
 

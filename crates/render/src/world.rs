@@ -86,8 +86,10 @@ pub struct World {
     info: Vec<InstInfo>,
     /// Lights used for rendering (the scene's, or ones derived from emitters).
     pub(crate) lights: Vec<Light>,
-    /// Diagonal of the world bounds (for ray offsets).
+    /// Diagonal of the world bounds.
     pub(crate) scale: f32,
+    /// The emitting triangles, for the path tracer's light sampling.
+    pub(crate) emitters: Emitters,
     opts: MeshOptions,
     /// Per mesh, per triangle: the unit geometric normal `(b − a) × (c − a)` in object
     /// space (zero for a degenerate triangle). PERF: `surface` reads this one vector
@@ -206,7 +208,8 @@ impl World {
         let bounds = scene.bounds();
         let scale = bounds.map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
         let faces = scene.meshes.iter().map(|m| face_normals(&m.positions, &m.indices)).collect();
-        let mut w = Self { scene, accel, info, lights: Vec::new(), scale, opts, faces };
+        let mut w = Self { scene, accel, info, lights: Vec::new(), scale, opts, faces, emitters: Emitters::default() };
+        w.emitters = Emitters::of(&w.scene);
         w.lights = if w.scene.lights.is_empty() { w.emitter_lights(bounds) } else { w.scene.lights.clone() };
         w.sync_shadow_grids();
         Ok(w)
@@ -292,6 +295,7 @@ impl World {
             }
         }
         self.sync_shadow_grids();
+        self.emitters = Emitters::of(&self.scene);
         Ok(pose.camera.or(self.scene.camera))
     }
 
@@ -503,6 +507,102 @@ impl World {
             }
         }
         out
+    }
+}
+
+/// One emitting triangle in world space.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct EmissiveTri {
+    pub p0: Vec3,
+    pub e1: Vec3,
+    pub e2: Vec3,
+    /// Unit normal `e1 × e2` (the emitting side).
+    pub n: Vec3,
+    pub area: f32,
+    /// Emitted radiance.
+    pub le: Vec3,
+}
+
+/// The scene's emitting triangles (of meshes whose material has an emission), for light
+/// sampling: chosen in proportion to their power (area × the emission's luminance), a
+/// point uniformly on the chosen one.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Emitters {
+    pub tris: Vec<EmissiveTri>,
+    /// Cumulative power, normalised: `cdf[i]` is the probability of choosing one of
+    /// `tris[..=i]`.
+    cdf: Vec<f32>,
+    /// Per (instance, triangle): its index in `tris`.
+    index: std::collections::HashMap<(u32, u32), u32>,
+}
+
+/// Luminance of linear sRGB (Rec. 709 weights).
+#[inline]
+pub(crate) fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+impl Emitters {
+    fn of(scene: &Scene) -> Self {
+        let mut e = Self::default();
+        let mut power = Vec::new();
+        for (ii, inst) in scene.instances.iter().enumerate() {
+            let Geom::Mesh(m) = inst.geom else { continue };
+            let Some(mesh) = scene.meshes.get(m as usize) else { continue };
+            for (t, idx) in mesh.indices.iter().enumerate() {
+                let Some(mat) = scene.materials.get(mesh.material.get(t).copied().unwrap_or(0) as usize) else { continue };
+                if mat.emission.max_element() <= 0.0 || !mat.emission.is_finite() {
+                    continue;
+                }
+                let [a, b, c] =
+                    idx.map(|i| inst.world_from_object.transform_point3(mesh.positions.get(i as usize).copied().unwrap_or(Vec3::NAN)));
+                let (e1, e2) = (b - a, c - a);
+                let cross = e1.cross(e2);
+                let area = 0.5 * cross.length();
+                let p = area * luminance(mat.emission);
+                if !(p > 0.0 && p.is_finite()) {
+                    continue;
+                }
+                e.index.insert((ii as u32, t as u32), e.tris.len() as u32);
+                e.tris.push(EmissiveTri { p0: a, e1, e2, n: cross / (2.0 * area), area, le: mat.emission });
+                power.push(p);
+            }
+        }
+        let total: f64 = power.iter().map(|&p| f64::from(p)).sum();
+        let mut acc = 0f64;
+        e.cdf = power
+            .iter()
+            .map(|&p| {
+                acc += f64::from(p);
+                (acc / total) as f32
+            })
+            .collect();
+        if let Some(last) = e.cdf.last_mut() {
+            *last = 1.0;
+        }
+        e
+    }
+
+    /// Whether there is anything to sample.
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
+    }
+
+    /// The triangle for `u` in [0, 1) and the probability of choosing it.
+    pub fn choose(&self, u: f32) -> Option<(usize, f32)> {
+        let i = self.cdf.partition_point(|&c| c <= u).min(self.tris.len().checked_sub(1)?);
+        Some((i, self.pmf(i)))
+    }
+
+    /// The probability of choosing triangle `i`.
+    pub fn pmf(&self, i: usize) -> f32 {
+        let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        self.cdf.get(i).map_or(0.0, |&c| c - lo)
+    }
+
+    /// The index of instance `inst`'s triangle `prim` among the emitters.
+    pub fn find(&self, inst: u32, prim: u32) -> Option<usize> {
+        self.index.get(&(inst, prim)).map(|&i| i as usize)
     }
 }
 

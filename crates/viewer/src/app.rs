@@ -6,7 +6,7 @@ use crate::control::{Accumulator, Adaptive, CameraController, NavMode, Plan};
 use crate::font::draw_text;
 use glam::Vec3;
 use lucent_device::{render_frame, FrameSettings, Processor, Step};
-use lucent_render::{render_region, Camera, Film, Integrator, Region, RenderSettings, WhittedSettings, World};
+use lucent_render::{render_region, Camera, Film, Integrator, PathSettings, Region, RenderSettings, WhittedSettings, World};
 use std::collections::HashSet;
 use std::num::NonZeroU32;
 use std::path::PathBuf;
@@ -87,7 +87,7 @@ struct Gfx {
 }
 
 /// How many integrators key 4 cycles through.
-const VIEWS: usize = 3;
+const VIEWS: usize = 4;
 
 struct App {
     opts: ViewOptions,
@@ -132,11 +132,14 @@ struct App {
 const DEPTHS: [u32; 6] = [0, 1, 2, 4, 6, 10];
 
 impl App {
-    /// The integrator shown: Whitted with the keys' settings, the eye light, or normals.
+    /// The integrator shown: Whitted with the keys' settings, the path tracer (which
+    /// accumulates while the camera is still, and shows one sample per pixel at the reduced
+    /// resolution while it moves), the eye light, or normals.
     fn integrator(&self) -> Integrator {
         match self.view % VIEWS {
             0 => Integrator::Whitted(self.whitted),
-            1 => Integrator::EyeLight,
+            1 => Integrator::Path(PathSettings::default()),
+            2 => Integrator::EyeLight,
             _ => Integrator::Normals,
         }
     }

@@ -5,10 +5,13 @@
 //! what an integrator computes: the same settings give the same image either way.
 //!
 //! - [`whitted`]: Whitted ray tracing (point lights, hard shadows, mirror and glass);
+//! - [`path`]: path tracing (next-event estimation and BSDF sampling, MIS, roulette);
 //! - the debug views, [`Integrator::EyeLight`] and [`Integrator::Normals`].
 
+pub mod path;
 pub mod whitted;
 
+pub use path::{LightSampling, PathSettings};
 pub(crate) use whitted::NO_RAYS;
 pub use whitted::{fresnel_dielectric, li_packet, refract, WhittedSettings};
 
@@ -39,6 +42,9 @@ impl Default for Traversal {
 pub enum Integrator {
     /// Whitted ray tracing: lights, shadows, reflection, refraction ([`whitted`]).
     Whitted(WhittedSettings),
+    /// Path tracing: all light transport the materials describe, converging with samples
+    /// ([`path`]).
+    Path(PathSettings),
     /// A light at the eye, no shadows, no secondary rays: the fastest preview.
     EyeLight,
     /// Shading normals as colours (0.5 + 0.5 n), for inspecting geometry.
@@ -71,29 +77,41 @@ impl Integrator {
     pub fn name(&self) -> &'static str {
         match self {
             Self::Whitted(_) => "whitted",
+            Self::Path(_) => "path",
             Self::EyeLight => "eye light",
             Self::Normals => "normals",
         }
     }
 
     /// Where in pixel (x, y) sample `k` of an image of `spp` samples per pixel lies, as an
-    /// offset in [0, 1)²: the centre when the image has one sample, else a jittered
-    /// position that is a pure function of (x, y, k) ([`jitter`]).
+    /// offset in [0, 1)²: for the path tracer, the sampler's first pair of dimensions; for
+    /// the others, the centre when the image has one sample, else a jittered position that
+    /// is a pure function of (x, y, k) ([`jitter`]).
     #[inline]
     #[must_use]
     pub fn pixel_offset(&self, x: u32, y: u32, k: u32, spp: u32) -> (f32, f32) {
-        if spp <= 1 {
-            (0.5, 0.5)
-        } else {
-            jitter(x, y, k)
+        match self {
+            Self::Path(_) => path::SAMPLER.get2(x, y, k, 0),
+            _ if self.centred(spp) => (0.5, 0.5),
+            _ => jitter(x, y, k),
         }
     }
 
-    /// Radiance along one camera ray: the reference every fast path must match.
+    /// Whether every sample of an image of `spp` samples lies at its pixel's centre.
+    #[inline]
     #[must_use]
-    pub fn li(&self, w: &World, ray: &Ray) -> Vec3 {
+    pub fn centred(&self, spp: u32) -> bool {
+        spp <= 1 && !matches!(self, Self::Path(_))
+    }
+
+    /// Radiance along one camera ray, the ray of sample `sample` of pixel `pixel` (which
+    /// the path tracer's random numbers depend on): the reference every fast path must
+    /// match.
+    #[must_use]
+    pub fn li(&self, w: &World, ray: &Ray, pixel: (u32, u32), sample: u32) -> Vec3 {
         match self {
             Self::Whitted(s) => whitted::li(w, ray, s, 0),
+            Self::Path(s) => path::li(w, ray, s, pixel.0, pixel.1, sample),
             Self::EyeLight | Self::Normals => self.debug_view(w, ray),
         }
     }
@@ -104,8 +122,8 @@ impl Integrator {
         match self {
             Self::Whitted(s) if traversal.packets => whitted::li_packet_among(w, rays, block.among, s, out),
             _ => {
-                for (o, r) in out.iter_mut().zip(rays) {
-                    *o = self.li(w, r);
+                for ((o, r), &px) in out.iter_mut().zip(rays).zip(block.pixels) {
+                    *o = self.li(w, r, px, block.sample);
                 }
             }
         }

@@ -1,0 +1,124 @@
+//! The path tracer against closed-form answers (as pbrt-v4's integrator tests): inside a
+//! closed diffuse sphere of albedo ρ that emits Le everywhere, every ray sees
+//! L = Le / (1 − ρ); lit instead by a point light of intensity I at its centre, every ray
+//! sees L = ρ I / (π R² (1 − ρ)). The strategies (next-event estimation only, BSDF
+//! sampling only, both by MIS) converge to the same image; images do not depend on the
+//! thread count.
+
+mod common;
+use common::scene;
+use glam::{Affine3A, Vec3};
+use lucent_accel::{closed::ClosedMesh, MeshOptions};
+use lucent_render::{render, Camera, Film, Integrator, LightSampling, PathSettings, RenderSettings, World};
+use lucent_scene::{CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene};
+
+/// A closed sphere of radius 1 around the origin (an icosphere of 5,120 triangles), wound
+/// so its normals point inward (the emitting side faces the centre).
+fn inside_sphere(albedo: f32, emission: f32) -> Scene {
+    let s = ClosedMesh::sphere(4);
+    let mesh = Mesh {
+        name: "sphere".into(),
+        indices: s.indices.iter().map(|&[a, b, c]| [a, c, b]).collect(),
+        material: vec![0; s.indices.len()],
+        positions: s.positions,
+        ..Mesh::default()
+    };
+    Scene {
+        meshes: vec![mesh],
+        instances: vec![Instance { geom: Geom::Mesh(0), world_from_object: Affine3A::IDENTITY }],
+        materials: vec![Material { diffuse: Vec3::splat(albedo), emission: Vec3::splat(emission), ..Material::default() }],
+        ..Scene::default()
+    }
+}
+
+fn path(sampling: LightSampling) -> Integrator {
+    Integrator::Path(PathSettings { sampling, ..PathSettings::default() })
+}
+
+fn image(s: Scene, cam: &CameraDesc, (w, h): (u32, u32), spp: u32, integrator: Integrator) -> Film {
+    let world = World::new(s, MeshOptions::default()).expect("world");
+    render(&world, &Camera::new(cam, w, h), &RenderSettings { spp, integrator, ..RenderSettings::new(w, h) }, &|_| {}).0
+}
+
+fn mean(f: &Film) -> Vec3 {
+    f.pixels.iter().copied().sum::<Vec3>() / f.pixels.len() as f32
+}
+
+const CENTRE: CameraDesc = CameraDesc { eye: Vec3::ZERO, look_at: Vec3::Z, up: Vec3::Y, vfov_deg: 90.0, ortho_height: None };
+
+#[test]
+fn emitting_sphere_seen_from_inside_has_radiance_le_over_one_minus_albedo() {
+    for sampling in [LightSampling::Mis, LightSampling::Nee, LightSampling::Bsdf] {
+        let f = image(inside_sphere(0.5, 0.5), &CENTRE, (24, 24), 64, path(sampling));
+        let m = mean(&f);
+        assert!((m - Vec3::ONE).abs().max_element() < 0.025, "{sampling:?}: mean radiance {m}, want 1");
+    }
+    // Direct emission only (one segment), then one bounce more.
+    let one = Integrator::Path(PathSettings { max_depth: 1, ..PathSettings::default() });
+    assert!((mean(&image(inside_sphere(0.5, 0.5), &CENTRE, (16, 16), 4, one)) - Vec3::splat(0.5)).abs().max_element() < 1e-4);
+    let two = Integrator::Path(PathSettings { max_depth: 2, ..PathSettings::default() });
+    let m2 = mean(&image(inside_sphere(0.5, 0.5), &CENTRE, (24, 24), 64, two));
+    assert!((m2 - Vec3::splat(0.75)).abs().max_element() < 0.02, "two segments: {m2}, want 0.75");
+}
+
+#[test]
+fn point_light_at_the_centre_gives_the_closed_form() {
+    let (rho, r) = (0.5f32, 1.0f32);
+    // I such that L = ρ I / (π R² (1 − ρ)) = 1 (the facets' distance from the centre is
+    // within 0.2% of R).
+    let intensity = std::f32::consts::PI * r * r * (1.0 - rho) / rho;
+    let mut s = inside_sphere(rho, 0.0);
+    s.lights.push(Light { kind: LightKind::Point { position: Vec3::ZERO }, color: Vec3::splat(intensity), inverse_square: true });
+    let m = mean(&image(s, &CENTRE, (24, 24), 64, path(LightSampling::Mis)));
+    assert!((m - Vec3::ONE).abs().max_element() < 0.025, "mean radiance {m}, want 1");
+}
+
+/// On the Cornell box (an area light, diffuse walls), next-event estimation alone, BSDF
+/// sampling alone and their MIS combination agree: the same mean, and the same radiance in
+/// each 16×16 block of the image within the noise of 256 samples (BSDF sampling alone
+/// finds the small light rarely: its noise sets the tolerance).
+#[test]
+fn strategies_agree_on_the_cornell_box() {
+    let cam = CameraDesc::from_view(&[278.0, 273.0, -800.0, 278.0, 273.0, 0.0, 0.0, 1.0, 0.0, 39.3]);
+    let load = || lucent_scene::load(&scene("cornell_box/cornell_box.obj")).expect("cornell");
+    let (w, h) = (32, 32);
+    let imgs: Vec<Film> = [LightSampling::Mis, LightSampling::Nee, LightSampling::Bsdf]
+        .into_iter()
+        .map(|s| image(load(), &cam, (w, h), 256, path(s)))
+        .collect();
+    let blocks = |f: &Film| -> Vec<Vec3> {
+        (0..4)
+            .map(|b| {
+                let (bx, by) = (b % 2 * 16, b / 2 * 16);
+                (0..256).map(|i| f.get(bx + i % 16, by + i / 16)).sum::<Vec3>() / 256.0
+            })
+            .collect()
+    };
+    let reference = blocks(&imgs[0]);
+    let m0 = mean(&imgs[0]);
+    assert!(m0.min_element() > 0.05, "the box is lit: {m0}");
+    for (name, img) in [("nee", &imgs[1]), ("bsdf", &imgs[2])] {
+        let m = mean(img);
+        assert!(((m - m0) / m0).abs().max_element() < 0.03, "{name}: mean {m} against MIS {m0}");
+        for (k, (a, b)) in blocks(img).iter().zip(&reference).enumerate() {
+            let rel = ((*a - *b).abs() / (b.max(Vec3::splat(0.05)))).max_element();
+            assert!(rel < 0.1, "{name}: block {k}: {a} against MIS {b}");
+        }
+    }
+}
+
+#[test]
+fn path_traced_images_do_not_depend_on_thread_count() {
+    let cam = CameraDesc::from_view(&[278.0, 273.0, -800.0, 278.0, 273.0, 0.0, 0.0, 1.0, 0.0, 39.3]);
+    let world =
+        World::new(lucent_scene::load(&scene("cornell_box/cornell_box.obj")).expect("cornell"), MeshOptions::default()).expect("world");
+    let st = RenderSettings { spp: 4, integrator: path(LightSampling::Mis), ..RenderSettings::new(40, 30) };
+    let c = Camera::new(&cam, 40, 30);
+    let run = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().expect("pool").install(|| render(&world, &c, &st, &|_| {}).0);
+    let (one, two) = (run(1), run(2));
+    assert!(one.pixels.iter().zip(&two.pixels).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)));
+    // And every pixel is the single-ray reference's.
+    for (x, y) in [(0, 0), (20, 15), (39, 29), (7, 22)] {
+        assert_eq!(one.get(x, y), lucent_render::render_pixel(&world, &c, &st, x, y));
+    }
+}
