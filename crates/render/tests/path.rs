@@ -108,7 +108,7 @@ fn strategies_agree_on_the_cornell_box() {
 }
 
 #[test]
-fn path_traced_images_do_not_depend_on_thread_count() {
+fn path_traced_images_do_not_depend_on_thread_count_or_packets() {
     let cam = CameraDesc::from_view(&[278.0, 273.0, -800.0, 278.0, 273.0, 0.0, 0.0, 1.0, 0.0, 39.3]);
     let world =
         World::new(lucent_scene::load(&scene("cornell_box/cornell_box.obj")).expect("cornell"), MeshOptions::default()).expect("world");
@@ -117,6 +117,9 @@ fn path_traced_images_do_not_depend_on_thread_count() {
     let run = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().expect("pool").install(|| render(&world, &c, &st, &|_| {}).0);
     let (one, two) = (run(1), run(2));
     assert!(one.pixels.iter().zip(&two.pixels).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)));
+    // Camera rays traced as packets (the default) or one by one: the same image.
+    let single = render(&world, &c, &RenderSettings { traversal: lucent_render::Traversal { packets: false }, ..st }, &|_| {}).0;
+    assert!(one.pixels.iter().zip(&single.pixels).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)));
     // And every pixel is the single-ray reference's.
     for (x, y) in [(0, 0), (20, 15), (39, 29), (7, 22)] {
         assert_eq!(one.get(x, y), lucent_render::render_pixel(&world, &c, &st, x, y));

@@ -111,7 +111,7 @@ impl Integrator {
     pub fn li(&self, w: &World, ray: &Ray, pixel: (u32, u32), sample: u32) -> Vec3 {
         match self {
             Self::Whitted(s) => whitted::li(w, ray, s, 0),
-            Self::Path(s) => path::li(w, ray, s, pixel.0, pixel.1, sample),
+            Self::Path(s) => path::li(w, ray, s, pixel.0, pixel.1, sample, None),
             Self::EyeLight | Self::Normals => self.debug_view(w, ray),
         }
     }
@@ -121,6 +121,18 @@ impl Integrator {
     pub fn li_block(&self, w: &World, block: &Block, rays: &[Ray], traversal: Traversal, out: &mut [Vec3]) {
         match self {
             Self::Whitted(s) if traversal.packets => whitted::li_packet_among(w, rays, block.among, s, out),
+            Self::Path(s) if traversal.packets => {
+                // The camera rays' closest hits as one packet; each path goes on alone.
+                let mut hits = [None; lucent_accel::MAX_PACKET];
+                let hits = &mut hits[..rays.len()];
+                match block.among {
+                    Some(ids) => w.intersect_packet_among(rays, ids, hits),
+                    None => w.intersect_packet(rays, hits),
+                }
+                for (((o, r), &(x, y)), h) in out.iter_mut().zip(rays).zip(block.pixels).zip(hits.iter()) {
+                    *o = path::li(w, r, s, x, y, block.sample, Some(*h));
+                }
+            }
             _ => {
                 for ((o, r), &px) in out.iter_mut().zip(rays).zip(block.pixels) {
                     *o = self.li(w, r, px, block.sample);

@@ -29,7 +29,7 @@ use super::{material, textured_kd, whitted::fresnel_dielectric, whitted::refract
 use crate::sampler::Sampler;
 use crate::world::{luminance, World};
 use glam::Vec3;
-use lucent_accel::Ray;
+use lucent_accel::{Hit, Ray};
 use lucent_scene::LightKind;
 
 /// Which strategies estimate the light arriving at a surface.
@@ -145,8 +145,9 @@ impl Lobes {
     }
 }
 
-/// Radiance along a camera ray through pixel (x, y), sample `index`.
-pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, index: u32) -> Vec3 {
+/// Radiance along a camera ray through pixel (x, y), sample `index`; `first`, when given,
+/// is the camera ray's closest hit, already found (by a packet of the block's camera rays).
+pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, index: u32, first: Option<Option<Hit>>) -> Vec3 {
     let px = SAMPLER.pixel(x, y);
     let dims = |pair: u32| px.get2(index, pair);
     let bg = w.scene.background;
@@ -162,8 +163,13 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
     let mut depth = 0u32;
     // The relative index of refraction along the path so far (for roulette).
     let mut eta = 1.0f32;
+    let mut first = first;
     loop {
-        let Some(hit) = w.intersect(&ray) else {
+        let found = match first.take() {
+            Some(h) => h,
+            None => w.intersect(&ray),
+        };
+        let Some(hit) = found else {
             if !(depth == 0 && s.hide_emitters) {
                 radiance += beta * bg;
             }
