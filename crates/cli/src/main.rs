@@ -50,6 +50,11 @@ enum Cmd {
         /// Samples per pixel (jittered, deterministic per pixel and sample).
         #[arg(long, default_value_t = 1)]
         spp: u32,
+        /// Render for this many seconds instead, adding samples pass by pass (each pass a
+        /// region of the film; --spp above 1 still caps the count), and report how many
+        /// fit.
+        #[arg(long)]
+        time: Option<f64>,
         /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
@@ -565,6 +570,7 @@ fn run() -> Result<()> {
             ortho,
             size,
             spp,
+            time,
             threads,
             output,
             integrator,
@@ -582,6 +588,7 @@ fn run() -> Result<()> {
             ortho,
             size,
             spp,
+            time,
             threads,
             output,
             integrator: render_cmd::integrator_of(&integrator, max_depth, no_shadows, rr_depth, hide_emitters),

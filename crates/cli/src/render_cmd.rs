@@ -3,7 +3,10 @@
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_accel::{MeshOptions, TriangleTest};
-use lucent_render::{framing_camera, render, Camera, Integrator, PathSettings, RenderSettings, Traversal, WhittedSettings, World};
+use lucent_render::{
+    framing_camera, render, render_region, Camera, FilmAccumulator, Integrator, PathSettings, Region, RenderSettings, Traversal,
+    WhittedSettings, World,
+};
 use lucent_scene::{CameraDesc, Scene};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -17,6 +20,7 @@ pub struct RenderArgs {
     pub ortho: bool,
     pub size: (u32, u32),
     pub spp: u32,
+    pub time: Option<f64>,
     pub threads: Option<usize>,
     pub output: PathBuf,
     pub integrator: Integrator,
@@ -155,16 +159,22 @@ pub fn run(a: RenderArgs) -> Result<()> {
         ..RenderSettings::new(w, h)
     };
     let cam = Camera::new(&desc, w, h);
-    let tiles = (w.div_ceil(lucent_render::TILE) * h.div_ceil(lucent_render::TILE)) as u64;
-    let bar = if std::io::stderr().is_terminal() { ProgressBar::new(tiles) } else { ProgressBar::hidden() };
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} tiles {elapsed}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
     let t2 = Instant::now();
-    let (film, rays) = render(&world, &cam, &settings, &|n| bar.inc(n));
+    let (film, rays, spp) = match a.time {
+        None => {
+            let tiles = (w.div_ceil(lucent_render::TILE) * h.div_ceil(lucent_render::TILE)) as u64;
+            let bar = if std::io::stderr().is_terminal() { ProgressBar::new(tiles) } else { ProgressBar::hidden() };
+            bar.set_style(
+                ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} tiles {elapsed}")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            let (film, rays) = render(&world, &cam, &settings, &|n| bar.inc(n));
+            bar.finish_and_clear();
+            (film, rays, settings.spp)
+        }
+        Some(budget) => render_for(&world, &cam, &settings, budget, a.spp)?,
+    };
     let render_s = t2.elapsed().as_secs_f64();
-    bar.finish_and_clear();
     film.save(&a.output)?;
     println!("scene: {} triangles, {} instances, {} lights", st.triangles, st.instances, world.lights().len());
     println!(
@@ -174,12 +184,51 @@ pub fn run(a: RenderArgs) -> Result<()> {
         render_s * 1e3,
         w,
         h,
-        settings.spp,
+        spp,
         rayon::current_num_threads()
     );
+    let samples = f64::from(w) * f64::from(h) * f64::from(spp);
+    println!("{:.3} M samples/s", samples / render_s.max(1e-9) * 1e-6);
     println!("{rays} rays, {:.2} Mrays/s", rays as f64 / render_s.max(1e-9) * 1e-6);
     println!("wrote {}", a.output.display());
     Ok(())
+}
+
+/// Renders for `budget` seconds: passes of whole-image regions of the next samples (one
+/// sample, doubling while a pass takes under a sixteenth of the budget), merged into a
+/// film accumulator, until the time is spent or `cap` samples (when above 1) are in.
+/// Returns the image, the rays traced and the samples per pixel.
+fn render_for(world: &World, cam: &Camera, settings: &RenderSettings, budget: f64, cap: u32) -> Result<(lucent_render::Film, u64, u32)> {
+    if !(budget.is_finite() && budget > 0.0) {
+        bail!("--time must be a positive number of seconds (got {budget})");
+    }
+    let cap = if cap > 1 { cap } else { u32::MAX };
+    // The image has as many samples as the cap (jittered from the first).
+    let st = RenderSettings { spp: cap.max(2), ..*settings };
+    let (w, h) = (st.width, st.height);
+    let mut acc = FilmAccumulator::new(w, h);
+    let bar = if std::io::stderr().is_terminal() { ProgressBar::new((budget * 1e3) as u64) } else { ProgressBar::hidden() };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} rendering [{bar:40}] {elapsed} {msg}").unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let start = Instant::now();
+    let (mut s0, mut chunk, mut rays) = (0u32, 1u32, 0u64);
+    while s0 < cap && (s0 == 0 || start.elapsed().as_secs_f64() < budget) {
+        let s1 = s0.saturating_add(chunk).min(cap);
+        let t = Instant::now();
+        let (part, r) = render_region(world, cam, &st, Region::full(w, h, s0, s1), &|_| {});
+        acc.merge(part)?;
+        rays += r;
+        s0 = s1;
+        if t.elapsed().as_secs_f64() < budget / 16.0 {
+            chunk = chunk.saturating_mul(2);
+        }
+        let elapsed = start.elapsed().as_secs_f64();
+        bar.set_position(((elapsed.min(budget)) * 1e3) as u64);
+        bar.set_message(format!("{s0} spp, {:.2} M samples/s", f64::from(w) * f64::from(h) * f64::from(s0) / elapsed.max(1e-9) * 1e-6));
+    }
+    bar.finish_and_clear();
+    Ok((acc.resolve(world.scene().background), rays, s0))
 }
 
 pub fn info(path: Option<&Path>, demo: DemoArg) -> Result<()> {

@@ -26,6 +26,32 @@ fn render_demo_writes_a_real_picture() {
     assert!(colours.len() > 500, "only {} colours", colours.len());
 }
 
+/// The path tracer on the Cornell box for a time budget: samples are added pass by pass
+/// until it is spent (or until --spp caps them), the light and the red and green walls
+/// show, and the samples per second are reported.
+#[test]
+fn render_path_for_a_time_budget() {
+    let d = tempfile::tempdir().expect("tmp");
+    let out = d.path().join("cb.exr");
+    let cornell = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes/cornell_box/cornell_box.obj");
+    let cam = "278,273,-800,278,273,0,0,1,0,39.3";
+    let args = ["--integrator", "path", "--size", "48x48", "--camera", cam, "--threads", "2", "-o"];
+    let o = lucent().arg("render").arg(&cornell).args(["--time", "0.5"]).args(args).arg(&out).output().expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let spp: u32 = text.split(" spp").next().and_then(|t| t.rsplit(' ').next()).and_then(|n| n.parse().ok()).expect("spp reported");
+    assert!(spp >= 2 && text.contains("M samples/s"), "{text}");
+    let img = image::open(&out).expect("exr").to_rgb32f();
+    let (left, right, top) = (img.get_pixel(3, 24).0, img.get_pixel(44, 24).0, img.get_pixel(24, 3).0);
+    assert!(left[0] > 2.0 * left[1] && right[1] > 2.0 * right[0], "walls: left {left:?}, right {right:?}");
+    assert!(top.iter().all(|&c| c > 0.05), "the ceiling is lit: {top:?}");
+    // --spp caps the samples a budget may add.
+    let o = lucent().arg("render").arg(&cornell).args(["--time", "30", "--spp", "3"]).args(args).arg(&out).output().expect("run");
+    assert!(String::from_utf8_lossy(&o.stdout).contains(", 3 spp,"), "{}", String::from_utf8_lossy(&o.stdout));
+    let o = lucent().args(["render", "--time", "0", "-o"]).arg(&out).output().expect("run");
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--time"));
+}
+
 /// Output piped into a reader that stops early (`lucent disasm … | head -2`) ends the
 /// command quietly, as `cat` does, not with a panic about a broken pipe.
 #[cfg(unix)]
