@@ -162,6 +162,17 @@ impl PixelSampler {
         (to_unit(a), to_unit(b))
     }
 
+    /// A uniform number in [0, 1) for sample `index` and dimension `dim`, by hashing
+    /// alone: independent (not low-discrepancy) samples, for the discrete choices (which
+    /// light, which lobe, whether a path goes on) where stratification buys little, at a
+    /// fraction of a scrambled pair's cost. The dimensions are their own space, apart from
+    /// [`PixelSampler::get2`]'s pairs.
+    #[inline]
+    #[must_use]
+    pub fn get1_hashed(&self, index: u32, dim: u32) -> f32 {
+        to_unit(hash32(hash32(self.key ^ 0x68a5_4e1d ^ index) ^ dim.wrapping_mul(0x9e37_79b9)))
+    }
+
     /// [`PixelSampler::get2`] as 32-bit fractions.
     #[inline]
     #[must_use]

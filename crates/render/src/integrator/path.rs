@@ -9,8 +9,9 @@
 //!
 //! Random numbers come from the [`Sampler`] (Owen-scrambled Sobol' pairs), a pure function
 //! of pixel, sample index and dimension: pair 0 places the sample in its pixel, and each
-//! bounce takes four pairs (light and lobe choice; a point on the light; the BSDF's
-//! direction; roulette).
+//! bounce takes two pairs (a point on the light; the BSDF's direction) and four hashed
+//! numbers for its discrete choices (which light, which lobe, reflection or refraction,
+//! roulette: `PixelSampler::get1_hashed`, a third of a scrambled pair's cost).
 //!
 //! Lights: emitting triangles (a mesh material's emission: one-sided, toward the side the
 //! triangle's winding makes its normal point, as Mitsuba's `area` emitter), chosen in
@@ -69,7 +70,10 @@ impl Default for PathSettings {
 pub(crate) const SAMPLER: Sampler = Sampler::new(0x1ce7_0001);
 
 /// Sampler pairs per bounce, after pair 0 (the pixel position).
-const PAIRS: u32 = 4;
+const PAIRS: u32 = 2;
+
+/// Hashed numbers per bounce.
+const CHOICES: u32 = 4;
 
 /// The power heuristic with β = 2 for `a` against `b` (pdfs of one sample each).
 #[inline]
@@ -150,6 +154,7 @@ impl Lobes {
 pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, index: u32, first: Option<Option<Hit>>) -> Vec3 {
     let px = SAMPLER.pixel(x, y);
     let dims = |pair: u32| px.get2(index, pair);
+    let choice_at = |depth: u32, k: u32| px.get1_hashed(index, depth.saturating_mul(CHOICES) + k);
     let bg = w.scene.background;
     let delta_lights = w.scene.lights.len();
     let area = !w.emitters.is_empty();
@@ -208,7 +213,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
             break;
         }
         let base = 1 + depth.saturating_mul(PAIRS);
-        let (u_light, u_lobe) = dims(base);
+        let (u_light, u_lobe) = (choice_at(depth, 0), choice_at(depth, 1));
         let lobes = Lobes {
             diffuse: textured_kd(w, mat, surf.uv),
             mirror: mat.reflect,
@@ -229,7 +234,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         if p_diffuse > 0.0 && n_lights > 0 && s.sampling != LightSampling::Bsdf {
             let f = lobes.diffuse * std::f32::consts::FRAC_1_PI;
             let pick = ((u_light * n_lights as f32) as usize).min(n_lights - 1);
-            let u_pos = dims(base + 1);
+            let u_pos = dims(base);
             let sample = if pick < delta_lights {
                 delta_light(w, pick, surf.p).map(|(dir, dist, li)| (dir, dist, li, f32::INFINITY))
             } else {
@@ -269,7 +274,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
             }
         }
         // The next direction: one lobe, chosen in proportion to its weight.
-        let u_dir = dims(base + 2);
+        let u_dir = dims(base + 1);
         let (dir, weight, pdf, delta) = if u_lobe < choice[0] {
             let dir = cosine_hemisphere(ns, u_dir);
             if ng.dot(dir) <= 0.0 {
@@ -284,7 +289,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
             let eta_rel = if front { 1.0 / lobes.ior } else { lobes.ior };
             let cos_i = (-d.dot(ns)).clamp(0.0, 1.0);
             let fr = if lobes.fresnel { fresnel_dielectric(cos_i, eta_rel) } else { 0.0 };
-            let (u_fr, _) = dims(base + 3);
+            let u_fr = choice_at(depth, 2);
             match refract(d, ns, eta_rel) {
                 Some(t) if u_fr >= fr => {
                     eta *= 1.0 / eta_rel;
@@ -305,7 +310,8 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         // Russian roulette.
         if depth >= s.rr_depth {
             let q = (beta.max_element() * eta * eta).min(0.95);
-            let (_, u_rr) = dims(base + 3);
+            // (The bounce's own numbers: `depth` has moved on.)
+            let u_rr = choice_at(depth - 1, 3);
             if u_rr >= q {
                 break;
             }
