@@ -10,6 +10,7 @@ mod frame_bench;
 mod isa_cmd;
 mod leaks_bench;
 mod net_cmd;
+mod path_bench;
 mod rend3r_bench;
 mod render_cmd;
 mod run_cmd;
@@ -453,6 +454,20 @@ enum BenchCmd {
         #[arg(long, default_value_t = 10_000)]
         soak_frames: u64,
     },
+    /// The path tracer against Mitsuba 3 on the reference scenes (crates/render/tests/data/
+    /// mitsuba): samples per second, relMSE at 64 samples per pixel against Mitsuba's
+    /// 4,096-sample reference, the samples and seconds lucent needs to reach Mitsuba's own
+    /// 64-sample relMSE, and Mitsuba's 64-sample time (its second render) when
+    /// tools/mitsuba/python runs here (tools/mitsuba/setup makes it). Run from the
+    /// checkout's root.
+    Path {
+        /// The reference scenes' folder.
+        #[arg(long, default_value = "crates/render/tests/data/mitsuba")]
+        data: PathBuf,
+        /// The shared scenes folder (the references' lucent.txt paths are under it).
+        #[arg(long, default_value = "../shared/scenes")]
+        dir: PathBuf,
+    },
     /// REND3R's Table IV scenes (1..4096 spheres, 0/1 lights): frame times, and words per
     /// second through the assembler and the processor.
     ///
@@ -645,6 +660,7 @@ fn run() -> Result<()> {
             dynamic_bench::run(&scenes, frames, size)
         }
         Cmd::Bench(BenchCmd::Leaks { rays, seed }) => leaks_bench::run(rays, seed),
+        Cmd::Bench(BenchCmd::Path { data, dir }) => path_bench::run(&data, &dir),
         Cmd::Bench(BenchCmd::Net { soak: true, soak_clients, soak_frames, .. }) => net_cmd::soak(soak_clients, soak_frames),
         Cmd::Bench(BenchCmd::Net { clients, seconds, size, format, .. }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),
         Cmd::Serve(a) => net_cmd::serve(lucent_net::ServerConfig {

@@ -40,6 +40,16 @@ pub fn linear_to_srgb(c: f32) -> f32 {
     }
 }
 
+/// sRGB to linear transfer.
+#[must_use]
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
 /// The 8-bit sRGB code of a linear value as [`Film::to_srgb8`] defines it: clamped to
 /// [0, 1] (non-finite values give 0), encoded, scaled to 255 and rounded half up.
 #[must_use]
@@ -138,6 +148,19 @@ impl Film {
             o.copy_from_slice(&[t.encode(p.x), t.encode(p.y), t.encode(p.z)]);
         }
         out
+    }
+
+    /// Reads an image as linear RGB: `.exr` as it is, other formats (PNG, ...) decoded
+    /// from sRGB. For reference images.
+    pub fn load(path: &Path) -> Result<Self, OutputError> {
+        let name = path.display().to_string();
+        let img = image::open(path).map_err(|source| OutputError::Image { path: name, source })?;
+        let exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        let rgb = img.to_rgb32f();
+        let (width, height) = rgb.dimensions();
+        let lin = |c: f32| if exr { c } else { srgb_to_linear(c) };
+        let pixels = rgb.pixels().map(|p| Vec3::new(lin(p.0[0]), lin(p.0[1]), lin(p.0[2]))).collect();
+        Ok(Self { width, height, pixels })
     }
 
     /// Writes `.png` (8-bit sRGB) or `.exr` (linear f32).
