@@ -8,29 +8,14 @@
 
 use anyhow::{bail, Context, Result};
 use lucent_accel::MeshOptions;
-use lucent_render::{render, Camera, Integrator, PathSettings, RenderSettings, World};
+use lucent_render::{render, Camera, Film, Integrator, PathSettings, RenderSettings, World};
 use lucent_scene::CameraDesc;
 use std::path::Path;
 use std::time::Instant;
 
-/// relMSE = mean((x − ref)² / (ref² + 0.01)) over pixels and channels.
-fn rel_mse(x: &[[f32; 3]], reference: &[[f32; 3]]) -> f64 {
-    let sum: f64 = x
-        .iter()
-        .zip(reference)
-        .flat_map(|(a, r)| (0..3).map(move |k| (f64::from(a[k]) - f64::from(r[k])).powi(2) / (f64::from(r[k]).powi(2) + 0.01)))
-        .sum();
-    sum / (3 * x.len().max(1)) as f64
-}
-
-fn read_exr(p: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
-    let f = lucent_render::Film::load(p)?;
-    Ok((f.width, f.height, f.pixels.iter().map(|p| p.to_array()).collect()))
-}
-
 /// Mitsuba's 64-spp render of `xml` (seconds of the second render, relMSE), when its
 /// environment is here.
-fn mitsuba(xml: &Path, reference: &[[f32; 3]]) -> Option<(f64, f64)> {
+fn mitsuba(xml: &Path, reference: &Film) -> Option<(f64, f64)> {
     let out = std::env::temp_dir().join(format!("lucent-bench-path-{}.exr", std::process::id()));
     let o = std::process::Command::new("tools/mitsuba/python")
         .args(["tools/mitsuba/render.py"])
@@ -45,9 +30,9 @@ fn mitsuba(xml: &Path, reference: &[[f32; 3]]) -> Option<(f64, f64)> {
     }
     let text = String::from_utf8_lossy(&o.stdout);
     let secs: f64 = text.split("second ").nth(1)?.split(' ').next()?.parse().ok()?;
-    let (_, _, img) = read_exr(&out).ok()?;
+    let img = Film::load(&out).ok()?;
     let _ = std::fs::remove_file(&out);
-    Some((secs, rel_mse(&img, reference)))
+    Some((secs, img.rel_mse(reference)?))
 }
 
 pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
@@ -73,7 +58,8 @@ pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
         let view: Vec<f32> =
             cam.split(',').map(|v| v.trim().parse()).collect::<Result<_, _>>().with_context(|| format!("{}: camera", dir.display()))?;
         let view: [f32; 10] = view.try_into().map_err(|_| anyhow::anyhow!("{}: the camera needs ten numbers", dir.display()))?;
-        let (w, h, reference) = read_exr(&dir.join("reference_4096spp.exr"))?;
+        let reference = Film::load(&dir.join("reference_4096spp.exr"))?;
+        let (w, h) = (reference.width, reference.height);
         let world = World::new(lucent_scene::load(&scenes_dir.join(rel))?, MeshOptions::default())?;
         let camera = Camera::new(&CameraDesc::from_view(&view), w, h);
         // The median of three renders' times (the image is the same each time).
@@ -87,8 +73,7 @@ pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
                 times.push(t.elapsed().as_secs_f64());
             }
             times.sort_by(f64::total_cmp);
-            let x: Vec<[f32; 3]> = f.map(|f| f.pixels.iter().map(|p| p.to_array()).collect()).unwrap_or_default();
-            (times[1], rel_mse(&x, &reference))
+            (times[1], f.and_then(|f| f.rel_mse(&reference)).unwrap_or(f64::INFINITY))
         };
         let _ = shot(4); // warm-up
         let (t64, e64) = shot(64);

@@ -40,16 +40,6 @@ pub fn linear_to_srgb(c: f32) -> f32 {
     }
 }
 
-/// sRGB to linear transfer.
-#[must_use]
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.040_45 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
 /// The 8-bit sRGB code of a linear value as [`Film::to_srgb8`] defines it: clamped to
 /// [0, 1] (non-finite values give 0), encoded, scaled to 255 and rounded half up.
 #[must_use]
@@ -158,9 +148,26 @@ impl Film {
         let exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
         let rgb = img.to_rgb32f();
         let (width, height) = rgb.dimensions();
-        let lin = |c: f32| if exr { c } else { srgb_to_linear(c) };
+        let lin = |c: f32| if exr { c } else { lucent_scene::srgb_to_linear(c) };
         let pixels = rgb.pixels().map(|p| Vec3::new(lin(p.0[0]), lin(p.0[1]), lin(p.0[2]))).collect();
         Ok(Self { width, height, pixels })
+    }
+
+    /// The relative mean squared error against `reference` (issue 34's measure):
+    /// mean((x − ref)² / (ref² + 0.01)) over pixels and channels; `None` when the sizes
+    /// differ.
+    #[must_use]
+    pub fn rel_mse(&self, reference: &Film) -> Option<f64> {
+        if (self.width, self.height) != (reference.width, reference.height) {
+            return None;
+        }
+        let sum: f64 = self
+            .pixels
+            .iter()
+            .zip(&reference.pixels)
+            .flat_map(|(a, r)| (0..3).map(move |k| (f64::from(a[k]) - f64::from(r[k])).powi(2) / (f64::from(r[k]).powi(2) + 0.01)))
+            .sum();
+        Some(sum / (3 * self.pixels.len().max(1)) as f64)
     }
 
     /// Writes `.png` (8-bit sRGB) or `.exr` (linear f32).

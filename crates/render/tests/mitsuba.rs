@@ -11,7 +11,7 @@
 mod common;
 use common::scene;
 use lucent_accel::MeshOptions;
-use lucent_render::{render, Camera, Integrator, PathSettings, RenderSettings, World};
+use lucent_render::{render, Camera, Film, Integrator, PathSettings, RenderSettings, World};
 use lucent_scene::CameraDesc;
 use std::path::PathBuf;
 
@@ -19,23 +19,12 @@ fn data(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mitsuba").join(rel)
 }
 
-/// relMSE of `x` against `reference` (RGB triples).
-fn rel_mse(x: &[[f32; 3]], reference: &[[f32; 3]]) -> f64 {
-    let sum: f64 = x
-        .iter()
-        .zip(reference)
-        .flat_map(|(a, r)| (0..3).map(move |k| (f64::from(a[k]) - f64::from(r[k])).powi(2) / (f64::from(r[k]).powi(2) + 0.01)))
-        .sum();
-    sum / (3 * x.len()) as f64
-}
-
 /// The Cornell box OBJ (`shared/scenes/cornell_box`), 64×64, path traced with Mitsuba's
 /// defaults (unlimited depth, roulette from depth 5, box filter).
 #[test]
 fn cornell_box_converges_to_mitsuba() {
-    let reference = image::open(data("cornell_obj/reference_4096spp.exr")).expect("reference EXR").to_rgb32f();
-    let (w, h) = reference.dimensions();
-    let reference: Vec<[f32; 3]> = reference.pixels().map(|p| p.0).collect();
+    let reference = Film::load(&data("cornell_obj/reference_4096spp.exr")).expect("reference EXR");
+    let (w, h) = (reference.width, reference.height);
     let world =
         World::new(lucent_scene::load(&scene("cornell_box/cornell_box.obj")).expect("cornell"), MeshOptions::default()).expect("world");
     let cam = Camera::new(&CameraDesc::from_view(&[278.0, 273.0, -800.0, 278.0, 273.0, 0.0, 0.0, 1.0, 0.0, 39.3]), w, h);
@@ -43,12 +32,12 @@ fn cornell_box_converges_to_mitsuba() {
     for (spp, mitsuba) in [(64, 0.02456), (1024, 0.00185)] {
         let st = RenderSettings { spp, integrator: Integrator::Path(PathSettings::default()), ..RenderSettings::new(w, h) };
         let img = render(&world, &cam, &st, &|_| {}).0;
-        let x: Vec<[f32; 3]> = img.pixels.iter().map(|p| p.to_array()).collect();
-        let e = rel_mse(&x, &reference);
+        let e = img.rel_mse(&reference).expect("same size");
         assert!(e <= 1.1 * mitsuba, "{spp} spp: relMSE {e:.5}, Mitsuba's {mitsuba:.5}");
         // The means agree within 1% (no overall bias).
         for k in 0..3 {
-            let (m, r) = (x.iter().map(|p| f64::from(p[k])).sum::<f64>(), reference.iter().map(|p| f64::from(p[k])).sum::<f64>());
+            let sum = |f: &Film| f.pixels.iter().map(|p| f64::from(p[k])).sum::<f64>();
+            let (m, r) = (sum(&img), sum(&reference));
             assert!((m / r - 1.0).abs() < 0.01, "{spp} spp, channel {k}: mean {m} against {r}");
         }
     }
