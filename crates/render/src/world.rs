@@ -588,16 +588,22 @@ impl Emitters {
         self.tris.is_empty()
     }
 
-    /// The triangle for `u` in [0, 1) and the probability of choosing it.
-    pub fn choose(&self, u: f32) -> Option<(usize, f32)> {
-        let i = self.cdf.partition_point(|&c| c <= u).min(self.tris.len().checked_sub(1)?);
-        Some((i, self.pmf(i)))
+    /// The triangle for `u` in [0, 1) (see [`Emitters::pmf`] for its probability).
+    pub fn choose(&self, u: f32) -> Option<usize> {
+        Some(self.cdf.partition_point(|&c| c <= u).min(self.tris.len().checked_sub(1)?))
     }
 
     /// The probability of choosing triangle `i`.
     pub fn pmf(&self, i: usize) -> f32 {
         let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
         self.cdf.get(i).map_or(0.0, |&c| c - lo)
+    }
+
+    /// The solid-angle density, seen from a point `dist2` (squared) away at which the
+    /// direction makes cosine `cos_l` with the triangle's normal, of choosing triangle `i`
+    /// and a point uniformly on it.
+    pub fn pdf(&self, i: usize, dist2: f32, cos_l: f32) -> f32 {
+        self.pmf(i) / self.tris[i].area * dist2 / cos_l
     }
 
     /// The index of instance `inst`'s triangle `prim` among the emitters.

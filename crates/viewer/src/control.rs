@@ -276,21 +276,18 @@ impl Default for Accumulator {
 }
 
 impl Accumulator {
-    /// Adds a pass (or starts over with it: when `accumulate` is false or its size differs).
-    /// A pass that does not fit (its samples were added before) starts over too.
+    /// Adds a pass (or starts over with it: when `accumulate` is false, its size differs,
+    /// or its samples are not the ones that come next).
     pub fn add(&mut self, part: RegionFilm, accumulate: bool) {
-        let (w, h) = (part.region.x1, part.region.y1);
-        if !accumulate || (w, h) != self.acc.size() {
-            self.acc = FilmAccumulator::new(w, h);
+        let r = part.region;
+        // Passes are whole images, so pixel (0, 0) tells which samples are in.
+        if !accumulate || (r.x1, r.y1) != self.acc.size() || self.acc.samples_at(0, 0) != r.s0 {
+            self.acc = FilmAccumulator::new(r.x1, r.y1);
             self.passes = 0;
         }
-        if let Err(e) = self.acc.merge(part.clone()) {
-            tracing::debug!("starting the accumulation over: {e}");
-            self.acc = FilmAccumulator::new(w, h);
-            self.passes = 0;
-            if self.acc.merge(part).is_err() {
-                return;
-            }
+        if let Err(e) = self.acc.merge(part) {
+            tracing::debug!("a pass was not added: {e}");
+            return;
         }
         self.passes += 1;
         self.image = self.acc.resolve(Vec3::ZERO);

@@ -197,10 +197,8 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
                     },
                     LightSampling::Mis => match w.emitters.find(hit.inst, hit.prim) {
                         Some(i) => {
-                            let t = &w.emitters.tris[i];
-                            let dist2 = (surf.p - prev_p).length_squared();
-                            let cos_l = t.n.dot(-d).abs();
-                            let light_pdf = w.emitters.pmf(i) / n_lights as f32 / t.area * dist2 / cos_l.max(1e-12);
+                            let cos_l = w.emitters.tris[i].n.dot(-d).abs().max(1e-12);
+                            let light_pdf = w.emitters.pdf(i, (surf.p - prev_p).length_squared(), cos_l) / n_lights as f32;
                             power_heuristic(prev_pdf, light_pdf)
                         }
                         None => 1.0,
@@ -241,7 +239,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
                 // Reuse u_light's fraction within the area lights' share to choose a
                 // triangle.
                 let u = (u_light * n_lights as f32 - delta_lights as f32).clamp(0.0, 1.0 - f32::EPSILON);
-                w.emitters.choose(u).and_then(|(i, pmf)| {
+                w.emitters.choose(u).and_then(|i| {
                     let t = &w.emitters.tris[i];
                     let q = triangle_point(t.p0, t.e1, t.e2, u_pos);
                     let to = q - surf.p;
@@ -251,7 +249,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
                     if !(cos_l > 0.0 && dist > 0.0 && dist.is_finite()) {
                         return None;
                     }
-                    let pdf = pmf / t.area * dist * dist / cos_l;
+                    let pdf = w.emitters.pdf(i, dist * dist, cos_l);
                     Some((dir, dist, t.le / pdf, pdf))
                 })
             };
