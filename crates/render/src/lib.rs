@@ -7,20 +7,25 @@
 //! writes PNG or EXR.
 #![warn(missing_docs)]
 
+pub mod bsdf;
 pub mod camera;
 mod coverage;
 pub mod film;
 pub mod integrator;
+pub mod lights;
+mod materials;
 mod render;
 pub mod sampler;
 mod shading;
 pub mod texture;
 mod world;
 
+pub use bsdf::{Bsdf, BsdfModel, BsdfSample};
 pub use camera::{framing_camera, Camera};
 pub use coverage::{Coverage, BLOCK_EDGE};
 pub use film::{Film, FilmAccumulator, MergeError, OutputError, Region, RegionFilm};
 pub use integrator::{Block, Integrator, LightSampling, PathSettings, Traversal, WhittedSettings};
+pub use lights::{LightModel, LightSample};
 pub use render::{jitter, pcg_hash, render, render_pixel, render_region, RenderSettings, TILE};
 pub use sampler::{PixelSampler, Sampler};
 pub use world::{shape_of, vertex_normals, Surface, World, WorldError};

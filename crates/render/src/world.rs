@@ -1,10 +1,14 @@
 //! The render-side view of a scene: the two-level acceleration structure built from it,
 //! plus everything shading needs to rebuild a surface point from a hit.
 
+use crate::bsdf::BsdfModel;
+use crate::lights::{LightModel, LightSet};
+use crate::materials::Prepared;
 use glam::{Mat3A, Vec2, Vec3};
 use lucent_accel::{Geometry, Hit, Instance, MeshBvh, MeshOptions, Ray, Shape, TwoLevel};
 use lucent_scene::{Geom, Light, LightKind, Scene, ShapeKind};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Errors of preparing a scene for rendering.
 #[derive(Debug, thiserror::Error)]
@@ -88,8 +92,14 @@ pub struct World {
     pub(crate) lights: Vec<Light>,
     /// Diagonal of the world bounds.
     pub(crate) scale: f32,
-    /// The emitting triangles, for the path tracer's light sampling.
-    pub(crate) emitters: Emitters,
+    /// The lights the path tracer samples.
+    pub(crate) light_set: LightSet,
+    /// The materials prepared for the path tracer (one per scene material).
+    pub(crate) prepared: Vec<Prepared>,
+    /// Lights of the user's own.
+    custom_lights: Vec<Arc<dyn LightModel>>,
+    /// Some material has an alpha mask: intersections skip its cut-out parts.
+    has_alpha: bool,
     opts: MeshOptions,
     /// Per mesh, per triangle: the unit geometric normal `(b − a) × (c − a)` in object
     /// space (zero for a degenerate triangle). PERF: `surface` reads this one vector
@@ -208,8 +218,22 @@ impl World {
         let bounds = scene.bounds();
         let scale = bounds.map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
         let faces = scene.meshes.iter().map(|m| face_normals(&m.positions, &m.indices)).collect();
-        let mut w = Self { scene, accel, info, lights: Vec::new(), scale, opts, faces, emitters: Emitters::default() };
-        w.emitters = Emitters::of(&w.scene);
+        let prepared = scene.materials.par_iter().map(|m| Prepared::of(m, &scene)).collect();
+        let has_alpha = scene.materials.iter().any(|m| m.alpha != lucent_scene::Alpha::Opaque);
+        let mut w = Self {
+            scene,
+            accel,
+            info,
+            lights: Vec::new(),
+            scale,
+            opts,
+            faces,
+            light_set: LightSet::default(),
+            prepared,
+            custom_lights: Vec::new(),
+            has_alpha,
+        };
+        w.light_set = LightSet::of(&w.scene, &w.custom_lights);
         w.lights = if w.scene.lights.is_empty() { w.emitter_lights(bounds) } else { w.scene.lights.clone() };
         w.sync_shadow_grids();
         Ok(w)
@@ -295,7 +319,10 @@ impl World {
             }
         }
         self.sync_shadow_grids();
-        self.emitters = Emitters::of(&self.scene);
+        self.light_set = LightSet::of(&self.scene, &self.custom_lights);
+        if self.lights.len() == self.scene.lights.len() {
+            self.light_set.set_delta(&self.lights);
+        }
         Ok(pose.camera.or(self.scene.camera))
     }
 
@@ -322,6 +349,78 @@ impl World {
     pub fn set_lights(&mut self, lights: Vec<Light>) {
         self.lights = lights;
         self.sync_shadow_grids();
+    }
+
+    /// Gives material `index` a BSDF of the user's own (see [`BsdfModel`]); the path
+    /// tracer uses it instead of the material's. Returns false for an index out of range.
+    pub fn set_bsdf(&mut self, index: u32, bsdf: Arc<dyn BsdfModel>) -> bool {
+        match self.prepared.get_mut(index as usize) {
+            Some(p) => {
+                p.custom = Some(bsdf);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Adds a light of the user's own (see [`LightModel`]) to those the path tracer samples.
+    pub fn add_light(&mut self, light: Arc<dyn LightModel>) {
+        self.custom_lights.push(light);
+        self.light_set = LightSet::of(&self.scene, &self.custom_lights);
+    }
+
+    /// The prepared material `index` (the default one when out of range).
+    pub(crate) fn prepared(&self, index: u32) -> &Prepared {
+        static DEFAULT: std::sync::OnceLock<Prepared> = std::sync::OnceLock::new();
+        self.prepared.get(index as usize).unwrap_or_else(|| {
+            DEFAULT.get_or_init(|| Prepared::new(lucent_scene::Bsdf::from_phong(&lucent_scene::Material::default()), &Scene::default()))
+        })
+    }
+
+    /// Whether the surface a hit found is cut out by its material's alpha mask.
+    fn cut_out(&self, r: &Ray, h: &Hit) -> bool {
+        let surf = self.surface(r, h);
+        let Some(m) = self.scene.materials.get(surf.material as usize) else { return false };
+        match m.alpha {
+            lucent_scene::Alpha::Opaque => false,
+            lucent_scene::Alpha::Mask { cutoff, tex, factor } => {
+                let a =
+                    factor * tex.and_then(|t| self.scene.textures.get(t as usize)).map_or(1.0, |t| crate::texture::sample(t, surf.uv).w);
+                a < cutoff
+            }
+        }
+    }
+
+    /// The closest hit of a surface that exists (alpha masks skipped): the hit, and the
+    /// ray it belongs to (a ray continued past cut-out parts starts beyond them).
+    #[must_use]
+    pub fn intersect_solid(&self, r: &Ray) -> Option<(Ray, Hit)> {
+        let mut ray = *r;
+        for _ in 0..64 {
+            let h = self.intersect(&ray)?;
+            if !self.has_alpha || !self.cut_out(&ray, &h) {
+                return Some((ray, h));
+            }
+            let surf = self.surface(&ray, &h);
+            let left = ray.tmax - h.t;
+            ray = surf.spawn(ray.dir).with_range(0.0, left);
+        }
+        None
+    }
+
+    /// Whether a surface that exists (alpha masks skipped) blocks the ray.
+    #[must_use]
+    pub fn occluded_solid(&self, r: &Ray) -> bool {
+        if !self.has_alpha {
+            return self.occluded(r);
+        }
+        self.intersect_solid(r).is_some()
+    }
+
+    /// Whether some material has an alpha mask.
+    #[must_use]
+    pub fn has_alpha(&self) -> bool {
+        self.has_alpha
     }
 
     /// The diagonal of the scene's bounds.
@@ -466,6 +565,30 @@ impl World {
         }
     }
 
+    /// The world-space derivatives ∂p/∂u and ∂p/∂v of a mesh hit's triangle, from its
+    /// corners' texture coordinates (`None` for shapes, meshes without texture coordinates
+    /// and triangles whose coordinates are degenerate).
+    #[must_use]
+    pub fn uv_tangents(&self, _r: &Ray, h: &Hit) -> Option<(Vec3, Vec3)> {
+        let inst = self.info.get(h.inst as usize)?;
+        let Geom::Mesh(m) = inst.geom else { return None };
+        let mesh = self.scene.meshes.get(m as usize)?;
+        let idx = *mesh.indices.get(h.prim as usize)?;
+        let [t0, t1, t2] = mesh.uvs.corners(h.prim as usize, &idx)?;
+        let p = idx.map(|i| mesh.positions.get(i as usize).copied().unwrap_or(Vec3::NAN));
+        let (dp1, dp2) = (p[1] - p[0], p[2] - p[0]);
+        let (d1, d2) = (t1 - t0, t2 - t0);
+        let det = d1.x * d2.y - d1.y * d2.x;
+        if det.abs() < 1e-20 || !det.is_finite() {
+            return None;
+        }
+        let dpdu = (dp1 * d2.y - dp2 * d1.y) / det;
+        let dpdv = (dp2 * d1.x - dp1 * d2.x) / det;
+        let m3 = self.accel.instances()[h.inst as usize].world_from_object.matrix3;
+        let (u, v): (Vec3, Vec3) = ((m3 * glam::Vec3A::from(dpdu)).into(), (m3 * glam::Vec3A::from(dpdv)).into());
+        (u.is_finite() && v.is_finite()).then_some((u, v))
+    }
+
     /// Point lights at the emitting surfaces (one per emissive material and instance), for
     /// scenes such as the Cornell box that light themselves by geometry.
     fn emitter_lights(&self, bounds: Option<(Vec3, Vec3)>) -> Vec<Light> {
@@ -510,106 +633,10 @@ impl World {
     }
 }
 
-/// One emitting triangle in world space.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct EmissiveTri {
-    pub p0: Vec3,
-    pub e1: Vec3,
-    pub e2: Vec3,
-    /// Unit normal `e1 × e2` (the emitting side).
-    pub n: Vec3,
-    pub area: f32,
-    /// Emitted radiance.
-    pub le: Vec3,
-}
-
-/// The scene's emitting triangles (of meshes whose material has an emission), for light
-/// sampling: chosen in proportion to their power (area × the emission's luminance), a
-/// point uniformly on the chosen one.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct Emitters {
-    pub tris: Vec<EmissiveTri>,
-    /// Cumulative power, normalised: `cdf[i]` is the probability of choosing one of
-    /// `tris[..=i]`.
-    cdf: Vec<f32>,
-    /// Per (instance, triangle): its index in `tris`.
-    index: std::collections::HashMap<(u32, u32), u32>,
-}
-
 /// Luminance of linear sRGB (Rec. 709 weights).
 #[inline]
 pub(crate) fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
-}
-
-impl Emitters {
-    fn of(scene: &Scene) -> Self {
-        let mut e = Self::default();
-        let mut power = Vec::new();
-        for (ii, inst) in scene.instances.iter().enumerate() {
-            let Geom::Mesh(m) = inst.geom else { continue };
-            let Some(mesh) = scene.meshes.get(m as usize) else { continue };
-            for (t, idx) in mesh.indices.iter().enumerate() {
-                let Some(mat) = scene.materials.get(mesh.material.get(t).copied().unwrap_or(0) as usize) else { continue };
-                if mat.emission.max_element() <= 0.0 || !mat.emission.is_finite() {
-                    continue;
-                }
-                let [a, b, c] =
-                    idx.map(|i| inst.world_from_object.transform_point3(mesh.positions.get(i as usize).copied().unwrap_or(Vec3::NAN)));
-                let (e1, e2) = (b - a, c - a);
-                let cross = e1.cross(e2);
-                let area = 0.5 * cross.length();
-                let p = area * luminance(mat.emission);
-                if !(p > 0.0 && p.is_finite()) {
-                    continue;
-                }
-                e.index.insert((ii as u32, t as u32), e.tris.len() as u32);
-                e.tris.push(EmissiveTri { p0: a, e1, e2, n: cross / (2.0 * area), area, le: mat.emission });
-                power.push(p);
-            }
-        }
-        let total: f64 = power.iter().map(|&p| f64::from(p)).sum();
-        let mut acc = 0f64;
-        e.cdf = power
-            .iter()
-            .map(|&p| {
-                acc += f64::from(p);
-                (acc / total) as f32
-            })
-            .collect();
-        if let Some(last) = e.cdf.last_mut() {
-            *last = 1.0;
-        }
-        e
-    }
-
-    /// Whether there is anything to sample.
-    pub fn is_empty(&self) -> bool {
-        self.tris.is_empty()
-    }
-
-    /// The triangle for `u` in [0, 1) (see [`Emitters::pmf`] for its probability).
-    pub fn choose(&self, u: f32) -> Option<usize> {
-        Some(self.cdf.partition_point(|&c| c <= u).min(self.tris.len().checked_sub(1)?))
-    }
-
-    /// The probability of choosing triangle `i`.
-    pub fn pmf(&self, i: usize) -> f32 {
-        let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
-        self.cdf.get(i).map_or(0.0, |&c| c - lo)
-    }
-
-    /// The solid-angle density, seen from a point `dist2` (squared) away at which the
-    /// direction makes cosine `cos_l` with the triangle's normal, of choosing triangle `i`
-    /// and a point uniformly on it.
-    pub fn pdf(&self, i: usize, dist2: f32, cos_l: f32) -> f32 {
-        self.pmf(i) / self.tris[i].area * dist2 / cos_l
-    }
-
-    /// The index of instance `inst`'s triangle `prim` among the emitters.
-    pub fn find(&self, inst: u32, prim: u32) -> Option<usize> {
-        self.index.get(&(inst, prim)).map(|&i| i as usize)
-    }
 }
 
 thread_local! {

@@ -7,6 +7,7 @@
 #![warn(missing_docs)]
 
 pub mod anim;
+pub mod bsdf;
 mod demo;
 mod error;
 mod gltf;
@@ -16,6 +17,7 @@ mod ply;
 mod sunflowers;
 mod texture;
 
+pub use bsdf::{Alpha, Bsdf, ColorTex, Distribution, FloatTex, NormalMap, Rough, Sides};
 pub use demo::{demo_scene, torus};
 pub use error::ImportError;
 pub use gltf::{load_gltf, load_gltf_with, parse_gltf, parse_gltf_with};

@@ -1,5 +1,6 @@
 //! The scene as plain data: meshes, instances, materials, textures, lights, camera.
 
+use crate::bsdf::{Alpha, Bsdf, NormalMap, Sides};
 use glam::{Affine3A, Vec2, Vec3};
 
 /// A per-corner attribute: values, and per-triangle indices into them (`None`: the
@@ -111,6 +112,49 @@ pub struct Material {
     pub ior: f32,
     /// Reflectance follows Fresnel (dielectrics).
     pub fresnel: bool,
+    /// The physically based model the path tracer uses, as the scene file gave it; `None`
+    /// reads the Phong terms above ([`Bsdf::from_phong`]). See [`crate::bsdf`] for how
+    /// each importer fills it.
+    pub bsdf: Option<Bsdf>,
+    /// How the back of the surface scatters (path tracer).
+    pub sides: Sides,
+    /// Texture multiplying `emission` (glTF `emissiveTexture`).
+    pub emission_tex: Option<u32>,
+    /// Tangent-space normal map.
+    pub normal_map: Option<NormalMap>,
+    /// Which parts of the surface exist.
+    pub alpha: Alpha,
+}
+
+impl Material {
+    /// The BSDF the path tracer uses: [`Material::bsdf`], or the Phong terms read as one.
+    #[must_use]
+    pub fn bsdf(&self) -> std::borrow::Cow<'_, Bsdf> {
+        match &self.bsdf {
+            Some(b) => std::borrow::Cow::Borrowed(b),
+            None => std::borrow::Cow::Owned(Bsdf::from_phong(self)),
+        }
+    }
+
+    /// A material with a physically based BSDF, its Whitted terms read from it
+    /// ([`Bsdf::whitted_terms`]).
+    #[must_use]
+    pub fn physical(name: &str, bsdf: Bsdf) -> Self {
+        let t = bsdf.whitted_terms();
+        Self {
+            name: name.into(),
+            diffuse: t.diffuse,
+            diffuse_tex: t.diffuse_tex,
+            specular: t.specular,
+            shininess: t.shininess,
+            reflect: t.reflect,
+            transmit: t.transmit,
+            ior: t.ior,
+            fresnel: t.fresnel,
+            bsdf: Some(bsdf),
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for Material {
@@ -127,6 +171,11 @@ impl Default for Material {
             transmit: Vec3::ZERO,
             ior: 1.5,
             fresnel: false,
+            bsdf: None,
+            sides: Sides::Both,
+            emission_tex: None,
+            normal_map: None,
+            alpha: Alpha::Opaque,
         }
     }
 }
@@ -304,6 +353,34 @@ pub struct Scene {
     pub background: Vec3,
     /// Animation (glTF): what moves, and the nodes instances, camera and lights hang from.
     pub animation: Option<std::sync::Arc<crate::anim::SceneAnimation>>,
+    /// Light from infinitely far in every direction (Mitsuba `constant`, `envmap`), for
+    /// the path tracer; Whitted shows `background` where rays escape.
+    pub environment: Option<Environment>,
+}
+
+/// A linear RGB image of floats (environment maps).
+#[derive(Clone, Debug, PartialEq)]
+pub struct HdrImage {
+    /// Width.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+    /// Texels, row 0 at the top.
+    pub texels: Vec<Vec3>,
+}
+
+/// Light arriving from infinitely far: `scale` times the image's texel (an equirectangular
+/// map, as Mitsuba's `envmap`: direction `d` in the map's frame `to_world⁻¹ d` looks up
+/// u = atan2(d.x, −d.z) / 2π, v = acos(d.y) / π, v = 0 at the top row), or `scale` alone
+/// without an image (Mitsuba's `constant`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Environment {
+    /// Radiance factor.
+    pub scale: Vec3,
+    /// The map, if any.
+    pub image: Option<std::sync::Arc<HdrImage>>,
+    /// The map's frame.
+    pub to_world: Affine3A,
 }
 
 /// Ambient light for formats that do not say (OBJ, PLY, plain glTF): a modest fill so

@@ -3,6 +3,7 @@
 //! Our own parser, so that every error carries `file:line` and triangles keep file order
 //! (polygons fan-triangulated, as the benchmark harness numbers them).
 
+use crate::bsdf::{Bsdf, ColorTex, FloatTex};
 use crate::error::ImportError;
 use crate::model::{Attr, Material, Mesh, Scene, Wrap};
 use crate::texture::TextureCache;
@@ -194,6 +195,8 @@ fn parse_mtl(
     let lx = Lines { path };
     let mut cur: Option<usize> = None;
     let mut illum: Vec<(usize, i32)> = Vec::new();
+    // The PBR extension's terms and what says a material is transparent, per material.
+    let mut pbr: HashMap<usize, MtlPbr> = HashMap::new();
     for (ln, raw) in text.lines().enumerate() {
         let line = ln + 1;
         let l = raw.split('#').next().unwrap_or("").trim();
@@ -227,6 +230,8 @@ fn parse_mtl(
             "Tf" => mat.transmit = rgb(&mut it, tag)?,
             "Ns" => mat.shininess = lx.floats::<1>(line, tag, &mut it, 1)?[0],
             "Ni" => mat.ior = lx.floats::<1>(line, tag, &mut it, 1)?[0],
+            "Pr" => pbr.entry(m).or_default().roughness = Some(lx.floats::<1>(line, tag, &mut it, 1)?[0]),
+            "Pm" => pbr.entry(m).or_default().metallic = Some(lx.floats::<1>(line, tag, &mut it, 1)?[0]),
             "d" => {
                 let d = lx.floats::<1>(line, tag, &mut it, 1)?[0];
                 if d < 1.0 {
@@ -285,7 +290,56 @@ fn parse_mtl(
             mat.fresnel = true;
         }
     }
+    for (m, mat) in scene.materials.iter_mut().enumerate() {
+        if ids.values().any(|&id| id as usize == m) {
+            mat.bsdf = Some(mtl_bsdf(mat, pbr.get(&m)));
+        }
+    }
     Ok(())
+}
+
+/// The PBR extension's terms of one MTL material.
+#[derive(Clone, Copy, Debug, Default)]
+struct MtlPbr {
+    roughness: Option<f32>,
+    metallic: Option<f32>,
+}
+
+/// The BSDF of Phong terms as MTL gives them (`Kd`/`map_Kd`, `Ks`, `Ns`, `Ni`,
+/// transparency in `transmit`): the mapping documented in [`crate::bsdf`].
+pub(crate) fn phong_bsdf(mat: &Material) -> Bsdf {
+    mtl_bsdf(mat, None)
+}
+
+/// The BSDF of an MTL material (the mapping documented in [`crate::bsdf`]).
+fn mtl_bsdf(mat: &Material, pbr: Option<&MtlPbr>) -> Bsdf {
+    let kd = match mat.diffuse_tex {
+        Some(tex) => ColorTex::Image { tex, scale: mat.diffuse, to_uv: glam::Affine2::IDENTITY },
+        None => ColorTex::Const(mat.diffuse),
+    };
+    let t = mat.transmit.clamp(Vec3::ZERO, Vec3::ONE);
+    if let Some(p) = pbr.filter(|p| p.roughness.is_some() || p.metallic.is_some()) {
+        return Bsdf::MetallicRoughness {
+            base_color: kd,
+            metallic: FloatTex::Const(p.metallic.unwrap_or(0.0).clamp(0.0, 1.0)),
+            roughness: FloatTex::Const(p.roughness.unwrap_or(1.0).clamp(0.0, 1.0)),
+            transmission: FloatTex::Const(t.max_element()),
+            ior: if mat.ior > 1.0 { mat.ior } else { 1.5 },
+        };
+    }
+    if t.max_element() > 0.0 {
+        return if mat.ior > 1.0 && mat.ior.is_finite() {
+            Bsdf::Dielectric { eta: mat.ior, reflectance: ColorTex::grey(1.0), transmittance: ColorTex::Const(t), rough: None }
+        } else {
+            Bsdf::ThinDielectric { eta: 1.5, reflectance: ColorTex::grey(1.0), transmittance: ColorTex::Const(t) }
+        };
+    }
+    let ks = mat.specular.max(Vec3::ZERO);
+    if ks.max_element() > 0.0 {
+        Bsdf::DiffuseGlossy { diffuse: kd, specular: ks, alpha: crate::bsdf::phong_to_alpha(mat.shininess) }
+    } else {
+        Bsdf::Diffuse { reflectance: kd }
+    }
 }
 
 /// How many arguments an MTL texture option takes.

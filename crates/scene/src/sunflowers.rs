@@ -209,6 +209,7 @@ pub fn sunflower_scene() -> Scene {
         background: Vec3::new(0.45, 0.65, 0.95),
         animation: Some(Arc::new(animation)),
         textures: Vec::new(),
+        environment: None,
     }
 }
 

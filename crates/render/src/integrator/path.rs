@@ -5,33 +5,31 @@
 //! its `path` integrator's parameters: `max_depth` counts path segments (1: emitters seen
 //! directly, 2: direct light, unlimited by default), roulette starts at `rr_depth` (5)
 //! with survival probability `min(max(throughput) · η², 0.95)`, and `hide_emitters`
-//! hides emitters seen directly from the camera.
+//! hides emitters (and the environment) seen directly from the camera.
 //!
 //! Random numbers come from the [`Sampler`] (Owen-scrambled Sobol' pairs), a pure function
 //! of pixel, sample index and dimension: pair 0 places the sample in its pixel, and each
-//! bounce takes two pairs (a point on the light; the BSDF's direction) and four hashed
-//! numbers for its discrete choices (which light, which lobe, reflection or refraction,
+//! bounce takes two pairs (a point on the light; the BSDF's direction) and hashed numbers
+//! for its discrete choices (which light, which lobe or reflection against refraction,
 //! roulette: `PixelSampler::get1_hashed`, a third of a scrambled pair's cost).
 //!
-//! Lights: emitting triangles (a mesh material's emission: one-sided, toward the side the
-//! triangle's winding makes its normal point, as Mitsuba's `area` emitter), chosen in
-//! proportion to power, a point uniformly on the chosen one; the scene's point,
-//! directional and spot lights (always falling off with the squared distance, as physical
-//! point lights do); the background, a constant environment met by rays that leave the
-//! scene (not sampled by next-event estimation yet).
-//!
-//! Materials, until the BSDFs of issue 34's second part: the diffuse reflectance
-//! (textured) as a Lambertian lobe, the mirror reflectance as a smooth conductor of that
-//! colour, and the transmittance as a smooth dielectric of the material's index (Fresnel
-//! weighted when the material says so); one lobe is chosen per bounce, in proportion to
-//! its weight. Phong highlights are not part of the path tracer.
+//! Surfaces scatter by their material's BSDF ([`crate::bsdf`]) in the shading frame
+//! (the shading normal, bent by the material's normal map), sided as Mitsuba's: a
+//! two-sided material is evaluated with the frame turned toward the viewer, a one-sided
+//! one is black from behind, and dielectrics tell inside from outside by the frame.
+//! Lights ([`crate::lights`]): emitting triangles, spheres and disks (one-sided, toward
+//! their normal, as Mitsuba's `area` emitter), point, spot and directional lights, the
+//! environment and the user's lights, one chosen per bounce in proportion to power;
+//! without an environment, rays that leave the scene see the background colour
+//! (a constant environment that next-event estimation does not sample).
 
-use super::{material, textured_kd, whitted::fresnel_dielectric, whitted::refract};
+use super::material;
+use crate::bsdf::Bsdf;
 use crate::sampler::Sampler;
-use crate::world::{luminance, World};
+use crate::world::{Surface, World};
 use glam::Vec3;
 use lucent_accel::{Hit, Ray};
-use lucent_scene::LightKind;
+use lucent_scene::Sides;
 
 /// Which strategies estimate the light arriving at a surface.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -98,54 +96,72 @@ fn frame(n: Vec3) -> (Vec3, Vec3) {
     (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
 }
 
-/// A cosine-weighted direction about `n` for `u` in [0, 1)² (Malley's method over a
-/// concentric disk, Shirley and Chiu 1997).
-#[inline]
-fn cosine_hemisphere(n: Vec3, u: (f32, f32)) -> Vec3 {
-    let (a, b) = (2.0 * u.0 - 1.0, 2.0 * u.1 - 1.0);
-    let (r, phi) = if a == 0.0 && b == 0.0 {
-        (0.0, 0.0)
-    } else if a.abs() > b.abs() {
-        (a, std::f32::consts::FRAC_PI_4 * (b / a))
-    } else {
-        (b, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (a / b))
-    };
-    let (x, y) = (r * phi.cos(), r * phi.sin());
-    let z = (1.0 - x * x - y * y).max(0.0).sqrt();
-    let (t, bt) = frame(n);
-    (t * x + bt * y + n * z).normalize()
+/// A shading frame: world to local and back.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Frame {
+    t: Vec3,
+    b: Vec3,
+    pub n: Vec3,
 }
 
-/// A uniformly distributed point on a triangle for `u` in [0, 1)² (the square folded onto
-/// the triangle).
-#[inline]
-fn triangle_point(p0: Vec3, e1: Vec3, e2: Vec3, u: (f32, f32)) -> Vec3 {
-    let (mut a, mut b) = u;
-    if a + b > 1.0 {
-        (a, b) = (1.0 - a, 1.0 - b);
+impl Frame {
+    pub fn new(n: Vec3) -> Self {
+        let (t, b) = frame(n);
+        Self { t, b, n }
     }
-    p0 + e1 * a + e2 * b
+    #[inline]
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        Vec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    }
+    #[inline]
+    pub fn to_world(&self, v: Vec3) -> Vec3 {
+        self.t * v.x + self.b * v.y + self.n * v.z
+    }
 }
 
-/// The lobes of a hit's material, with their weights (albedos).
-struct Lobes {
-    diffuse: Vec3,
-    mirror: Vec3,
-    transmit: Vec3,
-    ior: f32,
-    fresnel: bool,
+/// The shading normal at a surface point: the interpolated one, bent by the material's
+/// tangent-space normal map when it has one (tangents from the triangle's texture
+/// coordinates: x along ∂p/∂u, y along ∂p/∂v, as glTF's maps are authored).
+pub(crate) fn shading_normal(w: &World, ray: &Ray, hit: &Hit, surf: &Surface) -> Vec3 {
+    let mat = material(w, surf.material);
+    let Some(nm) = mat.normal_map else { return surf.ns };
+    let Some(tex) = w.scene.textures.get(nm.tex as usize) else { return surf.ns };
+    let Some((dpdu, dpdv)) = w.uv_tangents(ray, hit) else { return surf.ns };
+    let c = crate::texture::sample(tex, surf.uv).truncate() * 2.0 - Vec3::ONE;
+    let n = surf.ns;
+    let t = (dpdu - n * n.dot(dpdu)).normalize_or_zero();
+    let b = (dpdv - n * n.dot(dpdv) - t * t.dot(dpdv)).normalize_or_zero();
+    if t == Vec3::ZERO || b == Vec3::ZERO {
+        return n;
+    }
+    let bent = (t * (c.x * nm.scale) + b * (c.y * nm.scale) + n * c.z).normalize_or_zero();
+    if bent == Vec3::ZERO || !bent.is_finite() {
+        n
+    } else {
+        bent
+    }
 }
 
-impl Lobes {
-    /// The probability of choosing each lobe (diffuse, mirror, transmission).
-    fn choice(&self) -> [f32; 3] {
-        let w = [luminance(self.diffuse), luminance(self.mirror), luminance(self.transmit)].map(|x| x.max(0.0));
-        let sum = w[0] + w[1] + w[2];
-        if sum > 0.0 && sum.is_finite() {
-            w.map(|x| x / sum)
-        } else {
-            [0.0; 3]
-        }
+/// The BSDF of a surface point for a viewer along `-d`, and the frame to evaluate it in
+/// (sided as Mitsuba's: see the module's notes).
+pub(crate) fn bsdf_frame<'w>(w: &'w World, surf: &Surface, ns: Vec3, d: Vec3) -> (Bsdf<'w>, Frame) {
+    let prep = w.prepared(surf.material);
+    let mat = material(w, surf.material);
+    let textures = &w.scene.textures;
+    let back = -d.dot(ns) < 0.0;
+    let bsdf = prep.bsdf_at(textures, surf.uv);
+    if !back {
+        return (bsdf, Frame::new(ns));
+    }
+    match &mat.sides {
+        Sides::Back(_) => match &prep.back {
+            Some(b) => (b.bsdf_at(textures, surf.uv), Frame::new(-ns)),
+            None => (bsdf, Frame::new(-ns)),
+        },
+        // (A dielectric's inside is told by the frame: never turned.)
+        Sides::Both if !bsdf.transmits() || bsdf.symmetric() => (bsdf, Frame::new(-ns)),
+        _ if bsdf.symmetric() => (bsdf, Frame::new(-ns)),
+        _ => (bsdf, Frame::new(ns)),
     }
 }
 
@@ -155,10 +171,8 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
     let px = SAMPLER.pixel(x, y);
     let dims = |pair: u32| px.get2(index, pair);
     let choice_at = |depth: u32, k: u32| px.get1_hashed(index, depth.saturating_mul(CHOICES) + k);
-    let bg = w.scene.background;
-    let delta_lights = w.scene.lights.len();
-    let area = !w.emitters.is_empty();
-    let n_lights = delta_lights + usize::from(area);
+    let lights = &w.light_set;
+    let textures = &w.scene.textures;
     let mut radiance = Vec3::ZERO;
     let mut beta = Vec3::ONE;
     let mut ray = *camera_ray;
@@ -169,141 +183,90 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
     // The relative index of refraction along the path so far (for roulette).
     let mut eta = 1.0f32;
     let mut first = first;
+    let hidden = |depth: u32| depth == 0 && s.hide_emitters;
     loop {
         let found = match first.take() {
-            Some(h) => h,
-            None => w.intersect(&ray),
+            Some(Some(h)) if !w.has_alpha() => Some((ray, h)),
+            Some(None) => None,
+            _ => w.intersect_solid(&ray),
         };
-        let Some(hit) = found else {
-            if !(depth == 0 && s.hide_emitters) {
-                radiance += beta * bg;
+        let Some((hit_ray, hit)) = found else {
+            if !hidden(depth) {
+                let d = ray.dir.normalize();
+                match lights.env_radiance(d) {
+                    Some(le) => {
+                        let weight = if prev_delta {
+                            1.0
+                        } else {
+                            match s.sampling {
+                                LightSampling::Bsdf => 1.0,
+                                LightSampling::Nee => 0.0,
+                                LightSampling::Mis => power_heuristic(prev_pdf, lights.env_pdf(d)),
+                            }
+                        };
+                        radiance += beta * le * weight;
+                    }
+                    None => radiance += beta * w.scene.background,
+                }
             }
             break;
         };
+        ray = hit_ray;
         let surf = w.surface(&ray, &hit);
         let d = ray.dir.normalize();
         let mat = material(w, surf.material);
-        // Emission, on the side the triangle's normal points to.
-        if mat.emission.max_element() > 0.0 && d.dot(surf.ng) < 0.0 && !(depth == 0 && s.hide_emitters) {
+        // Emission, on the side the surface's normal points to.
+        if mat.emission.max_element() > 0.0 && d.dot(surf.ng) < 0.0 && !hidden(depth) {
+            let le = match mat.emission_tex.and_then(|t| textures.get(t as usize)) {
+                Some(t) => mat.emission * crate::texture::sample(t, surf.uv).truncate(),
+                None => mat.emission,
+            };
             let weight = if prev_delta {
                 1.0
             } else {
-                match s.sampling {
-                    LightSampling::Bsdf => 1.0,
-                    // (Emitters next-event estimation cannot sample count as they are met.)
-                    LightSampling::Nee => match w.emitters.find(hit.inst, hit.prim) {
-                        Some(_) => 0.0,
-                        None => 1.0,
-                    },
-                    LightSampling::Mis => match w.emitters.find(hit.inst, hit.prim) {
-                        Some(i) => {
-                            let cos_l = w.emitters.tris[i].n.dot(-d).abs().max(1e-12);
-                            let light_pdf = w.emitters.pdf(i, (surf.p - prev_p).length_squared(), cos_l) / n_lights as f32;
-                            power_heuristic(prev_pdf, light_pdf)
-                        }
-                        None => 1.0,
-                    },
+                match (s.sampling, lights.pdf_hit(hit.inst, hit.prim, prev_p, surf.p, d)) {
+                    (LightSampling::Bsdf, _) | (_, None) => 1.0,
+                    // (Emitters next-event estimation can sample count when it does.)
+                    (LightSampling::Nee, Some(_)) => 0.0,
+                    (LightSampling::Mis, Some(light_pdf)) => power_heuristic(prev_pdf, light_pdf),
                 }
             };
-            radiance += beta * mat.emission * weight;
+            radiance += beta * le * weight;
         }
         if depth.saturating_add(1) >= s.max_depth {
             break;
         }
         let base = 1 + depth.saturating_mul(PAIRS);
-        let (u_light, u_lobe) = (choice_at(depth, 0), choice_at(depth, 1));
-        let lobes = Lobes {
-            diffuse: textured_kd(w, mat, surf.uv),
-            mirror: mat.reflect,
-            transmit: mat.transmit,
-            ior: mat.ior.max(1e-3),
-            fresnel: mat.fresnel,
-        };
-        let choice = lobes.choice();
-        if choice == [0.0; 3] {
-            break;
-        }
-        // Normals facing the incoming ray.
-        let front = d.dot(surf.ng) < 0.0;
-        let ng = if front { surf.ng } else { -surf.ng };
-        let ns = if d.dot(surf.ns) < 0.0 { surf.ns } else { -surf.ns };
-        let p_diffuse = choice[0];
-        // Next-event estimation, for the diffuse lobe.
-        if p_diffuse > 0.0 && n_lights > 0 && s.sampling != LightSampling::Bsdf {
-            let f = lobes.diffuse * std::f32::consts::FRAC_1_PI;
-            let pick = ((u_light * n_lights as f32) as usize).min(n_lights - 1);
-            let u_pos = dims(base);
-            let sample = if pick < delta_lights {
-                delta_light(w, pick, surf.p).map(|(dir, dist, li)| (dir, dist, li, f32::INFINITY))
-            } else {
-                // Reuse u_light's fraction within the area lights' share to choose a
-                // triangle.
-                let u = (u_light * n_lights as f32 - delta_lights as f32).clamp(0.0, 1.0 - f32::EPSILON);
-                w.emitters.choose(u).and_then(|i| {
-                    let t = &w.emitters.tris[i];
-                    let q = triangle_point(t.p0, t.e1, t.e2, u_pos);
-                    let to = q - surf.p;
-                    let dist = to.length();
-                    let dir = to / dist;
-                    let cos_l = t.n.dot(-dir);
-                    if !(cos_l > 0.0 && dist > 0.0 && dist.is_finite()) {
-                        return None;
-                    }
-                    let pdf = w.emitters.pdf(i, dist * dist, cos_l);
-                    Some((dir, dist, t.le / pdf, pdf))
-                })
-            };
-            if let Some((dir, dist, li, light_pdf)) = sample {
-                let cos_s = ns.dot(dir);
-                if cos_s > 0.0 && ng.dot(dir) > 0.0 {
-                    let shadow = surf.spawn(dir);
-                    let tmax = if dist.is_finite() { dist * (1.0 - 1e-4) } else { f32::INFINITY };
-                    if !w.occluded(&shadow.with_range(0.0, tmax)) {
-                        let bsdf_pdf = p_diffuse * cos_s * std::f32::consts::FRAC_1_PI;
-                        let weight = if light_pdf.is_infinite() || s.sampling == LightSampling::Nee {
-                            1.0
-                        } else {
-                            // The light's pdf with the choice among the lights.
-                            power_heuristic(light_pdf / n_lights as f32, bsdf_pdf)
-                        };
-                        radiance += beta * f * li * cos_s * (n_lights as f32) * weight;
+        let ns = shading_normal(w, &ray, &hit, &surf);
+        let (bsdf, fr) = bsdf_frame(w, &surf, ns, d);
+        let wo = fr.to_local(-d);
+        // Next-event estimation.
+        if !bsdf.is_delta() && !lights.is_empty() && s.sampling != LightSampling::Bsdf {
+            if let Some(ls) = lights.sample(surf.p, choice_at(depth, 0), dims(base), textures) {
+                let wi = fr.to_local(ls.dir);
+                let f = bsdf.eval(wo, wi);
+                if f.max_element() > 0.0 {
+                    let shadow = surf.spawn(ls.dir);
+                    let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
+                    if !w.occluded_solid(&shadow.with_range(0.0, tmax)) {
+                        let weight =
+                            if ls.delta || s.sampling == LightSampling::Nee { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo, wi)) };
+                        radiance += beta * f * ls.li * (weight / ls.pdf);
                     }
                 }
             }
         }
-        // The next direction: one lobe, chosen in proportion to its weight.
-        let u_dir = dims(base + 1);
-        let (dir, weight, pdf, delta) = if u_lobe < choice[0] {
-            let dir = cosine_hemisphere(ns, u_dir);
-            if ng.dot(dir) <= 0.0 {
-                break;
-            }
-            // f cos / pdf = (kd / π) cos / (p cos / π).
-            (dir, lobes.diffuse / choice[0], choice[0] * ns.dot(dir).max(0.0) * std::f32::consts::FRAC_1_PI, false)
-        } else if u_lobe < choice[0] + choice[1] {
-            (d - ns * (2.0 * d.dot(ns)), lobes.mirror / choice[1], f32::INFINITY, true)
-        } else {
-            // A smooth dielectric: reflect with the Fresnel reflectance's probability.
-            let eta_rel = if front { 1.0 / lobes.ior } else { lobes.ior };
-            let cos_i = (-d.dot(ns)).clamp(0.0, 1.0);
-            let fr = if lobes.fresnel { fresnel_dielectric(cos_i, eta_rel) } else { 0.0 };
-            let u_fr = choice_at(depth, 2);
-            match refract(d, ns, eta_rel) {
-                Some(t) if u_fr >= fr => {
-                    eta *= 1.0 / eta_rel;
-                    (t, lobes.transmit / choice[2], f32::INFINITY, true)
-                }
-                _ => (d - ns * (2.0 * d.dot(ns)), lobes.transmit / choice[2], f32::INFINITY, true),
-            }
-        };
-        beta *= weight;
+        // The next direction.
+        let Some(bs) = bsdf.sample(wo, choice_at(depth, 1), dims(base + 1)) else { break };
+        beta *= bs.weight;
         if !beta.is_finite() || beta.max_element() <= 0.0 {
             break;
         }
-        prev_pdf = pdf;
-        prev_delta = delta;
+        eta *= bs.eta;
+        prev_pdf = bs.pdf;
+        prev_delta = bs.delta;
         prev_p = surf.p;
-        ray = surf.spawn(dir);
+        ray = surf.spawn(fr.to_world(bs.wi));
         depth += 1;
         // Russian roulette.
         if depth >= s.rr_depth {
@@ -323,38 +286,16 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
     }
 }
 
-/// Scene light `i` seen from `p`: the unit direction toward it, its distance (infinite for
-/// a directional light) and the radiance it brings (irradiance at normal incidence).
-fn delta_light(w: &World, i: usize, p: Vec3) -> Option<(Vec3, f32, Vec3)> {
-    let l = w.scene.lights.get(i)?;
-    match l.kind {
-        LightKind::Directional { direction } => {
-            let dir = -direction.normalize_or_zero();
-            (dir != Vec3::ZERO).then_some((dir, f32::INFINITY, l.color))
-        }
-        LightKind::Point { position } | LightKind::Spot { position, .. } => {
-            let to = position - p;
-            let dist = to.length();
-            if !(dist > 0.0 && dist.is_finite()) {
-                return None;
-            }
-            let dir = to / dist;
-            let falloff = match l.kind {
-                LightKind::Spot { direction, inner, outer, .. } => {
-                    // Mitsuba's spot falloff: full inside `inner`, a linear ramp of the
-                    // angle to zero at `outer`.
-                    let angle = (-dir).dot(direction.normalize_or_zero()).clamp(-1.0, 1.0).acos();
-                    if angle <= inner {
-                        1.0
-                    } else if angle >= outer || outer <= inner {
-                        0.0
-                    } else {
-                        (outer - angle) / (outer - inner)
-                    }
-                }
-                _ => 1.0,
-            };
-            (falloff > 0.0).then(|| (dir, dist, l.color * falloff / (dist * dist)))
-        }
-    }
+/// What a denoiser's guide layers hold for a camera ray: the albedo, the shading normal
+/// and the distance of its first visible surface (the background's colour, zero and
+/// infinity where it meets nothing).
+pub(crate) fn aovs(w: &World, ray: &Ray) -> (Vec3, Vec3, f32) {
+    let Some((r, hit)) = w.intersect_solid(ray) else {
+        return (w.scene.background, Vec3::ZERO, f32::INFINITY);
+    };
+    let surf = w.surface(&r, &hit);
+    let ns = shading_normal(w, &r, &hit, &surf);
+    let albedo = w.prepared(surf.material).albedo(&w.scene.textures, surf.uv);
+    let depth = (surf.p - ray.org).length();
+    (albedo, ns, depth)
 }

@@ -14,10 +14,11 @@ mod rules;
 mod schema;
 
 use crate::anim::{Channel, Interp, Morph, Node, SceneAnimation, Skin, Target};
+use crate::bsdf::{Bsdf, ColorTex, FloatTex};
 use crate::error::ImportError;
 use crate::model::{Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene, Wrap};
 use crate::texture::texture_from_image;
-use glam::{Affine3A, Mat4, Quat, Vec2, Vec3};
+use glam::{Affine2, Affine3A, Mat4, Quat, Vec2, Vec3};
 use json::{ptr, Doc, R};
 use serde_json::Value;
 use std::path::Path;
@@ -98,7 +99,9 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
     // Textures: one per glTF texture (None where its image is missing or in a format an
     // extension provides).
     let samplers = doc.items("samplers")?;
-    let mut tex_map: Vec<Option<u32>> = Vec::new();
+    // Per glTF texture: its image and wrap modes; lucent textures are made on first use,
+    // one per (texture, colour space): base colour and emission are sRGB, the rest data.
+    let mut sources: Vec<Option<(usize, Wrap, Wrap)>> = Vec::new();
     for (i, t) in doc.items("textures")?.iter().enumerate() {
         let at = ptr(&[&"textures", &i]);
         let src = doc.index(t, "source", &at, images.len(), "image")?;
@@ -111,53 +114,106 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
             })
         };
         let (wu, wv) = (wrap("wrapS")?, wrap("wrapT")?);
-        match src.and_then(|s| decoded[s].clone().map(|im| (s, im))) {
-            Some((s, im)) => {
-                let name = images[s].get("name").and_then(Value::as_str).unwrap_or("texture").to_string();
-                scene.textures.push(texture_from_image(name, im, wu, wv, true));
-                tex_map.push(Some((scene.textures.len() - 1) as u32));
-            }
+        match src.filter(|&s| decoded[s].is_some()) {
+            Some(s) => sources.push(Some((s, wu, wv))),
             None => {
                 if src.is_none() {
                     warn(&at, "no image lucent can decode (an extension's image?); using the plain colour");
                 }
-                tex_map.push(None);
+                sources.push(None);
             }
         }
     }
+    let mut made: std::collections::HashMap<(usize, bool), u32> = std::collections::HashMap::new();
+    let mut texture = |scene: &mut Scene, t: usize, srgb: bool| -> Option<u32> {
+        let (s, wu, wv) = sources.get(t).copied().flatten()?;
+        if let Some(&id) = made.get(&(t, srgb)) {
+            return Some(id);
+        }
+        let im = decoded[s].clone()?;
+        let name = images[s].get("name").and_then(Value::as_str).unwrap_or("texture").to_string();
+        scene.textures.push(texture_from_image(name, im, wu, wv, srgb));
+        let id = (scene.textures.len() - 1) as u32;
+        made.insert((t, srgb), id);
+        Some(id)
+    };
     // Materials (index 0 = default for primitives without one).
     scene.materials.push(Material::default());
     let materials = doc.items("materials")?;
     for (i, m) in materials.iter().enumerate() {
         let at = ptr(&[&"materials", &i]);
         let pbr = m.get("pbrMetallicRoughness").cloned().unwrap_or(Value::Null);
+        // A texture reference's index (checked), at `parent`/`key`.
+        let tex_ref = |parent: &Value, key: &str, at: &str| -> R<Option<usize>> {
+            match parent.get(key) {
+                Some(t) => doc.index(t, "index", &format!("{at}/{key}"), sources.len(), "texture"),
+                None => Ok(None),
+            }
+        };
+        let pat = format!("{at}/pbrMetallicRoughness");
         let bc = floats::<4>(&pbr, "baseColorFactor").unwrap_or([1.0; 4]);
         let base = Vec3::new(bc[0], bc[1], bc[2]);
-        let metallic = f32_at(&pbr, "metallicFactor").unwrap_or(1.0).clamp(0.0, 1.0);
-        let rough = f32_at(&pbr, "roughnessFactor").unwrap_or(1.0).clamp(0.02, 1.0);
-        let tex = match pbr.get("baseColorTexture") {
-            Some(t) => doc.index(t, "index", &format!("{at}/pbrMetallicRoughness/baseColorTexture"), tex_map.len(), "texture")?,
-            None => None,
-        };
+        let metallic_f = f32_at(&pbr, "metallicFactor").unwrap_or(1.0).clamp(0.0, 1.0);
+        let rough_f = f32_at(&pbr, "roughnessFactor").unwrap_or(1.0).clamp(0.0, 1.0);
+        let rough = rough_f.max(0.02);
+        let base_tex = tex_ref(&pbr, "baseColorTexture", &pat)?.and_then(|t| texture(&mut scene, t, true));
+        let mr_tex = tex_ref(&pbr, "metallicRoughnessTexture", &pat)?.and_then(|t| texture(&mut scene, t, false));
+        let normal = tex_ref(m, "normalTexture", &at)?.and_then(|t| texture(&mut scene, t, false));
+        let emissive_tex = tex_ref(m, "emissiveTexture", &at)?.and_then(|t| texture(&mut scene, t, true));
         let strength =
             m.pointer("/extensions/KHR_materials_emissive_strength/emissiveStrength").and_then(Value::as_f64).unwrap_or(1.0) as f32;
         let mut mat = Material {
             name: m.get("name").and_then(Value::as_str).unwrap_or("material").to_string(),
-            diffuse: base * (1.0 - metallic),
-            diffuse_tex: tex.and_then(|t| tex_map[t]),
-            specular: Vec3::splat(0.04 * (1.0 - metallic)) + base * metallic,
+            diffuse: base * (1.0 - metallic_f),
+            diffuse_tex: base_tex,
+            specular: Vec3::splat(0.04 * (1.0 - metallic_f)) + base * metallic_f,
             shininess: (2.0 / (rough * rough * rough * rough) - 2.0).clamp(1.0, 4096.0),
             emission: Vec3::from(floats::<3>(m, "emissiveFactor").unwrap_or([0.0; 3])) * strength,
-            reflect: base * metallic,
+            emission_tex: emissive_tex,
+            reflect: base * metallic_f,
             ..Material::default()
         };
+        if let Some(n) = normal {
+            let scale = m.pointer("/normalTexture/scale").and_then(Value::as_f64).unwrap_or(1.0) as f32;
+            mat.normal_map = Some(crate::bsdf::NormalMap { tex: n, scale });
+        }
+        match m.get("alphaMode").and_then(Value::as_str) {
+            Some(mode @ ("MASK" | "BLEND")) => {
+                let cutoff = if mode == "MASK" { f32_at(m, "alphaCutoff").unwrap_or(0.5) } else { 0.5 };
+                mat.alpha = crate::bsdf::Alpha::Mask { cutoff, tex: base_tex, factor: bc[3] };
+            }
+            _ => {}
+        }
+        let mut transmission = FloatTex::Const(0.0);
         if let Some(t) = m.pointer("/extensions/KHR_materials_transmission") {
-            mat.transmit = Vec3::splat(f32_at(t, "transmissionFactor").unwrap_or(0.0));
+            let factor = f32_at(t, "transmissionFactor").unwrap_or(0.0).clamp(0.0, 1.0);
+            mat.transmit = Vec3::splat(factor);
             mat.fresnel = true;
+            let tat = format!("{at}/extensions/KHR_materials_transmission");
+            transmission = match tex_ref(t, "transmissionTexture", &tat)?.and_then(|x| texture(&mut scene, x, false)) {
+                Some(tex) => FloatTex::Image { tex, channel: 0, scale: factor, to_uv: Affine2::IDENTITY },
+                None => FloatTex::Const(factor),
+            };
         }
         if let Some(ior) = m.pointer("/extensions/KHR_materials_ior").map(|e| f32_at(e, "ior").unwrap_or(1.5)) {
             mat.ior = ior;
         }
+        let channel = |channel: u8, scale: f32| match mr_tex {
+            Some(tex) => FloatTex::Image { tex, channel, scale, to_uv: Affine2::IDENTITY },
+            None => FloatTex::Const(scale),
+        };
+        mat.bsdf = Some(Bsdf::MetallicRoughness {
+            base_color: match base_tex {
+                Some(tex) => ColorTex::Image { tex, scale: base, to_uv: Affine2::IDENTITY },
+                None => ColorTex::Const(base),
+            },
+            metallic: channel(2, metallic_f),
+            roughness: channel(1, rough_f),
+            transmission,
+            // glTF's default 1.5; an index of 0 (allowed by the extension) means a
+            // perfect reflector, which the BRDF reads as its limit, a very large index.
+            ior: if mat.ior == 0.0 { 1e4 } else { mat.ior.max(1.0) },
+        });
         if let Some(fm) = m.pointer("/extras/aff_fm") {
             // BART/NFF material: use its Phong terms directly.
             let v3 = |k: &str| floats::<3>(fm, k).map(Vec3::from);
@@ -173,6 +229,8 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
             if let Some(ior) = f("ior").filter(|&x| x > 0.0) {
                 mat.ior = ior;
             }
+            // The path tracer reads the AFF terms as MTL's (crate::bsdf).
+            mat.bsdf = Some(crate::obj::phong_bsdf(&mat));
         }
         scene.materials.push(mat);
     }

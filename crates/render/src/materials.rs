@@ -1,0 +1,169 @@
+//! The scene's materials prepared for the path tracer: what can be computed once per
+//! material (rough plastic's coating tables, plastics' sampling weights and diffuse Fresnel
+//! reflectance, the user's BSDFs) kept beside it, and [`Prepared::bsdf_at`] resolving the
+//! textures of a surface point into a [`Bsdf`].
+
+use crate::bsdf::microfacet::{fresnel_diffuse_reflectance, Microfacet};
+use crate::bsdf::{plastic_spec_weight, Bsdf, BsdfModel, RoughPlasticTables};
+use crate::texture::sample;
+use glam::{Vec2, Vec3, Vec4};
+use lucent_scene::{Bsdf as Desc, ColorTex, FloatTex, Material, Scene, Texture};
+use std::sync::Arc;
+
+/// One material, prepared.
+#[derive(Debug, Clone)]
+pub(crate) struct Prepared {
+    /// The model (the scene's, or its Phong terms read as one).
+    pub desc: Desc,
+    /// The back's model, for `Sides::Back`.
+    pub back: Option<Box<Prepared>>,
+    /// Rough plastic's tables.
+    tables: Option<Box<RoughPlasticTables>>,
+    /// Plastics' specular sampling weight.
+    spec_weight: f32,
+    /// Smooth plastic's diffuse Fresnel reflectance from inside.
+    fdr_int: f32,
+    /// A BSDF of the user's own, replacing `desc`.
+    pub custom: Option<Arc<dyn BsdfModel>>,
+}
+
+/// The mean of a texture's texels (linear), for Mitsuba's `mean()` of a bitmap.
+fn texture_mean(t: &Texture) -> Vec4 {
+    let (w, h) = (t.width as usize, t.height as usize);
+    if w == 0 || h == 0 {
+        return Vec4::ONE;
+    }
+    let mut sum = glam::DVec4::ZERO;
+    for y in 0..h {
+        for x in 0..w {
+            sum += t.texel_at(x, y).as_dvec4();
+        }
+    }
+    (sum / (w * h) as f64).as_vec4()
+}
+
+/// A colour parameter's mean over the surface.
+fn color_mean(c: &ColorTex, textures: &[Texture]) -> Vec3 {
+    match c {
+        ColorTex::Image { tex, scale, .. } => textures.get(*tex as usize).map_or(Vec3::ONE, |t| texture_mean(t).truncate()) * *scale,
+        _ => c.mean_guess(),
+    }
+}
+
+impl Prepared {
+    /// Prepares one material's BSDF.
+    pub fn new(desc: Desc, scene: &Scene) -> Self {
+        let mut p = Self { desc, back: None, tables: None, spec_weight: 0.5, fdr_int: 0.0, custom: None };
+        if let Desc::Plastic { diffuse, specular, eta, rough, .. } = &p.desc {
+            p.spec_weight = plastic_spec_weight(color_mean(diffuse, &scene.textures), color_mean(specular, &scene.textures));
+            p.fdr_int = fresnel_diffuse_reflectance(1.0 / eta);
+            if let Some((dist, alpha)) = rough {
+                p.tables = Some(Box::new(RoughPlasticTables::new(&Microfacet::new(*dist, *alpha), *eta)));
+            }
+        }
+        p
+    }
+
+    /// Prepares a scene material (its back too).
+    pub fn of(m: &Material, scene: &Scene) -> Self {
+        let mut p = Self::new(m.bsdf().into_owned(), scene);
+        if let lucent_scene::Sides::Back(b) = &m.sides {
+            p.back = Some(Box::new(Self::new((**b).clone(), scene)));
+        }
+        p
+    }
+
+    /// The BSDF at texture coordinates `uv`.
+    pub fn bsdf_at<'a>(&'a self, textures: &[Texture], uv: Vec2) -> Bsdf<'a> {
+        if let Some(c) = &self.custom {
+            return Bsdf::Custom(c.as_ref(), uv);
+        }
+        let color = |c: &ColorTex| eval_color(c, textures, uv);
+        let float = |f: &FloatTex| eval_float(f, textures, uv);
+        let rough = |r: &Option<lucent_scene::Rough>| r.as_ref().map(|r| Microfacet::new(r.dist, float(&r.alpha)));
+        match &self.desc {
+            Desc::Diffuse { reflectance } => Bsdf::Diffuse { r: color(reflectance) },
+            Desc::Conductor { eta, k, specular, rough: r } => Bsdf::Conductor { eta: *eta, k: *k, spec: color(specular), mf: rough(r) },
+            Desc::Dielectric { eta, reflectance, transmittance, rough: r } => {
+                Bsdf::Dielectric { eta: *eta, refl: color(reflectance), trans: color(transmittance), mf: rough(r) }
+            }
+            Desc::ThinDielectric { eta, reflectance, transmittance } => {
+                Bsdf::Thin { eta: *eta, refl: color(reflectance), trans: color(transmittance) }
+            }
+            Desc::Plastic { diffuse, specular, eta, nonlinear, rough: r } => match (r, &self.tables) {
+                (Some((dist, alpha)), Some(tables)) => Bsdf::RoughPlastic {
+                    diffuse: color(diffuse),
+                    spec: color(specular),
+                    nonlinear: *nonlinear,
+                    spec_weight: self.spec_weight,
+                    mf: Microfacet::new(*dist, *alpha),
+                    tables,
+                },
+                _ => Bsdf::Plastic {
+                    diffuse: color(diffuse),
+                    spec: color(specular),
+                    eta: *eta,
+                    nonlinear: *nonlinear,
+                    spec_weight: self.spec_weight,
+                    fdr_int: self.fdr_int,
+                },
+            },
+            Desc::MetallicRoughness { base_color, metallic, roughness, transmission, ior } => {
+                let r = float(roughness).clamp(0.0, 1.0);
+                let f0 = ((ior - 1.0) / (ior + 1.0)).powi(2);
+                Bsdf::MetallicRoughness {
+                    base: color(base_color),
+                    metallic: float(metallic).clamp(0.0, 1.0),
+                    mf: Microfacet::new(lucent_scene::Distribution::Ggx, r * r),
+                    transmission: float(transmission).clamp(0.0, 1.0),
+                    f0: if f0.is_finite() { f0 } else { 0.04 },
+                }
+            }
+            Desc::DiffuseGlossy { diffuse, specular, alpha } => {
+                Bsdf::DiffuseGlossy { kd: color(diffuse), ks: *specular, mf: Microfacet::new(lucent_scene::Distribution::Beckmann, *alpha) }
+            }
+        }
+    }
+
+    /// The albedo a denoiser's AOV shows: the diffuse or base colour where there is one,
+    /// else the specular factor.
+    pub fn albedo(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
+        let color = |c: &ColorTex| eval_color(c, textures, uv);
+        match &self.desc {
+            Desc::Diffuse { reflectance } => color(reflectance),
+            Desc::Conductor { specular, .. } => color(specular),
+            Desc::Dielectric { transmittance, .. } | Desc::ThinDielectric { transmittance, .. } => color(transmittance),
+            Desc::Plastic { diffuse, .. } | Desc::DiffuseGlossy { diffuse, .. } => color(diffuse),
+            Desc::MetallicRoughness { base_color, .. } => color(base_color),
+        }
+    }
+}
+
+/// A colour parameter at `uv`.
+pub(crate) fn eval_color(c: &ColorTex, textures: &[Texture], uv: Vec2) -> Vec3 {
+    match c {
+        ColorTex::Const(v) => *v,
+        ColorTex::Image { tex, scale, to_uv } => match textures.get(*tex as usize) {
+            Some(t) => sample(t, to_uv.transform_point2(uv)).truncate() * *scale,
+            None => *scale,
+        },
+        ColorTex::Checker { a, b, to_uv } => {
+            if ColorTex::checker_even(to_uv, uv) {
+                *a
+            } else {
+                *b
+            }
+        }
+    }
+}
+
+/// A scalar parameter at `uv`.
+pub(crate) fn eval_float(f: &FloatTex, textures: &[Texture], uv: Vec2) -> f32 {
+    match f {
+        FloatTex::Const(v) => *v,
+        FloatTex::Image { tex, channel, scale, to_uv } => match textures.get(*tex as usize) {
+            Some(t) => sample(t, to_uv.transform_point2(uv))[(*channel).min(3) as usize] * scale,
+            None => *scale,
+        },
+    }
+}
