@@ -13,7 +13,7 @@ mod coverage;
 pub mod film;
 pub mod integrator;
 pub mod lights;
-mod materials;
+pub mod materials;
 mod render;
 pub mod sampler;
 mod shading;

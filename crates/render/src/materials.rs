@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 /// One material, prepared.
 #[derive(Debug, Clone)]
-pub(crate) struct Prepared {
+pub struct Prepared {
     /// The model (the scene's, or its Phong terms read as one).
     pub desc: Desc,
     /// The back's model, for `Sides::Back`.
@@ -51,7 +51,8 @@ fn color_mean(c: &ColorTex, textures: &[Texture]) -> Vec3 {
 }
 
 impl Prepared {
-    /// Prepares one material's BSDF.
+    /// Prepares one BSDF (`scene` for its textures).
+    #[must_use]
     pub fn new(desc: Desc, scene: &Scene) -> Self {
         let mut p = Self { desc, back: None, tables: None, spec_weight: 0.5, fdr_int: 0.0, custom: None };
         if let Desc::Plastic { diffuse, specular, eta, rough, .. } = &p.desc {
@@ -65,6 +66,7 @@ impl Prepared {
     }
 
     /// Prepares a scene material (its back too).
+    #[must_use]
     pub fn of(m: &Material, scene: &Scene) -> Self {
         let mut p = Self::new(m.bsdf().into_owned(), scene);
         if let lucent_scene::Sides::Back(b) = &m.sides {
@@ -73,7 +75,8 @@ impl Prepared {
         p
     }
 
-    /// The BSDF at texture coordinates `uv`.
+    /// The BSDF at texture coordinates `uv` (`textures`: the scene's).
+    #[must_use]
     pub fn bsdf_at<'a>(&'a self, textures: &[Texture], uv: Vec2) -> Bsdf<'a> {
         if let Some(c) = &self.custom {
             return Bsdf::Custom(c.as_ref(), uv);
@@ -127,6 +130,7 @@ impl Prepared {
 
     /// The albedo a denoiser's AOV shows: the diffuse or base colour where there is one,
     /// else the specular factor.
+    #[must_use]
     pub fn albedo(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
         let color = |c: &ColorTex| eval_color(c, textures, uv);
         match &self.desc {

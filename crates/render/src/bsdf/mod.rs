@@ -447,7 +447,11 @@ impl Bsdf<'_> {
                         // the ones seen from the mirrored direction.
                         let m = mf.sample(if wo.z < 0.0 { -wo } else { wo }, u2);
                         let (f, cos_t) = fresnel_dielectric(wo.dot(m), eta);
-                        let wi = if u < f { reflect(wo, m) } else { refract(wo, m, cos_t, eta) };
+                        let (wi, reflected) = if u < f { (reflect(wo, m), true) } else { (refract(wo, m, cos_t, eta), false) };
+                        // (A facet can turn a direction to the wrong side: no sample.)
+                        if same_side(wo, wi) != reflected {
+                            return None;
+                        }
                         from_eval(wi)
                     }
                 }
