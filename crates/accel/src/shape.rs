@@ -6,6 +6,7 @@
 //! - `Sphere`: x²+y²+z² = 1.
 //! - `Cylinder`: x²+y² = 1, infinite along z, no caps (REND3R).
 //! - `CappedCylinder`: x²+y² ≤ 1 for z in [-1, 1], with caps.
+//! - `Tube`: x²+y² = 1 for z in [-1, 1], open (Mitsuba's `cylinder`).
 //! - `Cone`: x²+y² = z², infinite double cone, apex at the origin (REND3R).
 //! - `CappedCone`: x²+y² = z² for z in [0, 1], closed by a disk at z = 1.
 //! - `Box`: [-1, 1]³.
@@ -33,6 +34,8 @@ pub enum Shape {
     Box,
     /// Unit disk in z = 0.
     Disk,
+    /// Unit cylinder, z in [-1, 1], open at both ends (Mitsuba's `cylinder`).
+    Tube,
 }
 
 /// A hit on a shape: distance and the part hit (side, cap, face). Surface parameters come
@@ -51,7 +54,7 @@ impl Shape {
     pub fn bounds_local(self) -> Aabb {
         let inf = f32::INFINITY;
         match self {
-            Shape::Sphere | Shape::CappedCylinder | Shape::Box => Aabb { min: Vec3::splat(-1.0), max: Vec3::ONE },
+            Shape::Sphere | Shape::CappedCylinder | Shape::Tube | Shape::Box => Aabb { min: Vec3::splat(-1.0), max: Vec3::ONE },
             Shape::Cylinder => Aabb { min: Vec3::new(-1.0, -1.0, -inf), max: Vec3::new(1.0, 1.0, inf) },
             Shape::Cone => Aabb { min: Vec3::splat(-inf), max: Vec3::splat(inf) },
             Shape::CappedCone => Aabb { min: Vec3::new(-1.0, -1.0, 0.0), max: Vec3::ONE },
@@ -82,11 +85,12 @@ impl Shape {
                     consider(t, 0, true);
                 }
             }
-            Shape::Cylinder | Shape::CappedCylinder => {
+            Shape::Cylinder | Shape::CappedCylinder | Shape::Tube => {
                 let capped = self == Shape::CappedCylinder;
+                let finite = self != Shape::Cylinder;
                 for t in quadric(d.x * d.x + d.y * d.y, d.x * o.x + d.y * o.y, o.x * o.x + o.y * o.y - 1.0) {
                     let z = o.z + t * d.z;
-                    consider(t, 0, !capped || (-1.0..=1.0).contains(&z));
+                    consider(t, 0, !finite || (-1.0..=1.0).contains(&z));
                 }
                 if capped && d.z != 0.0 {
                     for (part, zc) in [(1, -1.0), (2, 1.0)] {
@@ -176,7 +180,7 @@ impl Shape {
         match self {
             Shape::Sphere => (phi, (p.z.clamp(-1.0, 1.0).acos() / PI)),
             Shape::Cylinder | Shape::Cone => (phi, p.z - p.z.floor()),
-            Shape::CappedCylinder if part == 0 => (phi, (p.z + 1.0) * 0.5),
+            Shape::CappedCylinder | Shape::Tube if part == 0 => (phi, (p.z + 1.0) * 0.5),
             Shape::CappedCone if part == 0 => (phi, p.z),
             Shape::Box => {
                 let axis = part as usize / 2;
@@ -193,7 +197,7 @@ impl Shape {
     pub fn normal_local(self, p: Vec3, part: u32) -> Vec3 {
         match (self, part) {
             (Shape::Sphere, _) => p,
-            (Shape::Cylinder | Shape::CappedCylinder, 0) => Vec3::new(p.x, p.y, 0.0),
+            (Shape::Cylinder | Shape::CappedCylinder | Shape::Tube, 0) => Vec3::new(p.x, p.y, 0.0),
             (Shape::CappedCylinder, 1) => -Vec3::Z,
             (Shape::CappedCylinder, _) => Vec3::Z,
             (Shape::Cone, _) | (Shape::CappedCone, 0) => Vec3::new(p.x, p.y, -p.z),
@@ -204,7 +208,7 @@ impl Shape {
                 n
             }
             (Shape::Disk, _) => Vec3::Z,
-            (Shape::Cylinder, _) => Vec3::new(p.x, p.y, 0.0),
+            (Shape::Cylinder | Shape::Tube, _) => Vec3::new(p.x, p.y, 0.0),
         }
     }
 }

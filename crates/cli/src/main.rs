@@ -32,72 +32,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Render a scene (or the built-in demo) to a PNG or EXR image with Whitted ray tracing.
-    Render {
-        /// Scene file (.obj, .obj.gz, .ply, .gltf, .glb). Without it: the built-in demo scene.
-        scene: Option<PathBuf>,
-        #[command(flatten)]
-        demo: render_cmd::DemoArg,
-        /// Camera as EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV: eye, look-at point, up vector, vertical
-        /// field of view in degrees. Default: the scene's camera, else one framing the scene.
-        #[arg(long, value_delimiter = ',', allow_hyphen_values = true, num_args = 1)]
-        camera: Option<Vec<f32>>,
-        /// Orthographic projection (same view height as the perspective view at the look-at point).
-        #[arg(long)]
-        ortho: bool,
-        /// Image size WIDTHxHEIGHT.
-        #[arg(long, default_value = "1024x768", value_parser = render_cmd::parse_size)]
-        size: (u32, u32),
-        /// Samples per pixel (jittered, deterministic per pixel and sample).
-        #[arg(long, default_value_t = 1)]
-        spp: u32,
-        /// Render for this many seconds instead, adding samples pass by pass (each pass a
-        /// region of the film; --spp above 1 still caps the count), and report how many
-        /// fit.
-        #[arg(long)]
-        time: Option<f64>,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Output image: .png (8-bit sRGB) or .exr (linear float).
-        #[arg(short, long, default_value = "out.png")]
-        output: PathBuf,
-        /// What the rays compute: `whitted` (point lights, hard shadows, mirror and glass),
-        /// `path` (path tracing: emitting surfaces light the scene, soft shadows, light
-        /// bouncing between surfaces; converges as --spp grows), `eye-light` (a light at
-        /// the eye, no shadows: the fastest preview) or `normals` (shading normals as
-        /// colours).
-        #[arg(long, default_value = "whitted", value_parser = render_cmd::INTEGRATORS)]
-        integrator: String,
-        /// Whitted: most reflection/refraction generations (default 6). Path: most path
-        /// segments, as Mitsuba counts them (1: emitters only, 2: direct light; default
-        /// unlimited).
-        #[arg(long)]
-        max_depth: Option<u32>,
-        /// Path: the depth from which Russian roulette may end paths.
-        #[arg(long, default_value_t = 5)]
-        rr_depth: u32,
-        /// Path: emitters seen directly from the camera show the background.
-        #[arg(long)]
-        hide_emitters: bool,
-        /// Turn shadow rays off.
-        #[arg(long)]
-        no_shadows: bool,
-        /// Use the watertight triangle test instead of the unit-triangle test.
-        #[arg(long)]
-        watertight: bool,
-        /// Trace every ray on its own instead of in 8×8 packets (the same image, slower;
-        /// for comparisons).
-        #[arg(long)]
-        single_rays: bool,
-        /// BVH quality: `high` (binned SAH, then insertion-based optimization: the
-        /// default), `sah` (binned SAH only: the shortest build, rays 5-15% slower) or
-        /// `spatial` (binned SAH with spatial splits: triangles cut between leaves; much
-        /// faster on scenes of large, overlapping triangles such as Sponza, slower on
-        /// others, up to 2× the build).
-        #[arg(long, default_value = "high", value_parser = ["high", "sah", "spatial"])]
-        quality: String,
-    },
+    /// Render a scene (or a built-in one) to a PNG or EXR image: path traced by default,
+    /// or with Whitted ray tracing or a debug view (--integrator).
+    Render(render_cmd::RenderArgs),
     /// Assemble a REND3R program (.rdr) into instruction words (.mem text or raw binary).
     Asm {
         /// REND3R assembly source.
@@ -578,39 +515,7 @@ fn run() -> Result<()> {
         }
     }
     match cli.cmd {
-        Cmd::Render {
-            scene,
-            demo,
-            camera,
-            ortho,
-            size,
-            spp,
-            time,
-            threads,
-            output,
-            integrator,
-            max_depth,
-            rr_depth,
-            hide_emitters,
-            no_shadows,
-            watertight,
-            single_rays,
-            quality,
-        } => render_cmd::run(render_cmd::RenderArgs {
-            scene,
-            demo,
-            camera,
-            ortho,
-            size,
-            spp,
-            time,
-            threads,
-            output,
-            integrator: render_cmd::integrator_of(&integrator, max_depth, no_shadows, rr_depth, hide_emitters),
-            watertight,
-            single_rays,
-            quality: quality_of(&quality),
-        }),
+        Cmd::Render(args) => render_cmd::run(args),
         Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo),
         Cmd::Animate { scene, demo, from, to, fps, size, camera, spp, integrator, max_depth, no_shadows, output } => {
             let integrator = render_cmd::integrator_of(&integrator, max_depth, no_shadows, 5, false);

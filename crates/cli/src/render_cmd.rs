@@ -13,20 +13,80 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Options of `lucent render`.
+#[derive(clap::Args, Debug)]
 pub struct RenderArgs {
+    /// Scene file (.obj, .obj.gz, .ply, .gltf, .glb, or a Mitsuba 3 .xml scene). Without it:
+    /// a built-in scene (the path-tracing studio, or the feature demo for the other
+    /// integrators).
     pub scene: Option<PathBuf>,
+    #[command(flatten)]
     pub demo: DemoArg,
+    /// Camera as EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV: eye, look-at point, up vector, vertical
+    /// field of view in degrees. Default: the scene's camera, else one framing the scene.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, num_args = 1)]
     pub camera: Option<Vec<f32>>,
+    /// Orthographic projection (same view height as the perspective view at the look-at point).
+    #[arg(long)]
     pub ortho: bool,
-    pub size: (u32, u32),
-    pub spp: u32,
+    /// Image size WIDTHxHEIGHT. Default: the scene file's film (Mitsuba), else 1024x768.
+    #[arg(long, value_parser = parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Samples per pixel (jittered, deterministic per pixel and sample). Default: the scene
+    /// file's (Mitsuba), else 16 for path tracing and 1 for the others.
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Render for this many seconds instead, adding samples pass by pass (each pass a
+    /// region of the film; --spp above 1 still caps the count), and report how many
+    /// fit.
+    #[arg(long)]
     pub time: Option<f64>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
     pub threads: Option<usize>,
+    /// Output image: .png (8-bit sRGB, tone-mapped by clamping) or .exr (linear float).
+    #[arg(short, long, default_value = "out.png")]
     pub output: PathBuf,
-    pub integrator: Integrator,
+    /// With an .exr output: also write the layers a denoiser is guided by, for the first
+    /// surface each pixel sees: `albedo.R/G/B`, the shading normal `N.X/Y/Z` and the
+    /// distance `Z`.
+    #[arg(long)]
+    pub aovs: bool,
+    /// What the rays compute: `path` (path tracing, the default: area lights, soft
+    /// shadows, light bouncing between surfaces, every material's BSDF; converges as --spp
+    /// grows), `whitted` (point lights, hard shadows, mirror and glass), `eye-light` (a
+    /// light at the eye, no shadows: the fastest preview) or `normals` (shading normals as
+    /// colours).
+    #[arg(long, value_parser = INTEGRATORS)]
+    pub integrator: Option<String>,
+    /// Whitted: most reflection/refraction generations (default 6). Path: most path
+    /// segments, as Mitsuba counts them (1: emitters only, 2: direct light; default: the
+    /// scene file's, else unlimited).
+    #[arg(long)]
+    pub max_depth: Option<u32>,
+    /// Path: the depth from which Russian roulette may end paths (default: the scene
+    /// file's, else 5).
+    #[arg(long)]
+    pub rr_depth: Option<u32>,
+    /// Path: emitters seen directly from the camera show the background.
+    #[arg(long)]
+    pub hide_emitters: bool,
+    /// Turn shadow rays off (Whitted).
+    #[arg(long)]
+    pub no_shadows: bool,
+    /// Use the watertight triangle test instead of the unit-triangle test.
+    #[arg(long)]
     pub watertight: bool,
+    /// Trace every ray on its own instead of in 8×8 packets (the same image, slower;
+    /// for comparisons).
+    #[arg(long)]
     pub single_rays: bool,
-    pub quality: lucent_accel::Quality,
+    /// BVH quality: `high` (binned SAH, then insertion-based optimization: the
+    /// default), `sah` (binned SAH only: the shortest build, rays 5-15% slower) or
+    /// `spatial` (binned SAH with spatial splits: triangles cut between leaves; much
+    /// faster on scenes of large, overlapping triangles such as Sponza, slower on
+    /// others, up to 2× the build).
+    #[arg(long, default_value = "high", value_parser = ["high", "sah", "spatial"])]
+    pub quality: String,
 }
 
 /// The integrators `--integrator` names.
@@ -60,11 +120,19 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((w, h))
 }
 
+/// Whether some material of the scene emits light.
+fn has_emitters(s: &Scene) -> bool {
+    s.materials.iter().any(|m| m.emission.max_element() > 0.0)
+}
+
 /// The built-in scenes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Demo {
     /// The feature demo (textured floor, mirror and glass spheres, cylinder, cone, mesh).
     Default,
+    /// The path tracer's studio: an area light's soft shadows, glossy and polished metal,
+    /// glass, plastic and coloured walls bleeding onto the floor.
+    Studio,
     /// 5,622 instanced sunflowers of 32k triangles each, swaying.
     Sunflowers,
 }
@@ -75,6 +143,7 @@ impl Demo {
     pub fn name(self) -> &'static str {
         match self {
             Demo::Default => "default",
+            Demo::Studio => "studio",
             Demo::Sunflowers => "sunflowers",
         }
     }
@@ -106,6 +175,7 @@ pub fn load_scene(path: Option<&Path>, demo: DemoArg) -> Result<Scene> {
     match (path, demo.demo) {
         (Some(_), Some(_)) => bail!("give a scene file or --demo, not both"),
         (None, Some(Demo::Sunflowers)) => Ok(lucent_scene::sunflower_scene()),
+        (None, Some(Demo::Studio)) => Ok(lucent_scene::studio_scene()),
         (None, _) => Ok(lucent_scene::demo_scene()),
         (Some(p), None) => lucent_scene::load_with(p, &lucent_scene::LoadOptions { strict: demo.strict }).map_err(anyhow::Error::from),
     }
@@ -136,14 +206,34 @@ pub fn run(a: RenderArgs) -> Result<()> {
         rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot set the thread count")?;
     }
     let t0 = Instant::now();
-    let scene = load_scene(a.scene.as_deref(), a.demo)?;
+    let name = a.integrator.clone().unwrap_or_else(|| "path".into());
+    // Without a scene, the path tracer shows its studio and the others the feature demo.
+    let demo = match (a.scene.as_ref(), a.demo.demo, name.as_str()) {
+        (None, None, "path") => DemoArg { demo: Some(Demo::Studio), ..a.demo },
+        _ => a.demo,
+    };
+    let mut scene = load_scene(a.scene.as_deref(), demo)?;
     let load_s = t0.elapsed().as_secs_f64();
+    let hints = scene.hints;
+    let integrator = integrator_of(
+        &name,
+        a.max_depth.or(hints.and_then(|h| h.max_depth)),
+        a.no_shadows,
+        a.rr_depth.or(hints.map(|h| h.rr_depth)).unwrap_or(5),
+        a.hide_emitters || hints.is_some_and(|h| h.hide_emitters),
+    );
+    if matches!(integrator, Integrator::Path(_)) && scene.lights.is_empty() && scene.environment.is_none() && !has_emitters(&scene) {
+        tracing::warn!("the scene has no lights: lit by a white sky (a constant environment of radiance 1)");
+        scene.environment = Some(lucent_scene::Environment { scale: glam::Vec3::ONE, image: None, to_world: glam::Affine3A::IDENTITY });
+    }
+    let size = a.size.or(hints.map(|h| (h.width, h.height))).unwrap_or((1024, 768));
+    let spp = a.spp.or(hints.map(|h| h.spp)).unwrap_or(if matches!(integrator, Integrator::Path(_)) { 16 } else { 1 });
     let desc = choose_camera(&scene, a.camera.as_deref(), a.ortho)?;
     let st = scene.stats();
     let t1 = Instant::now();
     let opts = MeshOptions {
         test: if a.watertight { TriangleTest::Watertight } else { TriangleTest::UnitTriangle },
-        quality: a.quality,
+        quality: crate::quality_of(&a.quality),
         ..MeshOptions::default()
     };
     let mut world = World::new(scene, opts)?;
@@ -151,14 +241,18 @@ pub fn run(a: RenderArgs) -> Result<()> {
         tracing::info!("the scene has no lights: using a headlight at the camera");
     }
     let build_s = t1.elapsed().as_secs_f64();
-    let (w, h) = a.size;
-    let settings = RenderSettings {
-        spp: a.spp.max(1),
-        integrator: a.integrator,
-        traversal: Traversal { packets: !a.single_rays },
-        ..RenderSettings::new(w, h)
-    };
-    let cam = Camera::new(&desc, w, h);
+    let (w, h) = size;
+    let settings =
+        RenderSettings { spp: spp.max(1), integrator, traversal: Traversal { packets: !a.single_rays }, ..RenderSettings::new(w, h) };
+    let mut cam = Camera::new(&desc, w, h);
+    if a.camera.is_none() {
+        if let Some(h) = hints {
+            cam = cam.with_clip(h.clip.0, h.clip.1);
+            if let Some((r, f)) = h.lens {
+                cam = cam.with_lens(r, f);
+            }
+        }
+    }
     let t2 = Instant::now();
     let (film, rays, spp) = match a.time {
         None => {
@@ -172,10 +266,18 @@ pub fn run(a: RenderArgs) -> Result<()> {
             bar.finish_and_clear();
             (film, rays, settings.spp)
         }
-        Some(budget) => render_for(&world, &cam, &settings, budget, a.spp)?,
+        Some(budget) => render_for(&world, &cam, &settings, budget, a.spp.unwrap_or(1))?,
     };
     let render_s = t2.elapsed().as_secs_f64();
-    film.save(&a.output)?;
+    if a.aovs {
+        if !a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+            bail!("--aovs needs an .exr output (got {})", a.output.display());
+        }
+        let aovs = lucent_render::render_aovs(&world, &cam, w, h);
+        film.save_exr_with_aovs(&a.output, &aovs)?;
+    } else {
+        film.save(&a.output)?;
+    }
     println!("scene: {} triangles, {} instances, {} lights", st.triangles, st.instances, world.lights().len());
     println!(
         "load {:.1} ms, build {:.1} ms, render {:.1} ms ({}x{}, {} spp, {} threads)",

@@ -23,6 +23,9 @@ pub struct Camera {
     tmax: f32,
     width: u32,
     height: u32,
+    /// Thin lens: aperture radius (0: a pinhole) and distance of the plane in focus.
+    lens_radius: f32,
+    focus: f32,
 }
 
 impl Camera {
@@ -53,7 +56,67 @@ impl Camera {
             tmax: f32::INFINITY,
             width: width.max(1),
             height: height.max(1),
+            lens_radius: 0.0,
+            focus: 1.0,
         }
+    }
+
+    /// The same camera with a thin lens (Mitsuba's `thinlens`): rays start on a disk of
+    /// radius `aperture_radius` about the eye, across the view, and pass through the
+    /// point their pinhole ray meets at depth `focus_distance`. A radius of zero (or a
+    /// non-finite one) keeps the pinhole.
+    #[must_use]
+    pub fn with_lens(mut self, aperture_radius: f32, focus_distance: f32) -> Self {
+        let ok = aperture_radius > 0.0 && aperture_radius.is_finite() && focus_distance > 0.0 && focus_distance.is_finite();
+        self.lens_radius = if ok && !self.ortho { aperture_radius } else { 0.0 };
+        self.focus = if ok { focus_distance } else { 1.0 };
+        self
+    }
+
+    /// The same camera seeing only depths in [`near`, `far`) along the view axis (Mitsuba's
+    /// `near_clip`, `far_clip`).
+    #[must_use]
+    pub fn with_clip(mut self, near: f32, far: f32) -> Self {
+        if near >= 0.0 && far > near {
+            self.tmin = near;
+            self.tmax = far;
+        }
+        self
+    }
+
+    /// Whether rays start on a lens rather than at the eye.
+    #[must_use]
+    pub fn has_lens(&self) -> bool {
+        self.lens_radius > 0.0
+    }
+
+    /// The pinhole ray `r` (one of this camera's) through the lens at `u` in [0, 1)² (a
+    /// point of the aperture by Shirley and Chiu's concentric map).
+    #[must_use]
+    pub fn through_lens(&self, r: &Ray, u: (f32, f32)) -> Ray {
+        if self.lens_radius <= 0.0 {
+            return *r;
+        }
+        let (a, b) = (2.0 * u.0 - 1.0, 2.0 * u.1 - 1.0);
+        let (rad, phi) = if a == 0.0 && b == 0.0 {
+            (0.0, 0.0)
+        } else if a.abs() > b.abs() {
+            (a, std::f32::consts::FRAC_PI_4 * (b / a))
+        } else {
+            (b, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (a / b))
+        };
+        let (lx, ly) = (rad * phi.cos() * self.lens_radius, rad * phi.sin() * self.lens_radius);
+        let depth = r.dir.dot(self.forward);
+        if depth <= 0.0 {
+            return *r;
+        }
+        let focus_point = r.org + r.dir * (self.focus / depth);
+        let org = self.eye + self.right * lx + self.up * ly;
+        let d = (focus_point - org).normalize_or(r.dir);
+        // (Clip depths along the new direction.)
+        let inv = 1.0 / d.dot(self.forward).max(1e-6);
+        let (near, far) = if self.normalize { (self.tmin, self.tmax) } else { (0.0, f32::INFINITY) };
+        Ray::new(org, d).with_range(near * inv, far * inv)
     }
 
     /// A camera with an explicit frame: rays `forward + sx·right + sy·up` over the viewport
@@ -87,6 +150,8 @@ impl Camera {
             tmax,
             width: width.max(1),
             height: height.max(1),
+            lens_radius: 0.0,
+            focus: 1.0,
         }
     }
 
@@ -98,13 +163,17 @@ impl Camera {
     pub fn ray(&self, x: f32, y: f32) -> Ray {
         let sx = (2.0 * x / self.width as f32 - 1.0) * self.half_w;
         let sy = (1.0 - 2.0 * y / self.height as f32) * self.half_h;
-        let r = if self.ortho {
-            Ray::new(self.eye + self.right * sx + self.up * sy, self.forward)
+        if self.ortho {
+            return Ray::new(self.eye + self.right * sx + self.up * sy, self.forward).with_range(self.tmin, self.tmax);
+        }
+        let d = self.forward + self.right * sx + self.up * sy;
+        if self.normalize {
+            // Depth clips are planes: along the unit direction, depth × |d|.
+            let len = d.length();
+            Ray::new(self.eye, d.normalize()).with_range(self.tmin * len, self.tmax * len)
         } else {
-            let d = self.forward + self.right * sx + self.up * sy;
-            Ray::new(self.eye, if self.normalize { d.normalize() } else { d })
-        };
-        r.with_range(self.tmin, self.tmax)
+            Ray::new(self.eye, d).with_range(self.tmin, self.tmax)
+        }
     }
 
     /// The rays through image positions `pts` into `out` (as many as the shorter holds):
@@ -136,15 +205,24 @@ impl Camera {
                 }
             }
             if self.normalize {
-                let mut inv = [0f32; N];
+                let mut len = [0f32; N];
                 for i in 0..n {
-                    inv[i] = 1.0 / (d[0][i] * d[0][i] + d[1][i] * d[1][i] + d[2][i] * d[2][i]).sqrt();
+                    len[i] = (d[0][i] * d[0][i] + d[1][i] * d[1][i] + d[2][i] * d[2][i]).sqrt();
                 }
                 for dk in &mut d {
                     for i in 0..n {
-                        dk[i] *= inv[i];
+                        dk[i] *= 1.0 / len[i];
                     }
                 }
+                for (i, o) in out[..n].iter_mut().enumerate() {
+                    *o = Ray {
+                        org: self.eye,
+                        dir: Vec3::new(d[0][i], d[1][i], d[2][i]),
+                        tmin: self.tmin * len[i],
+                        tmax: self.tmax * len[i],
+                    };
+                }
+                continue;
             }
             for (i, o) in out[..n].iter_mut().enumerate() {
                 *o = Ray { org: self.eye, dir: Vec3::new(d[0][i], d[1][i], d[2][i]), tmin: self.tmin, tmax: self.tmax };

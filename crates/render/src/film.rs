@@ -17,6 +17,27 @@ pub enum OutputError {
     /// Unknown extension.
     #[error("{0}: unknown image type (use .png or .exr)")]
     Format(String),
+    /// Writing a layered EXR failed.
+    #[error("{path}: {msg}")]
+    Exr {
+        /// File.
+        path: String,
+        /// What failed.
+        msg: String,
+    },
+}
+
+/// What a denoiser is guided by, per pixel: the first visible surface's albedo, its
+/// shading normal (world space, unit; zero where the ray meets nothing) and its distance
+/// along the ray (infinite where it meets nothing).
+#[derive(Clone, Debug)]
+pub struct Aovs {
+    /// Albedo (the background colour where nothing is met).
+    pub albedo: Film,
+    /// Shading normal.
+    pub normal: Film,
+    /// Distance.
+    pub depth: Vec<f32>,
 }
 
 /// A rendered image in linear RGB.
@@ -168,6 +189,31 @@ impl Film {
             .flat_map(|(a, r)| (0..3).map(move |k| (f64::from(a[k]) - f64::from(r[k])).powi(2) / (f64::from(r[k]).powi(2) + 0.01)))
             .sum();
         Some(sum / (3 * self.pixels.len().max(1)) as f64)
+    }
+
+    /// Writes an `.exr` of the image (`R`, `G`, `B`) with the denoiser's layers beside it:
+    /// `albedo.R/G/B`, `N.X/Y/Z` and `Z` (linear f32, one part).
+    pub fn save_exr_with_aovs(&self, path: &Path, aovs: &Aovs) -> Result<(), OutputError> {
+        use exr::prelude::*;
+        let n = self.pixels.len();
+        if aovs.albedo.pixels.len() != n || aovs.normal.pixels.len() != n || aovs.depth.len() != n {
+            return Err(OutputError::Format(format!("{}: the layers are not the image's size", path.display())));
+        }
+        let ch = |name: &str, f: &dyn Fn(usize) -> f32| AnyChannel::new(name, FlatSamples::F32((0..n).map(f).collect()));
+        let channels = vec![
+            ch("R", &|i| self.pixels[i].x),
+            ch("G", &|i| self.pixels[i].y),
+            ch("B", &|i| self.pixels[i].z),
+            ch("albedo.R", &|i| aovs.albedo.pixels[i].x),
+            ch("albedo.G", &|i| aovs.albedo.pixels[i].y),
+            ch("albedo.B", &|i| aovs.albedo.pixels[i].z),
+            ch("N.X", &|i| aovs.normal.pixels[i].x),
+            ch("N.Y", &|i| aovs.normal.pixels[i].y),
+            ch("N.Z", &|i| aovs.normal.pixels[i].z),
+            ch("Z", &|i| aovs.depth[i]),
+        ];
+        let image = Image::from_channels((self.width as usize, self.height as usize), AnyChannels::sort(channels.into()));
+        image.write().to_file(path).map_err(|e| OutputError::Exr { path: path.display().to_string(), msg: e.to_string() })
     }
 
     /// Writes `.png` (8-bit sRGB) or `.exr` (linear f32).

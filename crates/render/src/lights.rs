@@ -244,11 +244,6 @@ impl LightSet {
         self.entries.is_empty()
     }
 
-    /// How many lights.
-    pub fn len(&self) -> usize {
-        self.entries.len()
-    }
-
     fn pmf(&self, i: usize) -> f32 {
         let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
         self.cdf.get(i).map_or(0.0, |&c| c - lo)

@@ -62,9 +62,35 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
     let mut c = Vec3::ZERO;
     for k in 0..spp {
         let (jx, jy) = s.integrator.pixel_offset(x, y, k, spp);
-        c += s.integrator.li(w, &cam.ray(x as f32 + jx, y as f32 + jy), (x, y), k);
+        let r = cam.ray(x as f32 + jx, y as f32 + jy);
+        let r = if cam.has_lens() { cam.through_lens(&r, s.integrator.lens_offset(x, y, k)) } else { r };
+        c += s.integrator.li(w, &r, (x, y), k);
     }
     c / spp as f32
+}
+
+/// The guide layers of a denoiser for every pixel, from the ray through its centre: the
+/// albedo, shading normal and distance of the first surface it sees (see
+/// [`crate::film::Aovs`]).
+#[must_use]
+pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> crate::film::Aovs {
+    let rows: Vec<Vec<(Vec3, Vec3, f32)>> = (0..height)
+        .into_par_iter()
+        .map(|y| {
+            (0..width)
+                .map(|x| {
+                    let r = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+                    crate::integrator::path::aovs(w, &r)
+                })
+                .collect()
+        })
+        .collect();
+    let flat: Vec<(Vec3, Vec3, f32)> = rows.into_iter().flatten().collect();
+    crate::film::Aovs {
+        albedo: Film { width, height, pixels: flat.iter().map(|a| a.0).collect() },
+        normal: Film { width, height, pixels: flat.iter().map(|a| a.1).collect() },
+        depth: flat.iter().map(|a| a.2).collect(),
+    }
 }
 
 /// Renders the image: every pixel, samples `0..spp`, each pixel the mean of its samples
@@ -243,6 +269,8 @@ fn render_tiles(w: &World, cam: &Camera, s: &RenderSettings, region: Region, pro
     // (something covers the whole image, or reaches around the eye) traces them all.
     let prep = match samples {
         _ if cam.size() != (width, height) => None,
+        // (Rays from a lens, and misses that are not the background colour, need tracing.)
+        _ if cam.has_lens() || !integrator.misses_show_background(w) => None,
         Samples::Centres => Prepared::new(w, cam, true),
         Samples::Anywhere => Prepared::new(w, cam, false),
     };
@@ -298,6 +326,11 @@ fn render_tiles(w: &World, cam: &Camera, s: &RenderSettings, region: Region, pro
                         *p = (x as f32 + jx, y as f32 + jy);
                     }
                     cam.rays_at(&pts[..n], &mut rays[..n]);
+                    if cam.has_lens() {
+                        for (r, &(x, y)) in rays[..n].iter_mut().zip(&coords[..n]) {
+                            *r = cam.through_lens(r, integrator.lens_offset(x, y, k));
+                        }
+                    }
                     let block = Block { pixels: &coords[..n], sample: k, among };
                     if s1 - s0 == 1 {
                         // One sample: straight into the sums.

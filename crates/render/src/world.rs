@@ -37,6 +37,7 @@ pub fn shape_of(k: ShapeKind) -> Shape {
         ShapeKind::CappedCone => Shape::CappedCone,
         ShapeKind::Box => Shape::Box,
         ShapeKind::Disk => Shape::Disk,
+        ShapeKind::Tube => Shape::Tube,
     }
 }
 
@@ -200,6 +201,7 @@ impl World {
             ShapeKind::CappedCone,
             ShapeKind::Box,
             ShapeKind::Disk,
+            ShapeKind::Tube,
         ];
         let shape_base = geoms.len() as u32;
         geoms.extend(kinds.iter().map(|&k| Geometry::Shape(shape_of(k))));

@@ -168,3 +168,107 @@ pub fn torus(center: Vec3, major: f32, minor: f32, nu: u32, nv: u32, material: u
     m.normals = Attr { values: normals, indices: None };
     m
 }
+
+/// The path tracer's studio: a room of diffuse walls (red left, green right: their colour
+/// bleeds onto the floor and the objects) lit by a rectangular area light in the ceiling
+/// (soft shadows), holding a glass sphere, a polished gold sphere, a rough copper torus,
+/// a blue rough-plastic sphere and a white plastic block on a checkered floor.
+#[must_use]
+pub fn studio_scene() -> Scene {
+    use crate::bsdf::{named_conductor, Bsdf, ColorTex, Distribution, FloatTex, Rough, Sides};
+    let mut s = Scene { materials: vec![Material::default()], ..Scene::default() };
+    let mut mat = |m: Material| {
+        s.materials.push(m);
+        (s.materials.len() - 1) as u32
+    };
+    let diffuse = |name: &str, c: Vec3| Material::physical(name, Bsdf::Diffuse { reflectance: ColorTex::Const(c) });
+    let white = mat(diffuse("white", Vec3::splat(0.75)));
+    let red = mat(diffuse("red", Vec3::new(0.63, 0.065, 0.05)));
+    let green = mat(diffuse("green", Vec3::new(0.14, 0.45, 0.09)));
+    let floor = mat(Material::physical(
+        "floor",
+        Bsdf::Diffuse {
+            reflectance: ColorTex::Checker {
+                a: Vec3::splat(0.7),
+                b: Vec3::splat(0.25),
+                to_uv: glam::Affine2::from_scale(Vec2::splat(4.0)),
+            },
+        },
+    ));
+    let light = mat(Material { emission: Vec3::new(17.0, 12.0, 4.0), ..diffuse("light", Vec3::splat(0.78)) });
+    let glass = mat(Material::physical(
+        "glass",
+        Bsdf::Dielectric { eta: 1.5, reflectance: ColorTex::grey(1.0), transmittance: ColorTex::grey(1.0), rough: None },
+    ));
+    let (au_eta, au_k) = named_conductor("Au").unwrap_or((Vec3::ONE, Vec3::ONE));
+    let gold = mat(Material::physical(
+        "gold",
+        Bsdf::Conductor {
+            eta: au_eta,
+            k: au_k,
+            specular: ColorTex::grey(1.0),
+            rough: Some(Rough { dist: Distribution::Ggx, alpha: FloatTex::Const(0.05) }),
+        },
+    ));
+    let (cu_eta, cu_k) = named_conductor("Cu").unwrap_or((Vec3::ONE, Vec3::ONE));
+    let copper = mat(Material::physical(
+        "copper",
+        Bsdf::Conductor {
+            eta: cu_eta,
+            k: cu_k,
+            specular: ColorTex::grey(1.0),
+            rough: Some(Rough { dist: Distribution::Ggx, alpha: FloatTex::Const(0.3) }),
+        },
+    ));
+    let blue = mat(Material::physical(
+        "blue plastic",
+        Bsdf::Plastic {
+            diffuse: ColorTex::Const(Vec3::new(0.1, 0.2, 0.6)),
+            specular: ColorTex::grey(1.0),
+            eta: 1.49,
+            nonlinear: false,
+            rough: Some((Distribution::Ggx, 0.15)),
+        },
+    ));
+    let block = mat(Material::physical(
+        "white plastic",
+        Bsdf::Plastic { diffuse: ColorTex::grey(0.8), specular: ColorTex::grey(1.0), eta: 1.49, nonlinear: false, rough: None },
+    ));
+    for m in [white, red, green, floor] {
+        s.materials[m as usize].sides = Sides::Both;
+    }
+    // The room: x in [-2, 2], y in [0, 3], z in [-2, 2], open toward +z.
+    let quad = |name: &str, p: [Vec3; 4], material: u32| Mesh {
+        name: name.into(),
+        positions: p.to_vec(),
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        uvs: Attr { values: vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y], indices: None },
+        material: vec![material; 2],
+        ..Mesh::default()
+    };
+    let v = Vec3::new;
+    s.add_mesh(quad("floor", [v(-2.0, 0.0, 2.0), v(2.0, 0.0, 2.0), v(2.0, 0.0, -2.0), v(-2.0, 0.0, -2.0)], floor));
+    s.add_mesh(quad("ceiling", [v(-2.0, 3.0, -2.0), v(2.0, 3.0, -2.0), v(2.0, 3.0, 2.0), v(-2.0, 3.0, 2.0)], white));
+    s.add_mesh(quad("back", [v(-2.0, 0.0, -2.0), v(2.0, 0.0, -2.0), v(2.0, 3.0, -2.0), v(-2.0, 3.0, -2.0)], white));
+    s.add_mesh(quad("left", [v(-2.0, 0.0, 2.0), v(-2.0, 0.0, -2.0), v(-2.0, 3.0, -2.0), v(-2.0, 3.0, 2.0)], red));
+    s.add_mesh(quad("right", [v(2.0, 0.0, -2.0), v(2.0, 0.0, 2.0), v(2.0, 3.0, 2.0), v(2.0, 3.0, -2.0)], green));
+    // The light faces down, just below the ceiling.
+    s.add_mesh(quad("light", [v(-0.6, 2.99, -0.6), v(0.6, 2.99, -0.6), v(0.6, 2.99, 0.6), v(-0.6, 2.99, 0.6)], light));
+    s.add_mesh(torus(Vec3::new(0.9, 0.2, 0.9), 0.45, 0.2, 48, 24, copper));
+    let place = |t: Vec3, sc: Vec3| Affine3A::from_scale_rotation_translation(sc, Quat::IDENTITY, t);
+    let shapes = [
+        (ShapeKind::Sphere, glass, place(v(-0.2, 0.55, 0.8), Vec3::splat(0.55))),
+        (ShapeKind::Sphere, gold, place(v(-1.1, 0.6, -0.6), Vec3::splat(0.6))),
+        (ShapeKind::Sphere, blue, place(v(1.2, 0.45, -0.9), Vec3::splat(0.45))),
+        (
+            ShapeKind::Box,
+            block,
+            Affine3A::from_scale_rotation_translation(Vec3::new(0.35, 0.7, 0.35), Quat::from_rotation_y(0.5), v(0.1, 0.7, -1.3)),
+        ),
+    ];
+    for (kind, material, m) in shapes {
+        s.instances.push(Instance { geom: Geom::Shape { kind, material }, world_from_object: m });
+    }
+    s.camera = Some(CameraDesc { eye: v(0.0, 1.5, 6.2), look_at: v(0.0, 1.2, 0.0), up: Vec3::Y, vfov_deg: 36.0, ortho_height: None });
+    s
+}

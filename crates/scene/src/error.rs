@@ -23,6 +23,18 @@ pub enum ImportError {
         /// What is wrong.
         msg: String,
     },
+    /// Bad content at a line and column (XML).
+    #[error("{path}:{line}:{column}: {msg}")]
+    At {
+        /// File.
+        path: PathBuf,
+        /// Line (1-based).
+        line: u32,
+        /// Column (1-based).
+        column: u32,
+        /// What is wrong.
+        msg: String,
+    },
     /// Bad content somewhere without a line (binary formats, glTF paths).
     #[error("{path}: {at}: {msg}")]
     Invalid {
@@ -34,6 +46,6 @@ pub enum ImportError {
         msg: String,
     },
     /// The file type is not known.
-    #[error("{0}: unknown scene format (expected .obj, .obj.gz, .ply, .ply.gz, .gltf or .glb)")]
+    #[error("{0}: unknown scene format (expected .obj, .obj.gz, .ply, .ply.gz, .gltf, .glb or Mitsuba .xml)")]
     UnknownFormat(PathBuf),
 }

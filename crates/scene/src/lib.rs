@@ -2,7 +2,8 @@
 //!
 //! What the world contains, as plain data ([`Scene`]), and importers that fill it:
 //! Wavefront OBJ + MTL (also `.obj.gz`), PLY (ASCII and binary) and glTF 2.0
-//! (`.gltf` + `.bin`, `.glb`). Every error names the file and the line or glTF path.
+//! (`.gltf` + `.bin`, `.glb`) and Mitsuba 3 XML scenes. Every error names the file and the
+//! line (and column) or glTF path.
 //! Missing textures give a warning and the plain colour.
 #![warn(missing_docs)]
 
@@ -11,6 +12,7 @@ pub mod bsdf;
 mod demo;
 mod error;
 mod gltf;
+mod mitsuba;
 mod model;
 mod obj;
 mod ply;
@@ -18,9 +20,10 @@ mod sunflowers;
 mod texture;
 
 pub use bsdf::{Alpha, Bsdf, ColorTex, Distribution, FloatTex, NormalMap, Rough, Sides};
-pub use demo::{demo_scene, torus};
+pub use demo::{demo_scene, studio_scene, torus};
 pub use error::ImportError;
 pub use gltf::{load_gltf, load_gltf_with, parse_gltf, parse_gltf_with};
+pub use mitsuba::{load_hdr, load_mitsuba, parse_mitsuba};
 pub use model::*;
 pub use obj::{load_obj, parse_obj};
 pub use ply::{load_ply, parse_ply};
@@ -56,6 +59,8 @@ pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Scene, ImportErro
         load_ply(path)
     } else if name.ends_with(".gltf") || name.ends_with(".glb") {
         load_gltf_with(path, options)
+    } else if name.ends_with(".xml") {
+        load_mitsuba(path)
     } else {
         Err(ImportError::UnknownFormat(path.to_path_buf()))
     }

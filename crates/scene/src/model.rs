@@ -62,6 +62,8 @@ pub enum ShapeKind {
     Box,
     /// Unit disk in z = 0.
     Disk,
+    /// Cylinder x²+y² = 1, z in [-1, 1], open at both ends (Mitsuba's `cylinder`).
+    Tube,
 }
 
 /// What an instance draws.
@@ -356,6 +358,30 @@ pub struct Scene {
     /// Light from infinitely far in every direction (Mitsuba `constant`, `envmap`), for
     /// the path tracer; Whitted shows `background` where rays escape.
     pub environment: Option<Environment>,
+    /// How the file says to render it (Mitsuba's film, sampler, sensor and integrator),
+    /// unless the command line says otherwise.
+    pub hints: Option<RenderHints>,
+}
+
+/// How a scene file says it should be rendered.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderHints {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Most path segments (`None`: unlimited).
+    pub max_depth: Option<u32>,
+    /// Depth from which Russian roulette may end paths.
+    pub rr_depth: u32,
+    /// Emitters seen directly from the camera show the background.
+    pub hide_emitters: bool,
+    /// A thin lens: aperture radius and focus distance.
+    pub lens: Option<(f32, f32)>,
+    /// Near and far clipping depths.
+    pub clip: (f32, f32),
 }
 
 /// A linear RGB image of floats (environment maps).

@@ -210,6 +210,7 @@ pub fn sunflower_scene() -> Scene {
         animation: Some(Arc::new(animation)),
         textures: Vec::new(),
         environment: None,
+        hints: None,
     }
 }
 

@@ -97,6 +97,29 @@ impl Integrator {
         }
     }
 
+    /// Where on the lens sample `k` of pixel (x, y) passes, in [0, 1)² (cameras with a
+    /// thin lens): for the path tracer, a pair of the sampler's dimensions of its own; for
+    /// the others, a hash.
+    #[inline]
+    #[must_use]
+    pub fn lens_offset(&self, x: u32, y: u32, k: u32) -> (f32, f32) {
+        match self {
+            Self::Path(_) => path::SAMPLER.get2(x, y, k, path::LENS_PAIR),
+            _ => jitter(x ^ 0x5bd1_e995, y, k),
+        }
+    }
+
+    /// Whether a camera ray that meets nothing shows the scene's background colour (so
+    /// the renderer may skip tracing it): not for the path tracer with an environment
+    /// light or hidden emitters.
+    #[must_use]
+    pub fn misses_show_background(&self, w: &World) -> bool {
+        match self {
+            Self::Path(s) => w.scene.environment.is_none() && !s.hide_emitters,
+            _ => true,
+        }
+    }
+
     /// Whether every sample of an image of `spp` samples lies at its pixel's centre.
     #[inline]
     #[must_use]

@@ -67,6 +67,9 @@ impl Default for PathSettings {
 /// The sampler the path tracer draws from.
 pub(crate) const SAMPLER: Sampler = Sampler::new(0x1ce7_0001);
 
+/// The sampler pair of the lens position (thin-lens cameras), far from the bounces'.
+pub(crate) const LENS_PAIR: u32 = 0x4000_0000;
+
 /// Sampler pairs per bounce, after pair 0 (the pixel position).
 const PAIRS: u32 = 2;
 
