@@ -27,7 +27,7 @@ pub fn run(a: AnimateArgs) -> Result<()> {
     if !(a.fps.is_finite() && a.fps > 0.0) {
         bail!("--fps must be a positive number (got {})", a.fps);
     }
-    let scene = crate::render_cmd::load_scene(a.scene.as_deref(), a.demo)?;
+    let scene = crate::render_cmd::load_scene(a.scene.as_deref(), &a.demo)?;
     let name = a.scene.as_ref().map_or_else(|| format!("the {}", a.demo.label()), |p| p.display().to_string());
     let range = scene.animation.as_ref().map(|an| an.time_range());
     if range.is_none() {

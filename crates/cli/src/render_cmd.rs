@@ -70,6 +70,9 @@ pub struct RenderArgs {
     /// Path: emitters seen directly from the camera show the background.
     #[arg(long)]
     pub hide_emitters: bool,
+    /// Path: the sampler's seed (another seed, another equally good set of samples).
+    #[arg(long)]
+    pub seed: Option<u32>,
     /// Turn shadow rays off (Whitted).
     #[arg(long)]
     pub no_shadows: bool,
@@ -150,7 +153,7 @@ impl Demo {
 }
 
 /// `--demo`, shared by every command that loads a scene.
-#[derive(clap::Args, Clone, Copy, Debug, Default)]
+#[derive(clap::Args, Clone, Debug, Default)]
 pub struct DemoArg {
     /// A built-in scene instead of a file.
     #[arg(long, value_enum)]
@@ -159,24 +162,40 @@ pub struct DemoArg {
     /// JSON pointer of the first one. By default lucent warns and renders what it can read.
     #[arg(long)]
     pub strict: bool,
+    /// Mitsuba scenes: set a parameter of the file (NAME=VALUE, in place of its
+    /// `<default name=... value=...>`), as Mitsuba's -D does. Repeatable.
+    #[arg(short = 'D', long = "define", value_parser = parse_define)]
+    pub define: Vec<(String, String)>,
+}
+
+/// Parses "NAME=VALUE".
+fn parse_define(s: &str) -> Result<(String, String), String> {
+    let (k, v) = s.split_once('=').ok_or_else(|| format!("'{s}' is not NAME=VALUE"))?;
+    if k.is_empty() || !k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+        return Err(format!("'{k}' is not a parameter name (letters, digits and _)"));
+    }
+    Ok((k.to_string(), v.to_string()))
 }
 
 impl DemoArg {
     /// How a scene loaded without a file is named in messages.
     #[must_use]
-    pub fn label(self) -> String {
+    pub fn label(&self) -> String {
         format!("built-in {} demo", self.demo.unwrap_or(Demo::Default).name())
     }
 }
 
 /// Loads a scene file, or a built-in scene (`--demo`), else the default demo when there is
 /// no file.
-pub fn load_scene(path: Option<&Path>, demo: DemoArg) -> Result<Scene> {
+pub fn load_scene(path: Option<&Path>, demo: &DemoArg) -> Result<Scene> {
     match (path, demo.demo) {
         (Some(_), Some(_)) => bail!("give a scene file or --demo, not both"),
         (None, Some(Demo::Sunflowers)) => Ok(lucent_scene::sunflower_scene()),
         (None, Some(Demo::Studio)) => Ok(lucent_scene::studio_scene()),
         (None, _) => Ok(lucent_scene::demo_scene()),
+        (Some(p), None) if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml")) => {
+            lucent_scene::load_mitsuba_with(p, &demo.define).map_err(anyhow::Error::from)
+        }
         (Some(p), None) => lucent_scene::load_with(p, &lucent_scene::LoadOptions { strict: demo.strict }).map_err(anyhow::Error::from),
     }
 }
@@ -212,7 +231,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         (None, None, "path") => DemoArg { demo: Some(Demo::Studio), ..a.demo },
         _ => a.demo,
     };
-    let mut scene = load_scene(a.scene.as_deref(), demo)?;
+    let mut scene = load_scene(a.scene.as_deref(), &demo)?;
     let load_s = t0.elapsed().as_secs_f64();
     let hints = scene.hints;
     let integrator = integrator_of(
@@ -222,6 +241,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
         a.rr_depth.or(hints.map(|h| h.rr_depth)).unwrap_or(5),
         a.hide_emitters || hints.is_some_and(|h| h.hide_emitters),
     );
+    let integrator = match (integrator, a.seed) {
+        (Integrator::Path(p), Some(seed)) => Integrator::Path(PathSettings { seed, ..p }),
+        (i, _) => i,
+    };
     if matches!(integrator, Integrator::Path(_)) && scene.lights.is_empty() && scene.environment.is_none() && !has_emitters(&scene) {
         tracing::warn!("the scene has no lights: lit by a white sky (a constant environment of radiance 1)");
         scene.environment = Some(lucent_scene::Environment { scale: glam::Vec3::ONE, image: None, to_world: glam::Affine3A::IDENTITY });
@@ -334,7 +357,7 @@ fn render_for(world: &World, cam: &Camera, settings: &RenderSettings, budget: f6
 }
 
 pub fn info(path: Option<&Path>, demo: DemoArg) -> Result<()> {
-    let scene = load_scene(path, demo)?;
+    let scene = load_scene(path, &demo)?;
     let st = scene.stats();
     println!("scene:      {}", path.map_or_else(|| format!("({})", demo.label()), |p| p.display().to_string()));
     println!("triangles:  {} ({} instanced)", st.triangles, st.instanced_triangles);

@@ -45,7 +45,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
             Content::Program { processor: Box::new(processor), settings, name: p.display().to_string() }
         }
         input => {
-            let scene = crate::render_cmd::load_scene(input, a.demo)?;
+            let scene = crate::render_cmd::load_scene(input, &a.demo)?;
             let home = crate::render_cmd::choose_camera(&scene, a.camera.as_deref(), false)?;
             let st = scene.stats();
             let stats = format!("{} tris, {} instances, {} lights", st.triangles, st.instances, scene.lights.len());

@@ -1,5 +1,6 @@
-//! The lights the path tracer samples (next-event estimation), chosen in proportion to
-//! their power: emitting triangles and emitting spheres and disks (area lights, one-sided
+//! The lights the path tracer samples (next-event estimation), one chosen uniformly among
+//! the light objects and, within an emitting mesh, a triangle in proportion to its power
+//! (see [`LightSet::of`]): emitting triangles and emitting spheres and disks (area lights, one-sided
 //! toward their normal as Mitsuba's `area` emitter), the scene's point, spot and
 //! directional lights, the environment (constant, or an equirectangular map sampled by
 //! its luminance), and lights of the library user's own ([`LightModel`]).
@@ -115,6 +116,8 @@ impl LightSet {
         let bounds = scene.bounds();
         s.radius = bounds.map_or(1.0, |(lo, hi)| 0.5 * (hi - lo).length()).max(1e-6);
         let mut power: Vec<f64> = Vec::new();
+        // Which light object each entry belongs to.
+        let mut group: Vec<u64> = Vec::new();
         let textures = &scene.textures;
         for (ii, inst) in scene.instances.iter().enumerate() {
             match inst.geom {
@@ -145,6 +148,7 @@ impl LightSet {
                         s.tri_index.insert((ii as u32, t as u32), s.entries.len() as u32);
                         s.entries.push(Entry::Tri(EmissiveTri { p0: a, e1, e2, n: cross / (2.0 * area), area, le: mat.emission, tex }));
                         power.push(f64::from(p));
+                        group.push(ii as u64);
                     }
                 }
                 Geom::Shape { kind, material } => {
@@ -186,6 +190,7 @@ impl LightSet {
                     s.shape_index.insert(ii as u32, s.entries.len() as u32);
                     s.entries.push(entry);
                     power.push(f64::from(p));
+                    group.push(1 << 32 | ii as u64);
                 }
             }
         }
@@ -199,6 +204,7 @@ impl LightSet {
             if p > 0.0 && p.is_finite() {
                 s.entries.push(Entry::Delta(i));
                 power.push(f64::from(p));
+                group.push(2 << 32 | i as u64);
             }
         }
         if let Some(env) = scene.environment.as_ref().and_then(EnvLight::new) {
@@ -207,14 +213,32 @@ impl LightSet {
                 s.env = Some((s.entries.len() as u32, env));
                 s.entries.push(Entry::Env);
                 power.push(f64::from(p));
+                group.push(3 << 32);
             }
         }
-        for c in custom {
+        for (k, c) in custom.iter().enumerate() {
             let p = c.power();
             if p > 0.0 && p.is_finite() {
                 s.entries.push(Entry::Custom(c.clone()));
                 power.push(f64::from(p));
+                group.push(4 << 32 | k as u64);
             }
+        }
+        // The choice: uniform among light objects (each mesh instance's emitters, each
+        // emitting shape, each point, spot and directional light, the environment, each
+        // user light), and within a mesh instance by the triangles' power (as Mitsuba
+        // chooses). Measured against choosing by power across all lights and a half-and-
+        // half mixture (relMSE of direct light against Mitsuba's 4096-spp references, 64
+        // and 256 spp): power alone was 80x worse on the bunny scene (its sky's power,
+        // from the scene's radius, dwarfs the spot that lights the bunny) and 1.7x on the
+        // materials scene; the mixture 2.6x worse on the bunny, 10% better on materials.
+        let mut group_power: HashMap<u64, f64> = HashMap::new();
+        for (p, g) in power.iter().zip(&group) {
+            *group_power.entry(*g).or_default() += p;
+        }
+        let groups = group_power.len() as f64;
+        for (p, g) in power.iter_mut().zip(&group) {
+            *p = *p / group_power[g].max(f64::MIN_POSITIVE) / groups;
         }
         let total: f64 = power.iter().sum();
         let mut acc = 0f64;
@@ -516,34 +540,52 @@ impl EnvLight {
         if w < 2 || h < 3 || img.texels.len() < w * h {
             return None;
         }
-        // The sampling density: each cell of the lookup grid (see `eval`) by the largest
-        // luminance among the texels that reach it, times sin θ at its centre (so every
-        // direction the lookup can light has a density), plus a floor.
+        // The sampling density: a grid of cells over (u, v) in [0, 1)² (twice the map's
+        // resolution, at least 256 × 128), each the mean over 4 × 4 points of the
+        // luminance the lookup gives there times sin θ, plus a tenth of the largest
+        // luminance of the texels the lookup may blend anywhere in the cell: the density
+        // follows the radiance closely and is not zero wherever some light comes from.
+        let (gw, gh) = ((2 * w).max(256), (2 * h).max(128));
+        let unit = Self { scale: Vec3::ONE, map: None, to_world: Affine3A::IDENTITY, to_local: Affine3A::IDENTITY, mean: Vec3::ONE };
+        let lookup = |u: f32, v: f32| luminance(unit.lookup(&img, u, v)).max(0.0);
         let lum = |x: usize, y: usize| luminance(img.texels[y.min(h - 1) * w + x % w]).max(0.0);
-        let mut f = vec![0f32; w * h];
+        let mut f = vec![0f32; gw * gh];
+        for (gy, row) in f.chunks_mut(gw).enumerate() {
+            let (v0, v1) = (gy as f32 / gh as f32, (gy + 1) as f32 / gh as f32);
+            let (r0, r1) = ((v0 * (h - 1) as f32).floor() as usize, ((v1 * (h - 1) as f32).ceil() as usize).min(h - 1));
+            let s_mid = (PI * 0.5 * (v0 + v1)).sin();
+            for (gx, cell) in row.iter_mut().enumerate() {
+                let (u0, u1) = (gx as f32 / gw as f32, (gx + 1) as f32 / gw as f32);
+                let mut sum = 0.0;
+                for j in 0..4 {
+                    let v = v0 + (v1 - v0) * (j as f32 + 0.5) / 4.0;
+                    let st = (PI * v).sin();
+                    for i in 0..4 {
+                        sum += lookup(u0 + (u1 - u0) * (i as f32 + 0.5) / 4.0, v) * st;
+                    }
+                }
+                // The texel columns whose bilinear footprint reaches the cell.
+                let (c0, c1) = ((u0 * w as f32 - 0.5).floor() as i64, (u1 * w as f32 - 0.5).floor() as i64 + 1);
+                let mut m = 0f32;
+                for r in r0..=r1 {
+                    for c in c0..=c1 {
+                        m = m.max(lum(c.rem_euclid(w as i64) as usize, r));
+                    }
+                }
+                *cell = sum / 16.0 + 0.1 * m * s_mid;
+            }
+        }
         let mut mean = Vec3::ZERO;
         let mut wsum = 0.0;
         for y in 0..h {
-            // Rows are samples from the north pole (row 0) to the south pole (row h − 1).
-            let theta = PI * (y as f32 + 0.5) / h as f32;
-            let s = theta.sin();
+            let st = (PI * y as f32 / (h - 1) as f32).sin();
             for x in 0..w {
-                let yc = (y as f32 + 0.5) / h as f32 * (h - 1) as f32;
-                let (y0, y1) = (yc.floor() as usize, yc.ceil() as usize);
-                let m = lum(x, y0).max(lum(x + 1, y0)).max(lum(x, y1)).max(lum(x + 1, y1));
-                f[y * w + x] = m * s;
-                let ti = img.texels[y * w + x];
-                let st = (PI * y as f32 / (h - 1) as f32).sin();
-                mean += ti * st;
+                mean += img.texels[y * w + x] * st;
                 wsum += st;
             }
         }
-        let avg = f.iter().sum::<f32>() / f.len() as f32;
-        for v in &mut f {
-            *v += 1e-3 * avg;
-        }
         let mean = if wsum > 0.0 { mean / wsum * e.scale } else { e.scale };
-        Some(Self { scale: e.scale, map: Some((img, Distribution2D::new(&f, w, h))), to_world: e.to_world, to_local, mean })
+        Some(Self { scale: e.scale, map: Some((img, Distribution2D::new(&f, gw, gh))), to_world: e.to_world, to_local, mean })
     }
 
     /// Radiance arriving from world direction `dir` (unit): Mitsuba's lookup, u =
@@ -552,9 +594,14 @@ impl EnvLight {
     pub fn eval(&self, dir: Vec3) -> Vec3 {
         let Some((img, _)) = &self.map else { return self.scale };
         let d = self.to_local.transform_vector3(dir).normalize_or_zero();
-        let (w, h) = (img.width as usize, img.height as usize);
         let u = d.x.atan2(-d.z) * (0.5 / PI);
         let v = d.y.clamp(-1.0, 1.0).acos() / PI;
+        self.lookup(img, u, v) * self.scale
+    }
+
+    /// The map's bilinear value at (u, v) (see [`EnvLight::eval`]).
+    fn lookup(&self, img: &HdrImage, u: f32, v: f32) -> Vec3 {
+        let (w, h) = (img.width as usize, img.height as usize);
         let mut x = u - 0.5 / w as f32;
         x -= x.floor();
         let x = x * w as f32;
@@ -564,7 +611,7 @@ impl EnvLight {
         let t = |xi: usize, yi: usize| img.texels[yi * w + xi % w];
         let top = t(x0, y0) * (1.0 - fx) + t(x0 + 1, y0) * fx;
         let bottom = t(x0, y0 + 1) * (1.0 - fx) + t(x0 + 1, y0 + 1) * fx;
-        (top * (1.0 - fy) + bottom * fy) * self.scale
+        top * (1.0 - fy) + bottom * fy
     }
 
     /// A direction (unit, world) and its density per solid angle.

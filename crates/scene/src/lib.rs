@@ -23,7 +23,7 @@ pub use bsdf::{Alpha, Bsdf, ColorTex, Distribution, FloatTex, NormalMap, Rough, 
 pub use demo::{demo_scene, studio_scene, torus};
 pub use error::ImportError;
 pub use gltf::{load_gltf, load_gltf_with, parse_gltf, parse_gltf_with};
-pub use mitsuba::{load_hdr, load_mitsuba, parse_mitsuba};
+pub use mitsuba::{load_hdr, load_mitsuba, load_mitsuba_with, parse_mitsuba, parse_mitsuba_with};
 pub use model::*;
 pub use obj::{load_obj, parse_obj};
 pub use ply::{load_ply, parse_ply};

@@ -45,17 +45,28 @@ type R<T> = Result<T, ImportError>;
 
 /// Loads a Mitsuba 3 XML scene.
 pub fn load_mitsuba(path: &Path) -> R<Scene> {
+    load_mitsuba_with(path, &[])
+}
+
+/// Loads a Mitsuba 3 XML scene with parameters set from outside (Mitsuba's `-D name=value`:
+/// they take the place of the file's `<default>`s).
+pub fn load_mitsuba_with(path: &Path, defines: &[(String, String)]) -> R<Scene> {
     let bytes = std::fs::read(path).map_err(|source| ImportError::Io { path: path.to_path_buf(), source })?;
     let text = std::str::from_utf8(&bytes).map_err(|e| {
         let line = bytes[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count() + 1;
         ImportError::Parse { path: path.to_path_buf(), line, msg: "not UTF-8 text".into() }
     })?;
-    parse_mitsuba(path, path.parent().unwrap_or(Path::new(".")), text)
+    parse_mitsuba_with(path, path.parent().unwrap_or(Path::new(".")), text, defines)
 }
 
 /// Reads Mitsuba XML `text`; `path` names it in messages, files it names are read from
 /// `base`.
 pub fn parse_mitsuba(path: &Path, base: &Path, text: &str) -> R<Scene> {
+    parse_mitsuba_with(path, base, text, &[])
+}
+
+/// [`parse_mitsuba`] with parameters set from outside (see [`load_mitsuba_with`]).
+pub fn parse_mitsuba_with(path: &Path, base: &Path, text: &str, defines: &[(String, String)]) -> R<Scene> {
     let doc = Document::parse_with_options(text, roxmltree::ParsingOptions { allow_dtd: false, nodes_limit: 1 << 22 }).map_err(|e| {
         let p = e.pos();
         ImportError::At { path: path.to_path_buf(), line: p.row, column: p.col, msg: e.to_string() }
@@ -83,6 +94,7 @@ pub fn parse_mitsuba(path: &Path, base: &Path, text: &str) -> R<Scene> {
         },
         shapes: 0,
     };
+    cx.defaults.extend(defines.iter().cloned());
     let root = doc.root_element();
     if root.tag_name().name() != "scene" {
         return Err(cx.err(root, format!("expected <scene>, found <{}>", root.tag_name().name())));
@@ -807,6 +819,10 @@ impl<'a, 'd> Cx<'a, 'd> {
                         let mut mesh = merge_meshes(&loaded, mat);
                         if face_normals {
                             mesh.normals = Default::default();
+                        } else if mesh.normals.values.is_empty() {
+                            // As Mitsuba: a mesh without normals gets smooth ones.
+                            mesh.normals =
+                                crate::model::Attr { values: angle_weighted_normals(&mesh.positions, &mesh.indices), indices: None };
                         }
                         if flip {
                             flip_mesh(&mut mesh);
@@ -972,6 +988,31 @@ fn merge_meshes(s: &Scene, mat: u32) -> Mesh {
         out.material.extend(std::iter::repeat_n(mat, n));
     }
     out
+}
+
+/// Smooth vertex normals, each the sum of its triangles' unit normals weighted by the
+/// triangle's angle at the vertex (Thürmer and Wüthrich, "Computing Vertex Normals from
+/// Polygonal Facets", 1998, as Mitsuba does for meshes that come without normals).
+fn angle_weighted_normals(positions: &[Vec3], indices: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut n = vec![Vec3::ZERO; positions.len()];
+    for idx in indices {
+        let p = idx.map(|i| positions.get(i as usize).copied().unwrap_or(Vec3::NAN));
+        let face = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+        if face == Vec3::ZERO || !face.is_finite() {
+            continue;
+        }
+        for k in 0..3 {
+            let (a, b) = ((p[(k + 1) % 3] - p[k]).normalize_or_zero(), (p[(k + 2) % 3] - p[k]).normalize_or_zero());
+            let angle = a.dot(b).clamp(-1.0, 1.0).acos();
+            if let Some(v) = n.get_mut(idx[k] as usize) {
+                *v += face * angle;
+            }
+        }
+    }
+    for v in &mut n {
+        *v = v.normalize_or_zero();
+    }
+    n
 }
 
 /// Turns a mesh inside out: every triangle's winding and every normal reversed.

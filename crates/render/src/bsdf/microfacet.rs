@@ -2,9 +2,12 @@
 //! Beckmann and GGX (Trowbridge-Reitz) normal distributions and Smith's shadowing after
 //! Walter, Marschner, Li and Torrance, "Microfacet Models for Refraction through Rough
 //! Surfaces" (EGSR 2007) — including, for Beckmann, their rational approximation of G1
-//! (eq. 27), which Mitsuba also uses; GGX normals sampled in proportion to their visible
-//! area (Heitz, "Sampling the GGX Distribution of Visible Normals", JCGT 2018), Beckmann
-//! normals in proportion to D(m) cos θm (Walter et al., eq. 28).
+//! (eq. 27), which Mitsuba also uses for its values; normals sampled in proportion to
+//! their visible area: GGX's by Heitz, "Sampling the GGX Distribution of Visible Normals"
+//! (JCGT 2018), Beckmann's by the stretch-sample-unstretch method of Heitz and d'Eon,
+//! "Importance Sampling Microfacet-Based BSDFs using the Distribution of Visible Normals"
+//! (EGSR 2014), the visible slope's CDF inverted by safeguarded Newton steps. The densities
+//! of those samples use the exact Smith masking (the erf form for Beckmann).
 
 use glam::Vec3;
 use lucent_scene::Distribution;
@@ -110,29 +113,176 @@ impl Microfacet {
                 Vec3::new(a * nh.x, a * nh.y, nh.z.max(1e-6)).normalize()
             }
             Distribution::Beckmann => {
-                let tan2 = -a * a * (1.0 - u.0).max(f32::MIN_POSITIVE).ln();
-                let cos = 1.0 / (1.0 + tan2).sqrt();
-                let sin = (1.0 - cos * cos).max(0.0).sqrt();
-                let (s_phi, c_phi) = (2.0 * PI * u.1).sin_cos();
-                Vec3::new(sin * c_phi, sin * s_phi, cos)
+                // Stretch to α = 1, sample the visible slopes there, rotate and unstretch.
+                let vs = Vec3::new(a * v.x, a * v.y, v.z).normalize();
+                let sin_t = (1.0 - vs.z * vs.z).max(0.0).sqrt();
+                let (cos_p, sin_p) = if sin_t > 1e-7 { (vs.x / sin_t, vs.y / sin_t) } else { (1.0, 0.0) };
+                let (sx, sy) = beckmann_visible_slopes(vs.z, u);
+                let (x, y) = ((cos_p * sx - sin_p * sy) * a, (sin_p * sx + cos_p * sy) * a);
+                Vec3::new(-x, -y, 1.0).normalize()
             }
         }
     }
 
     /// The density (per solid angle of normals) with which [`Microfacet::sample`] picks `m`
-    /// for direction `v` (`v.z > 0`).
+    /// for direction `v` (`v.z > 0`): D(m) G1(v, m) ⟨v, m⟩ / cos θv, with the exact G1.
     #[must_use]
     pub fn pdf(&self, v: Vec3, m: Vec3) -> f32 {
-        match self.dist {
-            Distribution::Ggx => {
-                if v.z <= 0.0 {
-                    return 0.0;
-                }
-                self.d(m) * self.g1(v, m) * v.dot(m).max(0.0) / v.z
+        if v.z <= 0.0 {
+            return 0.0;
+        }
+        let g1 = match self.dist {
+            Distribution::Ggx => self.g1(v, m),
+            Distribution::Beckmann => self.g1_exact(v, m),
+        };
+        self.d(m) * g1 * v.dot(m).max(0.0) / v.z
+    }
+
+    /// Smith's masking without approximation (for Beckmann, 2 / (1 + erf a + e^(−a²) /
+    /// (a √π)) with a = 1 / (α tan θ); GGX's is exact already).
+    #[must_use]
+    pub fn g1_exact(&self, v: Vec3, m: Vec3) -> f32 {
+        if self.dist == Distribution::Ggx {
+            return self.g1(v, m);
+        }
+        if v.dot(m) * v.z <= 0.0 {
+            return 0.0;
+        }
+        let xy2 = v.x * v.x + v.y * v.y;
+        if xy2 == 0.0 {
+            return 1.0;
+        }
+        let a = v.z.abs() / (self.alpha * xy2.sqrt());
+        let lambda = 0.5 * ((-a * a).exp() / (a * std::f32::consts::PI.sqrt()) - erfc(a));
+        1.0 / (1.0 + lambda)
+    }
+}
+
+/// Slopes (x, y) of a Beckmann surface of α = 1 seen from a direction of cosine `cos_t`
+/// (azimuth 0), distributed as the visible slopes are: y is independent of x and normal
+/// (erf⁻¹), x has the density e^(−x²) (1 − x tan θ) on x < cot θ, whose CDF
+/// C(x) = (√π/2)(1 + erf x) + (tan θ / 2) e^(−x²) is inverted by Newton steps kept inside a
+/// bisection bracket.
+fn beckmann_visible_slopes(cos_t: f32, u: (f32, f32)) -> (f32, f32) {
+    let sqrt_pi = std::f64::consts::PI.sqrt();
+    let c = f64::from(cos_t.clamp(1e-6, 1.0));
+    let tan_t = (1.0 - c * c).max(0.0).sqrt() / c;
+    let cdf = |x: f64| 0.5 * sqrt_pi * (1.0 + erf64(x)) + 0.5 * tan_t * (-x * x).exp();
+    // The support ends at cot θ (the slope seen edge-on); far below, nothing.
+    let hi_x = if tan_t > 1e-9 { (1.0 / tan_t).min(8.0) } else { 8.0 };
+    let (mut lo, mut hi) = (-8.0f64, hi_x);
+    let total = cdf(hi) - cdf(lo);
+    let target = cdf(lo) + f64::from(u.0.clamp(1e-7, 1.0 - 1e-7)) * total;
+    // Start from the normal distribution's inverse (exact for tan θ = 0).
+    let mut x = erfinv64(2.0 * f64::from(u.0.clamp(1e-7, 1.0 - 1e-7)) - 1.0).clamp(lo, hi);
+    for _ in 0..40 {
+        let f = cdf(x) - target;
+        if f.abs() < 1e-10 * total {
+            break;
+        }
+        if f > 0.0 {
+            hi = x;
+        } else {
+            lo = x;
+        }
+        let d = (-x * x).exp() * (1.0 - x * tan_t);
+        let next = x - f / d;
+        x = if d > 0.0 && next > lo && next < hi { next } else { 0.5 * (lo + hi) };
+    }
+    let y = erfinv64(2.0 * f64::from(u.1.clamp(1e-7, 1.0 - 1e-7)) - 1.0);
+    (x as f32, y as f32)
+}
+
+/// erf in f64 (Abramowitz and Stegun 7.1.26 is not enough here: the CDF inversion needs
+/// more digits), by its Taylor series near zero and the continued fraction of erfc beyond.
+fn erf64(x: f64) -> f64 {
+    if x < 0.0 {
+        return -erf64(-x);
+    }
+    if x < 2.5 {
+        // erf x = 2/√π Σ (−1)^n x^(2n+1) / (n! (2n + 1)).
+        let (mut term, mut sum, x2) = (x, x, x * x);
+        for n in 1..80 {
+            term *= -x2 / n as f64;
+            let t = term / (2 * n + 1) as f64;
+            sum += t;
+            if t.abs() < 1e-17 * sum.abs() {
+                break;
             }
-            Distribution::Beckmann => self.d(m) * m.z.max(0.0),
+        }
+        return sum * 2.0 / std::f64::consts::PI.sqrt();
+    }
+    1.0 - erfc_cf(x)
+}
+
+/// erfc x for x ≥ 2.5 by its continued fraction (Lentz's method).
+fn erfc_cf(x: f64) -> f64 {
+    // erfc x = e^(−x²)/√π · 1/(x + (1/2)/(x + 1/(x + (3/2)/(x + 2/(x + ...))))).
+    let mut f = x;
+    let (mut c, mut d) = (x, 0.0f64);
+    for k in 1..200 {
+        let a = k as f64 * 0.5;
+        d = x + a * d;
+        d = if d.abs() < 1e-300 { 1e300 } else { 1.0 / d };
+        c = x + a / c;
+        let delta = c * d;
+        f *= delta;
+        if (delta - 1.0).abs() < 1e-16 {
+            break;
         }
     }
+    (-x * x).exp() / std::f64::consts::PI.sqrt() / f
+}
+
+/// erfc in f32 (for the exact Beckmann masking).
+fn erfc(x: f32) -> f32 {
+    let x = f64::from(x);
+    (if x >= 2.5 { erfc_cf(x) } else { 1.0 - erf64(x) }) as f32
+}
+
+/// erf⁻¹ by Newton's method on [`erf64`] from Giles's starting approximation ("Approximating
+/// the erfinv function", GPU Computing Gems, 2011).
+fn erfinv64(y: f64) -> f64 {
+    let y = y.clamp(-1.0 + 1e-15, 1.0 - 1e-15);
+    let w = -((1.0 - y) * (1.0 + y)).ln();
+    let mut x = if w < 5.0 {
+        let w = w - 2.5;
+        let mut p = 2.810_226_36e-08;
+        for c in [
+            3.432_739_39e-07,
+            -3.523_387_7e-06,
+            -4.391_506_54e-06,
+            0.000_218_580_87,
+            -0.001_253_725_03,
+            -0.004_177_681_64,
+            0.246_640_727,
+            1.501_409_41,
+        ] {
+            p = c + p * w;
+        }
+        p * y
+    } else {
+        let w = w.sqrt() - 3.0;
+        let mut p = -0.000_200_214_257;
+        for c in [
+            0.000_100_950_558,
+            0.001_349_343_22,
+            -0.003_673_428_44,
+            0.005_739_507_73,
+            -0.007_622_461_3,
+            0.009_438_870_47,
+            1.001_674_06,
+            2.832_976_82,
+        ] {
+            p = c + p * w;
+        }
+        p * y
+    };
+    for _ in 0..3 {
+        let err = erf64(x) - y;
+        x -= err / (2.0 / std::f64::consts::PI.sqrt() * (-x * x).exp());
+    }
+    x
 }
 
 /// The unpolarised Fresnel reflectance of a dielectric interface for a direction of cosine
@@ -300,6 +450,54 @@ pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn erf_and_its_inverse() {
+        for (x, want) in [
+            (0.0, 0.0),
+            (0.5, 0.520_499_877_813_046_5),
+            (1.0, 0.842_700_792_949_714_9),
+            (2.0, 0.995_322_265_018_952_7),
+            (3.0, 0.999_977_909_503_001_4),
+        ] {
+            assert!((erf64(x) - want).abs() < 1e-13, "erf {x}: {}", erf64(x));
+            assert!((erf64(-x) + want).abs() < 1e-13);
+        }
+        for y in [-0.999, -0.5, 0.0, 0.3, 0.9, 0.99999] {
+            assert!((erf64(erfinv64(y)) - y).abs() < 1e-12, "{y}");
+        }
+    }
+
+    #[test]
+    fn beckmann_visible_normals_have_their_density() {
+        // The sampled normals' histogram over cos θm against pdf() integrated (the
+        // chi-square tests in tests/bsdf.rs cover whole BSDFs).
+        let mf = Microfacet::new(Distribution::Beckmann, 0.3);
+        let v = Vec3::new(0.8, 0.0, 0.6);
+        let n = 200_000;
+        let mut mean_vm = 0.0f64;
+        for i in 0..n {
+            let u = ((i as f32 + 0.5) / n as f32, ((i as u64 * 2_654_435_761) % n as u64) as f32 / n as f32);
+            let m = mf.sample(v, u);
+            assert!(m.is_finite() && m.z > 0.0);
+            mean_vm += f64::from(v.dot(m));
+        }
+        // The mean of ⟨v, m⟩ over the samples against its integral with pdf() over the
+        // hemisphere (quadrature).
+        let q = gauss_legendre(200);
+        let mut by_pdf = 0.0f64;
+        for &(a, wa) in &q {
+            for &(b, wb) in &q {
+                let ct = 0.5 * (a + 1.0);
+                let ph = std::f64::consts::PI * (b + 1.0);
+                let st = (1.0 - ct * ct).sqrt();
+                let m = Vec3::new((st * ph.cos()) as f32, (st * ph.sin()) as f32, ct as f32);
+                by_pdf += wa * wb * 0.5 * std::f64::consts::PI * f64::from(mf.pdf(v, m) * v.dot(m));
+            }
+        }
+        let mean = mean_vm / f64::from(n);
+        assert!((mean - by_pdf).abs() < 2e-3, "sampled mean {mean}, by the density {by_pdf}");
+    }
 
     #[test]
     fn gauss_legendre_integrates_polynomials() {

@@ -65,7 +65,8 @@ impl RoughPlasticTables {
 }
 
 /// ∫ g(m) over the normals visible from `wi`, weighted by their visible density
-/// (D(m) G1(wi, m) ⟨wi, m⟩ / cos θi), through the distribution's own sampling map over
+/// (D(m) G1(wi, m) ⟨wi, m⟩ / cos θi, the exact masking, as Mitsuba's visible-normal samples
+/// follow it), through the distribution's own sampling map over
 /// [0, 1]² and a product Gauss-Legendre rule.
 fn visible_integral(mf: &Microfacet, wi: Vec3, q: &[(f64, f64)], g: impl Fn(Vec3) -> f32) -> f64 {
     let mut sum = 0.0f64;
@@ -77,7 +78,7 @@ fn visible_integral(mf: &Microfacet, wi: Vec3, q: &[(f64, f64)], g: impl Fn(Vec3
             if !(sample_pdf > 0.0) {
                 continue;
             }
-            let visible = mf.d(m) * mf.g1(wi, m) * wi.dot(m).max(0.0) / wi.z;
+            let visible = mf.d(m) * mf.g1_exact(wi, m) * wi.dot(m).max(0.0) / wi.z;
             sum += 0.25 * wx * wy * f64::from(g(m) * visible / sample_pdf);
         }
     }

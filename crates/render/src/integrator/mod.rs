@@ -91,7 +91,7 @@ impl Integrator {
     #[must_use]
     pub fn pixel_offset(&self, x: u32, y: u32, k: u32, spp: u32) -> (f32, f32) {
         match self {
-            Self::Path(_) => path::SAMPLER.get2(x, y, k, 0),
+            Self::Path(s) => s.sampler().get2(x, y, k, 0),
             _ if self.centred(spp) => (0.5, 0.5),
             _ => jitter(x, y, k),
         }
@@ -104,7 +104,7 @@ impl Integrator {
     #[must_use]
     pub fn lens_offset(&self, x: u32, y: u32, k: u32) -> (f32, f32) {
         match self {
-            Self::Path(_) => path::SAMPLER.get2(x, y, k, path::LENS_PAIR),
+            Self::Path(s) => s.sampler().get2(x, y, k, path::LENS_PAIR),
             _ => jitter(x ^ 0x5bd1_e995, y, k),
         }
     }

@@ -56,16 +56,27 @@ pub struct PathSettings {
     pub hide_emitters: bool,
     /// The light-sampling strategy.
     pub sampling: LightSampling,
+    /// The sampler's seed: another seed, another (equally good) set of samples.
+    pub seed: u32,
+}
+
+impl PathSettings {
+    /// The sampler these settings draw from.
+    #[inline]
+    #[must_use]
+    pub fn sampler(&self) -> Sampler {
+        Sampler::new(self.seed)
+    }
 }
 
 impl Default for PathSettings {
     fn default() -> Self {
-        Self { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false, sampling: LightSampling::Mis }
+        Self { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false, sampling: LightSampling::Mis, seed: DEFAULT_SEED }
     }
 }
 
-/// The sampler the path tracer draws from.
-pub(crate) const SAMPLER: Sampler = Sampler::new(0x1ce7_0001);
+/// The default seed of the path tracer's sampler.
+pub const DEFAULT_SEED: u32 = 0x1ce7_0001;
 
 /// The sampler pair of the lens position (thin-lens cameras), far from the bounces'.
 pub(crate) const LENS_PAIR: u32 = 0x4000_0000;
@@ -171,7 +182,7 @@ pub(crate) fn bsdf_frame<'w>(w: &'w World, surf: &Surface, ns: Vec3, d: Vec3) ->
 /// Radiance along a camera ray through pixel (x, y), sample `index`; `first`, when given,
 /// is the camera ray's closest hit, already found (by a packet of the block's camera rays).
 pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, index: u32, first: Option<Option<Hit>>) -> Vec3 {
-    let px = SAMPLER.pixel(x, y);
+    let px = s.sampler().pixel(x, y);
     let dims = |pair: u32| px.get2(index, pair);
     let choice_at = |depth: u32, k: u32| px.get1_hashed(index, depth.saturating_mul(CHOICES) + k);
     let lights = &w.light_set;
