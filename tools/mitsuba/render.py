@@ -1,6 +1,6 @@
 """Renders a Mitsuba 3 scene with the llvm_ad_rgb variant and writes a linear EXR.
 
-    tools/mitsuba/python tools/mitsuba/render.py SCENE.xml OUT.exr [--spp N] [--seed S]
+    tools/mitsuba/python tools/mitsuba/render.py SCENE.xml OUT.exr [--spp N] [--seed S] [-D NAME=VALUE ...]
     tools/mitsuba/python tools/mitsuba/render.py cornell OUT.exr   (Mitsuba's cornell_box())
 
 Prints the seconds of the first render (with JIT compilation) and of a second one (what
@@ -21,8 +21,10 @@ def main():
     ap.add_argument("out", help="the EXR to write")
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("-D", dest="defines", action="append", default=[], help="a scene parameter NAME=VALUE")
     a = ap.parse_args()
-    scene = mi.load_dict(mi.cornell_box()) if a.scene == "cornell" else mi.load_file(a.scene)
+    defines = dict(d.split("=", 1) for d in a.defines)
+    scene = mi.load_dict(mi.cornell_box()) if a.scene == "cornell" else mi.load_file(a.scene, **defines)
     times = []
     for run in range(2):
         t = time.time()

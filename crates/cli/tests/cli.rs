@@ -10,20 +10,43 @@ fn lucent() -> Command {
 #[test]
 fn render_demo_writes_a_real_picture() {
     let d = tempfile::tempdir().expect("tmp");
-    let out = d.path().join("demo.png");
-    let o = lucent().args(["render", "--size", "160x120", "--threads", "2", "-o"]).arg(&out).output().expect("run");
+    // The default: the path-traced studio.
+    let out = d.path().join("studio.png");
+    let o = lucent().args(["render", "--size", "160x120", "--spp", "8", "--threads", "2", "-o"]).arg(&out).output().expect("run");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(text.contains("Mrays/s") && text.contains("build"), "{text}");
+    assert!(text.contains("Mrays/s") && text.contains("build") && text.contains("8 spp"), "{text}");
     let img = image::open(&out).expect("png").to_rgb8();
     assert_eq!(img.dimensions(), (160, 120));
-    // Blue sky on top, and many distinct colours (not blank).
-    let sky = img.get_pixel(80, 2).0;
-    assert!(sky[2] > sky[0], "sky {sky:?}");
+    // The red wall on the left, the green one on the right, the light at the top: means
+    // over patches (a path-traced image is noisy pixel by pixel).
+    let patch = |x0: u32, y0: u32| {
+        let mut s = [0f32; 3];
+        for y in y0..y0 + 8 {
+            for x in x0..x0 + 8 {
+                for (k, c) in img.get_pixel(x, y).0.iter().enumerate() {
+                    s[k] += f32::from(*c) / 64.0;
+                }
+            }
+        }
+        s
+    };
+    let (left, right, light) = (patch(4, 50), patch(148, 50), patch(76, 0));
+    assert!(left[0] > 1.5 * left[1] && left[0] > 1.5 * left[2], "left wall {left:?}");
+    assert!(right[1] > 1.3 * right[0] && right[1] > 1.3 * right[2], "right wall {right:?}");
+    assert!(light.iter().all(|&c| c > 200.0), "light {light:?}");
     let mut colours: Vec<[u8; 3]> = img.pixels().map(|p| p.0).collect();
     colours.sort_unstable();
     colours.dedup();
     assert!(colours.len() > 500, "only {} colours", colours.len());
+    // Whitted, one flag away: the feature demo (blue sky on top).
+    let out = d.path().join("demo.png");
+    let o =
+        lucent().args(["render", "--integrator", "whitted", "--size", "160x120", "--threads", "2", "-o"]).arg(&out).output().expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(&out).expect("png").to_rgb8();
+    let sky = img.get_pixel(80, 2).0;
+    assert!(sky[2] > sky[0], "sky {sky:?}");
 }
 
 /// The path tracer on the Cornell box for a time budget: samples are added pass by pass

@@ -40,10 +40,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut files = Vec::new();
     walk(&shared.join("scenes"), &mut files);
     walk(&shared.join("rend3r"), &mut files);
+    // Mitsuba scenes: the repository's own.
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    walk(&repo.join("tools/mitsuba/scenes"), &mut files);
     files.sort();
     for f in &files {
         let len = std::fs::metadata(f)?.len();
-        let rel = f.strip_prefix(&shared).unwrap_or(f).display().to_string();
+        let rel = f.strip_prefix(&shared).or_else(|_| f.strip_prefix(&repo)).unwrap_or(f).display().to_string();
         let name = f.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
         if name.ends_with(".obj.gz") {
             // Unpacked, cut to the first 256 KB of lines.

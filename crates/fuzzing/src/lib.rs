@@ -37,6 +37,7 @@ pub const TARGETS: &[(&str, Harness)] = &[
     ("net", net),
     ("ws", websocket),
     ("http", http),
+    ("xml", mitsuba),
 ];
 
 /// The harness of target `name`.
@@ -101,6 +102,15 @@ pub fn mtl(data: &[u8]) {
         .replace(['\n', '\r'], "");
     let obj = format!("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl {name}\nf 1/1 2/2 3/3\n");
     load_file(&[("m.mtl", data), ("m.obj", obj.as_bytes())], "m.obj");
+}
+
+/// A Mitsuba 3 XML scene, in memory (the files it names are missing: errors or
+/// warnings), then its meshes built.
+pub fn mitsuba(data: &[u8]) {
+    let Ok(text) = std::str::from_utf8(data) else { return };
+    if let Ok(scene) = lucent_scene::parse_mitsuba(Path::new("fuzz.xml"), Path::new(NOWHERE), text) {
+        build_all(&scene);
+    }
 }
 
 /// PLY, ASCII or binary (the header says which), in memory.
@@ -273,6 +283,7 @@ pub fn target_for(path: &Path) -> Option<&'static str> {
         "png" | "jpg" | "jpeg" => "image",
         "rdr" | "asm" | "s" => "asm",
         "mem" => "mem",
+        "xml" => "xml",
         _ => return None,
     })
 }

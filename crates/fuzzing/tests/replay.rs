@@ -64,6 +64,10 @@ fn every_shared_file_goes_through_its_target() {
     let mut files = Vec::new();
     walk(&shared().join("scenes"), &mut files);
     walk(&shared().join("rend3r"), &mut files);
+    // The Mitsuba scenes are the repository's own (the references' sources and copies).
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    walk(&repo.join("tools/mitsuba/scenes"), &mut files);
+    walk(&repo.join("crates/render/tests/data/mitsuba"), &mut files);
     files.sort();
     let mut per = std::collections::BTreeMap::<&str, usize>::new();
     for f in &files {
@@ -77,7 +81,7 @@ fn every_shared_file_goes_through_its_target() {
         }
     }
     eprintln!("shared files per target: {per:?}");
-    for t in ["obj", "mtl", "ply", "gltf", "glb", "image", "asm", "mem"] {
+    for t in ["obj", "mtl", "ply", "gltf", "glb", "image", "asm", "mem", "xml"] {
         assert!(per.get(t).is_some_and(|&n| n > 0), "no shared file for {t}: {per:?}");
     }
 }

@@ -8,12 +8,15 @@
 //! Densities are per solid angle at the shading point, the choice among lights included;
 //! a delta light's "density" is the probability of choosing it.
 
-use crate::world::luminance;
+pub use crate::world::luminance;
 use glam::{Affine3A, Vec2, Vec3};
 use lucent_scene::{Environment, Geom, HdrImage, LightKind, Scene, ShapeKind};
 use std::collections::HashMap;
 use std::f32::consts::PI;
 use std::sync::Arc;
+
+/// No light.
+const NONE: u32 = u32::MAX;
 
 /// A light's answer for one shading point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -98,10 +101,10 @@ pub(crate) struct LightSet {
     entries: Vec<Entry>,
     /// Cumulative power, normalised.
     cdf: Vec<f32>,
-    /// Per (instance, triangle): its entry.
-    tri_index: HashMap<(u32, u32), u32>,
-    /// Per shape instance: its entry.
-    shape_index: HashMap<u32, u32>,
+    /// Per instance: for an instance with emitting triangles, each triangle's entry
+    /// (`NONE` for the others); for an emitting shape, its entry alone.
+    /// PERF: indexed, not hashed (a hash lookup per emitter met by a BSDF ray).
+    index: Vec<Option<Box<[u32]>>>,
     env: Option<(u32, EnvLight)>,
     /// The scene's lights (point, spot, directional), as posed.
     delta: Vec<lucent_scene::Light>,
@@ -112,7 +115,7 @@ pub(crate) struct LightSet {
 impl LightSet {
     /// The lights of `scene`, plus the user's.
     pub fn of(scene: &Scene, custom: &[Arc<dyn LightModel>]) -> Self {
-        let mut s = Self { delta: scene.lights.clone(), ..Self::default() };
+        let mut s = Self { delta: scene.lights.clone(), index: vec![None; scene.instances.len()], ..Self::default() };
         let bounds = scene.bounds();
         s.radius = bounds.map_or(1.0, |(lo, hi)| 0.5 * (hi - lo).length()).max(1e-6);
         let mut power: Vec<f64> = Vec::new();
@@ -145,7 +148,8 @@ impl LightSet {
                         if !(p > 0.0 && p.is_finite()) {
                             continue;
                         }
-                        s.tri_index.insert((ii as u32, t as u32), s.entries.len() as u32);
+                        let tris = s.index[ii].get_or_insert_with(|| vec![NONE; mesh.indices.len()].into_boxed_slice());
+                        tris[t] = s.entries.len() as u32;
                         s.entries.push(Entry::Tri(EmissiveTri { p0: a, e1, e2, n: cross / (2.0 * area), area, le: mat.emission, tex }));
                         power.push(f64::from(p));
                         group.push(ii as u64);
@@ -187,7 +191,7 @@ impl LightSet {
                     if !(p > 0.0 && p.is_finite()) {
                         continue;
                     }
-                    s.shape_index.insert(ii as u32, s.entries.len() as u32);
+                    s.index[ii] = Some(vec![s.entries.len() as u32].into_boxed_slice());
                     s.entries.push(entry);
                     power.push(f64::from(p));
                     group.push(1 << 32 | ii as u64);
@@ -304,9 +308,9 @@ impl LightSet {
             Entry::Delta(k) => delta_sample(self.delta.get(*k)?, p)?,
             Entry::Env => self.env.as_ref()?.1.sample(u2)?,
             Entry::Custom(c) => {
+                // (Rays never meet it: no multiple importance sampling, its own density.)
                 let mut s = c.sample(p, u2)?;
                 s.delta = true;
-                s.pdf = 1.0;
                 s
             }
         };
@@ -318,10 +322,13 @@ impl LightSet {
     /// `n`) of instance `inst`'s triangle `prim` or shape, seen along unit `dir`; `None`
     /// when that surface is not a sampled light.
     pub fn pdf_hit(&self, inst: u32, prim: u32, p: Vec3, q: Vec3, dir: Vec3) -> Option<f32> {
-        let i = match self.tri_index.get(&(inst, prim)) {
-            Some(&i) => i,
-            None => *self.shape_index.get(&inst)?,
-        } as usize;
+        let tris = self.index.get(inst as usize)?.as_ref()?;
+        // (A shape's table has its one entry.)
+        let i = *tris.get(if tris.len() == 1 { 0 } else { prim as usize })?;
+        if i == NONE {
+            return None;
+        }
+        let i = i as usize;
         let pmf = self.pmf(i);
         let d2 = (q - p).length_squared();
         Some(

@@ -18,7 +18,7 @@ pub struct Prepared {
     /// The back's model, for `Sides::Back`.
     pub back: Option<Box<Prepared>>,
     /// Rough plastic's tables.
-    tables: Option<Box<RoughPlasticTables>>,
+    tables: Option<std::sync::Arc<RoughPlasticTables>>,
     /// Plastics' specular sampling weight.
     spec_weight: f32,
     /// Smooth plastic's diffuse Fresnel reflectance from inside.
@@ -59,7 +59,7 @@ impl Prepared {
             p.spec_weight = plastic_spec_weight(color_mean(diffuse, &scene.textures), color_mean(specular, &scene.textures));
             p.fdr_int = fresnel_diffuse_reflectance(1.0 / eta);
             if let Some((dist, alpha)) = rough {
-                p.tables = Some(Box::new(RoughPlasticTables::new(&Microfacet::new(*dist, *alpha), *eta)));
+                p.tables = Some(RoughPlasticTables::new(&Microfacet::new(*dist, *alpha), *eta));
             }
         }
         p

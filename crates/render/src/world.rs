@@ -637,7 +637,8 @@ impl World {
 
 /// Luminance of linear sRGB (Rec. 709 weights).
 #[inline]
-pub(crate) fn luminance(c: Vec3) -> f32 {
+#[must_use]
+pub fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 

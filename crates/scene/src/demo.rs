@@ -172,7 +172,7 @@ pub fn torus(center: Vec3, major: f32, minor: f32, nu: u32, nv: u32, material: u
 /// The path tracer's studio: a room of diffuse walls (red left, green right: their colour
 /// bleeds onto the floor and the objects) lit by a rectangular area light in the ceiling
 /// (soft shadows), holding a glass sphere, a polished gold sphere, a rough copper torus,
-/// a blue rough-plastic sphere and a white plastic block on a checkered floor.
+/// a blue rough-plastic sphere and a yellow plastic block on a checkered floor.
 #[must_use]
 pub fn studio_scene() -> Scene {
     use crate::bsdf::{named_conductor, Bsdf, ColorTex, Distribution, FloatTex, Rough, Sides};
@@ -231,8 +231,14 @@ pub fn studio_scene() -> Scene {
         },
     ));
     let block = mat(Material::physical(
-        "white plastic",
-        Bsdf::Plastic { diffuse: ColorTex::grey(0.8), specular: ColorTex::grey(1.0), eta: 1.49, nonlinear: false, rough: None },
+        "yellow plastic",
+        Bsdf::Plastic {
+            diffuse: ColorTex::Const(Vec3::new(0.8, 0.6, 0.15)),
+            specular: ColorTex::grey(1.0),
+            eta: 1.49,
+            nonlinear: false,
+            rough: None,
+        },
     ));
     for m in [white, red, green, floor] {
         s.materials[m as usize].sides = Sides::Both;
@@ -270,5 +276,16 @@ pub fn studio_scene() -> Scene {
         s.instances.push(Instance { geom: Geom::Shape { kind, material }, world_from_object: m });
     }
     s.camera = Some(CameraDesc { eye: v(0.0, 1.5, 6.2), look_at: v(0.0, 1.2, 0.0), up: Vec3::Y, vfov_deg: 36.0, ortho_height: None });
+    // A few seconds on two cores (flags override it).
+    s.hints = Some(crate::model::RenderHints {
+        width: 640,
+        height: 480,
+        spp: 16,
+        max_depth: None,
+        rr_depth: 5,
+        hide_emitters: false,
+        lens: None,
+        clip: (0.0, f32::INFINITY),
+    });
     s
 }

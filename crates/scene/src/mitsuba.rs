@@ -41,6 +41,60 @@ const MAX_REF_DEPTH: u32 = 16;
 /// At most this many shapes (instances included), against files that would exhaust memory.
 const MAX_SHAPES: usize = 1 << 22;
 
+/// The deepest elements may nest (the XML parser recurses per level: thousands of levels
+/// overflowed a thread's stack; Mitsuba scenes nest a handful).
+const MAX_DEPTH: usize = 256;
+
+/// The line and column of the first element nested deeper than [`MAX_DEPTH`], found by a
+/// scan of the tags (comments, processing instructions, CDATA and quoted attribute values
+/// skipped) before the parser sees the text.
+fn too_deep(text: &str) -> Option<(usize, usize)> {
+    let b = text.as_bytes();
+    let (mut i, mut depth) = (0usize, 0usize);
+    while let Some(off) = b[i..].iter().position(|&c| c == b'<') {
+        let start = i + off;
+        let rest = &text[start..];
+        let skip_to = |end: &str| rest.find(end).map_or(b.len(), |k| start + k + end.len());
+        if rest.starts_with("<!--") {
+            i = skip_to("-->");
+        } else if rest.starts_with("<![CDATA[") {
+            i = skip_to("]]>");
+        } else if rest.starts_with("<?") {
+            i = skip_to("?>");
+        } else if rest.starts_with("<!") {
+            i = skip_to(">");
+        } else if rest.starts_with("</") {
+            depth = depth.saturating_sub(1);
+            i = skip_to(">");
+        } else {
+            // An opening tag: to its '>' outside quotes; '/>' closes it at once.
+            let mut j = start + 1;
+            let mut quote = 0u8;
+            while j < b.len() && !(quote == 0 && b[j] == b'>') {
+                match (quote, b[j]) {
+                    (0, q @ (b'"' | b'\'')) => quote = q,
+                    (q, c) if q == c => quote = 0,
+                    _ => {}
+                }
+                j += 1;
+            }
+            if !(j > start && b.get(j.wrapping_sub(1)) == Some(&b'/')) {
+                depth += 1;
+                if depth > MAX_DEPTH {
+                    let line = text[..start].matches('\n').count() + 1;
+                    let column = start - text[..start].rfind('\n').map_or(0, |k| k + 1) + 1;
+                    return Some((line, column));
+                }
+            }
+            i = (j + 1).min(b.len());
+        }
+        if i >= b.len() {
+            break;
+        }
+    }
+    None
+}
+
 type R<T> = Result<T, ImportError>;
 
 /// Loads a Mitsuba 3 XML scene.
@@ -67,6 +121,14 @@ pub fn parse_mitsuba(path: &Path, base: &Path, text: &str) -> R<Scene> {
 
 /// [`parse_mitsuba`] with parameters set from outside (see [`load_mitsuba_with`]).
 pub fn parse_mitsuba_with(path: &Path, base: &Path, text: &str, defines: &[(String, String)]) -> R<Scene> {
+    if let Some((line, column)) = too_deep(text) {
+        return Err(ImportError::At {
+            path: path.to_path_buf(),
+            line: line as u32,
+            column: column as u32,
+            msg: format!("elements nest deeper than {MAX_DEPTH} levels"),
+        });
+    }
     let doc = Document::parse_with_options(text, roxmltree::ParsingOptions { allow_dtd: false, nodes_limit: 1 << 22 }).map_err(|e| {
         let p = e.pos();
         ImportError::At { path: path.to_path_buf(), line: p.row, column: p.col, msg: e.to_string() }

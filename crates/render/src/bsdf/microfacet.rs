@@ -177,7 +177,7 @@ fn beckmann_visible_slopes(cos_t: f32, u: (f32, f32)) -> (f32, f32) {
     let mut x = erfinv64(2.0 * f64::from(u.0.clamp(1e-7, 1.0 - 1e-7)) - 1.0).clamp(lo, hi);
     for _ in 0..40 {
         let f = cdf(x) - target;
-        if f.abs() < 1e-10 * total {
+        if f.abs() < 1e-7 * total {
             break;
         }
         if f > 0.0 {
@@ -193,59 +193,41 @@ fn beckmann_visible_slopes(cos_t: f32, u: (f32, f32)) -> (f32, f32) {
     (x as f32, y as f32)
 }
 
-/// erf in f64 (Abramowitz and Stegun 7.1.26 is not enough here: the CDF inversion needs
-/// more digits), by its Taylor series near zero and the continued fraction of erfc beyond.
-fn erf64(x: f64) -> f64 {
-    if x < 0.0 {
-        return -erf64(-x);
+/// erfc by the Chebyshev fit of Numerical Recipes (§6.2, `erfcc`: fractional error below
+/// 1.2 × 10⁻⁷ everywhere), in f64.
+fn erfc64(x: f64) -> f64 {
+    let z = x.abs();
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let mut p = 0.170_872_77;
+    for c in
+        [-0.822_152_23, 1.488_515_87, -1.135_203_98, 0.278_868_07, -0.186_288_06, 0.096_784_18, 0.374_091_96, 1.000_023_68, -1.265_512_23]
+    {
+        p = c + t * p;
     }
-    if x < 2.5 {
-        // erf x = 2/√π Σ (−1)^n x^(2n+1) / (n! (2n + 1)).
-        let (mut term, mut sum, x2) = (x, x, x * x);
-        for n in 1..80 {
-            term *= -x2 / n as f64;
-            let t = term / (2 * n + 1) as f64;
-            sum += t;
-            if t.abs() < 1e-17 * sum.abs() {
-                break;
-            }
-        }
-        return sum * 2.0 / std::f64::consts::PI.sqrt();
+    let r = t * (-z * z + p).exp();
+    if x >= 0.0 {
+        r
+    } else {
+        2.0 - r
     }
-    1.0 - erfc_cf(x)
 }
 
-/// erfc x for x ≥ 2.5 by its continued fraction (Lentz's method).
-fn erfc_cf(x: f64) -> f64 {
-    // erfc x = e^(−x²)/√π · 1/(x + (1/2)/(x + 1/(x + (3/2)/(x + 2/(x + ...))))).
-    let mut f = x;
-    let (mut c, mut d) = (x, 0.0f64);
-    for k in 1..200 {
-        let a = k as f64 * 0.5;
-        d = x + a * d;
-        d = if d.abs() < 1e-300 { 1e300 } else { 1.0 / d };
-        c = x + a / c;
-        let delta = c * d;
-        f *= delta;
-        if (delta - 1.0).abs() < 1e-16 {
-            break;
-        }
-    }
-    (-x * x).exp() / std::f64::consts::PI.sqrt() / f
+/// erf, from [`erfc64`].
+fn erf64(x: f64) -> f64 {
+    1.0 - erfc64(x)
 }
 
 /// erfc in f32 (for the exact Beckmann masking).
 fn erfc(x: f32) -> f32 {
-    let x = f64::from(x);
-    (if x >= 2.5 { erfc_cf(x) } else { 1.0 - erf64(x) }) as f32
+    erfc64(f64::from(x)) as f32
 }
 
-/// erf⁻¹ by Newton's method on [`erf64`] from Giles's starting approximation ("Approximating
-/// the erfinv function", GPU Computing Gems, 2011).
+/// erf⁻¹ by Giles's approximation ("Approximating the erfinv function", GPU Computing
+/// Gems, 2011; single-precision accuracy).
 fn erfinv64(y: f64) -> f64 {
     let y = y.clamp(-1.0 + 1e-15, 1.0 - 1e-15);
     let w = -((1.0 - y) * (1.0 + y)).ln();
-    let mut x = if w < 5.0 {
+    if w < 5.0 {
         let w = w - 2.5;
         let mut p = 2.810_226_36e-08;
         for c in [
@@ -277,12 +259,7 @@ fn erfinv64(y: f64) -> f64 {
             p = c + p * w;
         }
         p * y
-    };
-    for _ in 0..3 {
-        let err = erf64(x) - y;
-        x -= err / (2.0 / std::f64::consts::PI.sqrt() * (-x * x).exp());
     }
-    x
 }
 
 /// The unpolarised Fresnel reflectance of a dielectric interface for a direction of cosine
@@ -460,11 +437,13 @@ mod tests {
             (2.0, 0.995_322_265_018_952_7),
             (3.0, 0.999_977_909_503_001_4),
         ] {
-            assert!((erf64(x) - want).abs() < 1e-13, "erf {x}: {}", erf64(x));
-            assert!((erf64(-x) + want).abs() < 1e-13);
+            assert!((erf64(x) - want).abs() < 2e-7, "erf {x}: {}", erf64(x));
+            assert!((erf64(-x) + want).abs() < 2e-7);
         }
+        // erfc's fractional error, far into the tail.
+        assert!((erfc64(4.0) / 1.541_725_790_028_002e-8 - 1.0).abs() < 1.2e-7);
         for y in [-0.999, -0.5, 0.0, 0.3, 0.9, 0.99999] {
-            assert!((erf64(erfinv64(y)) - y).abs() < 1e-12, "{y}");
+            assert!((erf64(erfinv64(y)) - y).abs() < 1e-6, "{y}");
         }
     }
 

@@ -1,0 +1,185 @@
+//! The Mitsuba XML reader: what it reads, and errors at line:column for what it cannot.
+
+use glam::Vec3;
+use lucent_scene::{parse_mitsuba, parse_mitsuba_with, Bsdf, ColorTex, Geom, ImportError, LightKind, Scene, ShapeKind, Sides};
+use std::path::Path;
+
+fn parse(xml: &str) -> Result<Scene, ImportError> {
+    parse_mitsuba(Path::new("t.xml"), Path::new("/nonexistent"), xml)
+}
+
+fn err(xml: &str) -> String {
+    match parse(xml) {
+        Ok(_) => panic!("expected an error for {xml}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+const SENSOR: &str = r#"<sensor type="perspective"><float name="fov" value="60"/>
+    <transform name="to_world"><lookat origin="0,0,5" target="0,0,0" up="0,1,0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="200"/><integer name="height" value="100"/><rfilter type="box"/></film>
+    <sampler type="independent"><integer name="sample_count" value="32"/></sampler></sensor>"#;
+
+#[test]
+fn reads_sensor_film_sampler_and_integrator() {
+    let s = parse(&format!(
+        r#"<scene version="3.0.0"><integrator type="path"><integer name="max_depth" value="7"/><boolean name="hide_emitters" value="true"/></integrator>{SENSOR}</scene>"#
+    ))
+    .expect("scene");
+    let h = s.hints.expect("hints");
+    assert_eq!((h.width, h.height, h.spp, h.max_depth, h.rr_depth, h.hide_emitters), (200, 100, 32, Some(7), 5, true));
+    let c = s.camera.expect("camera");
+    assert!((c.eye - Vec3::new(0.0, 0.0, 5.0)).length() < 1e-6 && (c.look_at - c.eye).normalize().z < -0.999);
+    // fov 60 along x (Mitsuba's default axis) of a 2:1 film: tan(v/2) = tan(30°)/2.
+    let want = 2.0 * (30f32.to_radians().tan() / 2.0).atan().to_degrees();
+    assert!((c.vfov_deg - want).abs() < 1e-3, "{} against {want}", c.vfov_deg);
+}
+
+#[test]
+fn reads_shapes_bsdfs_and_emitters() {
+    let s = parse(&format!(
+        r#"<scene version="3.0.0">{SENSOR}
+        <default name="r" value="0.25"/>
+        <bsdf type="roughconductor" id="metal"><string name="material" value="Au"/><string name="distribution" value="ggx"/><float name="alpha" value="0.2"/></bsdf>
+        <shape type="sphere"><point name="center" x="1" y="2" z="3"/><float name="radius" value="$r"/><ref id="metal"/></shape>
+        <shape type="rectangle"><bsdf type="twosided"><bsdf type="diffuse"><rgb name="reflectance" value="0.1, 0.2, 0.3"/></bsdf></bsdf>
+            <emitter type="area"><rgb name="radiance" value="4 5 6"/></emitter></shape>
+        <shape type="cube"><bsdf type="dielectric"/></shape>
+        <shape type="cylinder"><float name="radius" value="0.5"/></shape>
+        <emitter type="spot"><float name="cutoff_angle" value="30"/></emitter>
+        <emitter type="constant"><rgb name="radiance" value="0.5"/></emitter>
+        <shape type="nosuchshape"/>
+        <emitter type="nosuchemitter"/>
+        </scene>"#
+    ))
+    .expect("scene");
+    // Sphere: centre and radius from $r.
+    let sphere = s.instances.iter().find(|i| matches!(i.geom, Geom::Shape { kind: ShapeKind::Sphere, .. })).expect("sphere");
+    assert!((Vec3::from(sphere.world_from_object.translation) - Vec3::new(1.0, 2.0, 3.0)).length() < 1e-6);
+    assert!((sphere.world_from_object.matrix3.x_axis.length() - 0.25).abs() < 1e-6);
+    let Geom::Shape { material, .. } = sphere.geom else { unreachable!() };
+    assert!(matches!(&s.materials[material as usize].bsdf, Some(Bsdf::Conductor { rough: Some(_), .. })));
+    assert_eq!(s.materials[material as usize].sides, Sides::Front, "a bare BSDF is one-sided, as in Mitsuba");
+    // The rectangle: two triangles, twosided diffuse, emitting.
+    let rect = s.meshes.iter().position(|m| m.name == "rectangle").expect("rectangle");
+    let m = &s.materials[s.meshes[rect].material[0] as usize];
+    assert_eq!(m.sides, Sides::Both);
+    assert_eq!(m.emission, Vec3::new(4.0, 5.0, 6.0));
+    assert!(matches!(&m.bsdf, Some(Bsdf::Diffuse { reflectance: ColorTex::Const(c) }) if *c == Vec3::new(0.1, 0.2, 0.3)));
+    assert_eq!(s.meshes.iter().find(|m| m.name == "cube").expect("cube").indices.len(), 12);
+    assert!(s.instances.iter().any(|i| matches!(i.geom, Geom::Shape { kind: ShapeKind::Tube, .. })));
+    // Spot: Mitsuba's beam width defaults to 3/4 of the cutoff.
+    let LightKind::Spot { inner, outer, .. } = s.lights[0].kind else { panic!("spot") };
+    assert!((outer - 30f32.to_radians()).abs() < 1e-6 && (inner - 22.5f32.to_radians()).abs() < 1e-6);
+    assert_eq!(s.environment.expect("constant").scale, Vec3::splat(0.5));
+}
+
+#[test]
+fn defines_replace_defaults() {
+    let xml = r#"<scene version="3.0.0"><default name="spp" value="4"/>
+        <sensor type="perspective"><float name="fov" value="45"/><sampler type="independent"><integer name="sample_count" value="$spp"/></sampler></sensor></scene>"#;
+    let s = parse_mitsuba_with(Path::new("t.xml"), Path::new("."), xml, &[("spp".into(), "9".into())]).expect("scene");
+    assert_eq!(s.hints.expect("hints").spp, 9);
+    assert_eq!(parse(xml).expect("scene").hints.expect("hints").spp, 4);
+}
+
+#[test]
+fn errors_name_the_line_and_column_and_what_was_expected() {
+    // Malformed XML.
+    assert!(
+        err("<scene version=\"3.0.0\">\n  <shape type=\"sphere\">\n</scene>").starts_with("t.xml:3:"),
+        "{}",
+        err("<scene>\n<shape>\n</scene>")
+    );
+    // Not a scene.
+    assert!(err("<nothing/>").contains("expected <scene>"));
+    let e = err(
+        "<scene version=\"3.0.0\">\n <shape type=\"sphere\">\n  <transform name=\"to_world\"><twist/></transform>\n </shape>\n</scene>",
+    );
+    assert!(e.starts_with("t.xml:3:") && e.contains("expected translate, rotate, scale, matrix or lookat"), "{e}");
+    let e = err(r#"<scene version="3.0.0"><shape type="sphere"><float name="radius" value="big"/></shape></scene>"#);
+    assert!(e.contains("'big' is not a number"), "{e}");
+    let e = err(r#"<scene version="3.0.0"><shape type="sphere"><ref id="nowhere"/></shape></scene>"#);
+    assert!(e.contains("no element has id 'nowhere'"), "{e}");
+    let e = err(r#"<scene version="3.0.0"><shape type="sphere"><float name="radius" value="$undefined"/></shape></scene>"#);
+    assert!(e.contains("$undefined"), "{e}");
+    let e = err(
+        r#"<scene version="3.0.0"><shape type="sphere"><bsdf type="conductor"><string name="material" value="Kryptonite"/></bsdf></shape></scene>"#,
+    );
+    assert!(e.contains("Kryptonite"), "{e}");
+    let e = err(
+        r#"<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm"><integer name="width" value="1000000000"/></film></sensor></scene>"#,
+    );
+    assert!(e.contains("film size"), "{e}");
+    let e = err(r#"<scene version="3.0.0"><shape type="obj"><string name="filename" value="missing.obj"/></shape></scene>"#);
+    assert!(e.contains("missing.obj"), "{e}");
+    let e =
+        err(r#"<scene version="3.0.0"><shape type="sphere"><transform name="to_world"><scale value="1e39"/></transform></shape></scene>"#);
+    assert!(e.contains("not finite") || e.contains("not a number"), "{e}");
+}
+
+#[test]
+fn reference_cycles_and_deep_nesting_end_in_errors() {
+    // A twosided BSDF that contains a reference to itself.
+    let e = err(
+        r#"<scene version="3.0.0"><bsdf type="twosided" id="a"><ref id="a"/></bsdf><shape type="sphere"><ref id="a"/></shape></scene>"#,
+    );
+    assert!(e.contains("deep"), "{e}");
+    // Thousands of nested twosided BSDFs.
+    let n = 5000;
+    let xml = format!(
+        r#"<scene version="3.0.0"><shape type="sphere">{}<bsdf type="diffuse"/>{}</shape></scene>"#,
+        r#"<bsdf type="twosided">"#.repeat(n),
+        "</bsdf>".repeat(n)
+    );
+    assert!(err(&xml).contains("nest deeper"), "{}", err(&xml));
+    // (Comments, quotes and self-closing tags do not count.)
+    let ok = format!(r#"<scene version="3.0.0"><!-- <a><b><c> -->{}</scene>"#, r#"<default name="x" value="a>b"/>"#.repeat(1000));
+    parse(&ok).expect("flat scene");
+}
+
+/// How MTL and glTF materials land on BSDFs (documented in `lucent_scene::bsdf`).
+#[test]
+fn mtl_and_gltf_materials_keep_their_parameters() {
+    let shared = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes");
+    let shared = std::env::var("LUCENT_SCENES").map(std::path::PathBuf::from).unwrap_or(shared);
+    // MTL: diffuse only (Ks 0) → Lambertian; Ks > 0 → diffuse + Beckmann lobe with α from Ns.
+    let cb = lucent_scene::load(&shared.join("cornell_box_original/CornellBox-Original.obj")).expect("cornell");
+    let floor = cb.materials.iter().find(|m| m.name == "floor").expect("floor");
+    assert!(
+        matches!(&floor.bsdf, Some(Bsdf::Diffuse { reflectance: ColorTex::Const(c) }) if (*c - Vec3::new(0.725, 0.71, 0.68)).abs().max_element() < 1e-6)
+    );
+    let light = cb.materials.iter().find(|m| m.name == "light").expect("light");
+    assert_eq!(light.emission, Vec3::new(17.0, 12.0, 4.0));
+    let kitchen = lucent_scene::load(&shared.join("bart/kitchen/kitchen_t0.obj.gz")).expect("kitchen");
+    let chrome = kitchen.materials.iter().find(|m| m.name == "m4").expect("m4");
+    match &chrome.bsdf {
+        Some(Bsdf::DiffuseGlossy { specular, alpha, .. }) => {
+            assert_eq!(*specular, Vec3::splat(0.9));
+            assert!((alpha - (2.0f32 / (97.4304 + 2.0)).sqrt()).abs() < 1e-6, "{alpha}");
+        }
+        other => panic!("m4: {other:?}"),
+    }
+    // glTF: metallic-roughness with its factors, the mask's cutoff, emission.
+    let g = lucent_scene::load(&shared.join("gltf-validator/test/base/data/material/valid.gltf")).expect("valid.gltf");
+    let m = &g.materials[1];
+    match &m.bsdf {
+        Some(Bsdf::MetallicRoughness { base_color, metallic, roughness, .. }) => {
+            assert_eq!(base_color.mean_guess(), Vec3::new(1.0, 0.0, 1.0));
+            assert_eq!((metallic.factor(), roughness.factor()), (0.7, 0.3));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(m.alpha, lucent_scene::Alpha::Mask { cutoff: 0.4, tex: None, factor: 1.0 });
+    assert_eq!(m.emission, Vec3::new(0.0, 1.0, 0.0));
+    let modes = lucent_scene::load(&shared.join("gltf-validator/test/base/data/material/alpha_modes.gltf")).expect("alpha_modes.gltf");
+    let alphas: Vec<_> = modes.materials[1..].iter().map(|m| m.alpha).collect();
+    assert_eq!(
+        alphas,
+        [
+            lucent_scene::Alpha::Mask { cutoff: 0.6, tex: None, factor: 1.0 },
+            lucent_scene::Alpha::Mask { cutoff: 0.5, tex: None, factor: 1.0 },
+            lucent_scene::Alpha::Opaque
+        ]
+    );
+}
