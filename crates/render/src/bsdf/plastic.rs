@@ -106,7 +106,7 @@ fn visible_integral(mf: &Microfacet, wi: Vec3, q: &[(f64, f64)], g: impl Fn(Vec3
             let phi = 2.0 * std::f64::consts::PI * v;
             let m = Vec3::new((sin * phi.cos()) as f32, (sin * phi.sin()) as f32, cos as f32);
             let sample_pdf = mf.d(m) * m.z;
-            if !(sample_pdf > 0.0) {
+            if sample_pdf.is_nan() || sample_pdf <= 0.0 {
                 continue;
             }
             let visible = mf.d(m) * mf.g1_exact(wi, m) * wi.dot(m).max(0.0) / wi.z;

@@ -177,12 +177,9 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
             let scale = m.pointer("/normalTexture/scale").and_then(Value::as_f64).unwrap_or(1.0) as f32;
             mat.normal_map = Some(crate::bsdf::NormalMap { tex: n, scale });
         }
-        match m.get("alphaMode").and_then(Value::as_str) {
-            Some(mode @ ("MASK" | "BLEND")) => {
-                let cutoff = if mode == "MASK" { f32_at(m, "alphaCutoff").unwrap_or(0.5) } else { 0.5 };
-                mat.alpha = crate::bsdf::Alpha::Mask { cutoff, tex: base_tex, factor: bc[3] };
-            }
-            _ => {}
+        if let Some(mode @ ("MASK" | "BLEND")) = m.get("alphaMode").and_then(Value::as_str) {
+            let cutoff = if mode == "MASK" { f32_at(m, "alphaCutoff").unwrap_or(0.5) } else { 0.5 };
+            mat.alpha = crate::bsdf::Alpha::Mask { cutoff, tex: base_tex, factor: bc[3] };
         }
         let mut transmission = FloatTex::Const(0.0);
         if let Some(t) = m.pointer("/extensions/KHR_materials_transmission") {
