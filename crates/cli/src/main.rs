@@ -401,7 +401,7 @@ enum BenchCmd {
         /// The reference scenes' folder.
         #[arg(long, default_value = "crates/render/tests/data/mitsuba")]
         data: PathBuf,
-        /// The shared scenes folder (the references' lucent.txt paths are under it).
+        /// The shared scenes folder (a reference scene's `$scenes` parameter).
         #[arg(long, default_value = "../shared/scenes")]
         dir: PathBuf,
     },

@@ -58,8 +58,10 @@ pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
         let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let xml = dir.join("scene.xml");
         let text = std::fs::read_to_string(&xml).with_context(|| format!("{}", xml.display()))?;
+        // (The scene resolves files against its own folder: the shared scenes, absolute.)
+        let shared = std::fs::canonicalize(scenes_dir).with_context(|| format!("the shared scenes at {}", scenes_dir.display()))?;
         let defines: Vec<(String, String)> =
-            if text.contains("$scenes") { vec![("scenes".into(), scenes_dir.display().to_string())] } else { Vec::new() };
+            if text.contains("$scenes") { vec![("scenes".into(), shared.display().to_string())] } else { Vec::new() };
         let scene = lucent_scene::load_mitsuba_with(&xml, &defines)?;
         let recorded: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("mitsuba.json"))?)?;
         let m_err = recorded["relmse_64"].as_f64().context("mitsuba.json: relmse_64")?;

@@ -144,7 +144,7 @@ impl Integrator {
     pub fn li_block(&self, w: &World, block: &Block, rays: &[Ray], traversal: Traversal, out: &mut [Vec3]) {
         match self {
             Self::Whitted(s) if traversal.packets => whitted::li_packet_among(w, rays, block.among, s, out),
-            Self::Path(s) if traversal.packets => {
+            Self::Path(s) if traversal.packets && coherent(rays) => {
                 // The camera rays' closest hits as one packet; each path goes on alone.
                 let mut hits = [None; lucent_accel::MAX_PACKET];
                 let hits = &mut hits[..rays.len()];
@@ -180,6 +180,23 @@ impl Integrator {
         let base = if kd.max_element() > 0.0 { kd } else { mat.specular.max(mat.reflect).max(mat.transmit) };
         base * (0.15 + 0.85 * (-d).dot(ns).max(0.0)) + mat.emission.min(Vec3::ONE)
     }
+}
+
+/// Whether a block's camera rays are narrow enough for a packet to pay: their unit
+/// directions differ by at most [`PACKET_SPREAD`] in every component. Measured on the
+/// bunny reference scene, path traced (median of two runs, 2 threads): at 64 × 64 pixels
+/// (8-pixel blocks span 0.065) single rays took 0.90 s where packets took 1.13 s; at
+/// 256 × 256 (0.016) packets took 0.67 s against 0.71, at 512 × 512 2.46 s against 2.62.
+const PACKET_SPREAD: f32 = 0.03;
+
+fn coherent(rays: &[Ray]) -> bool {
+    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for r in rays {
+        let d = r.dir.normalize_or_zero();
+        lo = lo.min(d);
+        hi = hi.max(d);
+    }
+    (hi - lo).max_element() <= PACKET_SPREAD
 }
 
 /// Material `index` of the scene, or the default one for an index out of range (PERF:
