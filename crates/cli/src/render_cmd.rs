@@ -5,7 +5,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lucent_accel::{MeshOptions, TriangleTest};
 use lucent_render::{
     framing_camera, render, render_region, Camera, FilmAccumulator, Integrator, PathSettings, Region, RenderSettings, Traversal,
-    WhittedSettings, World,
+    VplSettings, WhittedSettings, World,
 };
 use lucent_scene::{CameraDesc, Scene};
 use std::io::IsTerminal;
@@ -53,9 +53,11 @@ pub struct RenderArgs {
     pub aovs: bool,
     /// What the rays compute: `path` (path tracing, the default: area lights, soft
     /// shadows, light bouncing between surfaces, every material's BSDF; converges as --spp
-    /// grows), `whitted` (point lights, hard shadows, mirror and glass), `eye-light` (a
-    /// light at the eye, no shadows: the fastest preview) or `normals` (shading normals as
-    /// colours).
+    /// grows), `vpl` (direct light plus indirect light from virtual point lights, as
+    /// SaarCOR: a smooth approximation of the path tracer's image in one sample per
+    /// pixel; see --vpls), `whitted` (point lights, hard shadows, mirror and glass),
+    /// `eye-light` (a light at the eye, no shadows: the fastest preview) or `normals`
+    /// (shading normals as colours).
     #[arg(long, value_parser = INTEGRATORS)]
     pub integrator: Option<String>,
     /// Whitted: most reflection/refraction generations (default 6). Path: most path
@@ -73,6 +75,22 @@ pub struct RenderArgs {
     /// Path: the sampler's seed (another seed, another equally good set of samples).
     #[arg(long)]
     pub seed: Option<u32>,
+    /// VPL: virtual point lights per frame (each sample of a pixel is a frame with its own
+    /// set).
+    #[arg(long, default_value_t = VplSettings::default().count)]
+    pub vpls: u32,
+    /// VPL: the least distance at which a VPL's light is evaluated, as a fraction of the
+    /// scene's diagonal: larger removes more of the bright spots near VPLs and darkens
+    /// corners more; 0 turns clamping off (unbiased, noisy).
+    #[arg(long, default_value_t = VplSettings::default().clamp)]
+    pub vpl_clamp: f32,
+    /// VPL: interleaved sampling over M×M pixels (each pixel lit by one of M² sets of the
+    /// VPLs; 1: every pixel by all of them).
+    #[arg(long, default_value_t = VplSettings::default().interleave)]
+    pub interleave: u32,
+    /// VPL: leave the interleaving pattern in (no discontinuity buffer).
+    #[arg(long)]
+    pub no_discontinuity: bool,
     /// Turn shadow rays off (Whitted).
     #[arg(long)]
     pub no_shadows: bool,
@@ -93,14 +111,16 @@ pub struct RenderArgs {
 }
 
 /// The integrators `--integrator` names.
-pub const INTEGRATORS: [&str; 4] = ["whitted", "path", "eye-light", "normals"];
+pub const INTEGRATORS: [&str; 5] = ["whitted", "path", "vpl", "eye-light", "normals"];
 
 /// The integrator `--integrator NAME` (one of [`INTEGRATORS`]) names, with the settings of
 /// `--max-depth` and `--no-shadows` (Whitted) or `--max-depth`, `--rr-depth` and
-/// `--hide-emitters` (path).
+/// `--hide-emitters` (path), or `--max-depth` (VPL: most bounces of its light paths; its
+/// other options are set by the caller).
 pub fn integrator_of(name: &str, max_depth: Option<u32>, no_shadows: bool, rr_depth: u32, hide_emitters: bool) -> Integrator {
     match name {
         "eye-light" => Integrator::EyeLight,
+        "vpl" => Integrator::Vpl(VplSettings { max_depth: max_depth.unwrap_or(VplSettings::default().max_depth), ..VplSettings::default() }),
         "normals" => Integrator::Normals,
         "path" => {
             Integrator::Path(PathSettings { max_depth: max_depth.unwrap_or(u32::MAX), rr_depth, hide_emitters, ..PathSettings::default() })
@@ -228,7 +248,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let name = a.integrator.clone().unwrap_or_else(|| "path".into());
     // Without a scene, the path tracer shows its studio and the others the feature demo.
     let demo = match (a.scene.as_ref(), a.demo.demo, name.as_str()) {
-        (None, None, "path") => DemoArg { demo: Some(Demo::Studio), ..a.demo },
+        (None, None, "path" | "vpl") => DemoArg { demo: Some(Demo::Studio), ..a.demo },
         _ => a.demo,
     };
     let mut scene = load_scene(a.scene.as_deref(), &demo)?;
@@ -243,9 +263,25 @@ pub fn run(a: RenderArgs) -> Result<()> {
     );
     let integrator = match (integrator, a.seed) {
         (Integrator::Path(p), Some(seed)) => Integrator::Path(PathSettings { seed, ..p }),
+        (Integrator::Vpl(v), seed) => {
+            if !(a.vpl_clamp >= 0.0 && a.vpl_clamp.is_finite()) {
+                bail!("--vpl-clamp must be a fraction of the scene's diagonal, 0 or more (got {})", a.vpl_clamp);
+            }
+            if !(1..=64).contains(&a.interleave) {
+                bail!("--interleave must be 1..=64 (got {})", a.interleave);
+            }
+            Integrator::Vpl(VplSettings {
+                count: a.vpls,
+                clamp: a.vpl_clamp,
+                interleave: a.interleave,
+                discontinuity: !a.no_discontinuity,
+                seed: seed.unwrap_or(v.seed),
+                ..v
+            })
+        }
         (i, _) => i,
     };
-    if matches!(integrator, Integrator::Path(_)) && scene.lights.is_empty() && scene.environment.is_none() && !has_emitters(&scene) {
+    if matches!(integrator, Integrator::Path(_) | Integrator::Vpl(_)) && scene.lights.is_empty() && scene.environment.is_none() && !has_emitters(&scene) {
         tracing::warn!("the scene has no lights: lit by a white sky (a constant environment of radiance 1)");
         scene.environment = Some(lucent_scene::Environment { scale: glam::Vec3::ONE, image: None, to_world: glam::Affine3A::IDENTITY });
     }

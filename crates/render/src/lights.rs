@@ -110,6 +110,27 @@ pub(crate) struct LightSet {
     delta: Vec<lucent_scene::Light>,
     /// Radius of the scene's bounding sphere (directional and environment power).
     radius: f32,
+    /// Centre of the scene's bounding sphere (where directional and environment light
+    /// paths start from).
+    centre: Vec3,
+    /// Cumulative power of the entries, normalised, for light paths
+    /// ([`LightSet::sample_emission`]): by power alone (user lights, which cannot emit
+    /// paths, at zero).
+    emit_cdf: Vec<f32>,
+}
+
+/// A ray of light leaving a light, for light paths (virtual point lights).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmissionSample {
+    /// Where it starts.
+    pub p: Vec3,
+    /// Unit direction it travels.
+    pub dir: Vec3,
+    /// The emitting surface's normal (area lights), for offsetting the start.
+    pub n: Option<Vec3>,
+    /// Power it carries: the emitted radiance times the cosine over the densities of
+    /// its choice, point and direction.
+    pub flux: Vec3,
 }
 
 impl LightSet {
@@ -118,6 +139,10 @@ impl LightSet {
         let mut s = Self { delta: scene.lights.clone(), index: vec![None; scene.instances.len()], ..Self::default() };
         let bounds = scene.bounds();
         s.radius = bounds.map_or(1.0, |(lo, hi)| 0.5 * (hi - lo).length()).max(1e-6);
+        s.centre = bounds.map_or(Vec3::ZERO, |(lo, hi)| 0.5 * (lo + hi));
+        if !s.centre.is_finite() {
+            s.centre = Vec3::ZERO;
+        }
         let mut power: Vec<f64> = Vec::new();
         // Which light object each entry belongs to.
         let mut group: Vec<u64> = Vec::new();
@@ -228,6 +253,10 @@ impl LightSet {
                 group.push(4 << 32 | k as u64);
             }
         }
+        // Light paths leave lights in proportion to their power (user lights, which only
+        // answer toward a point, emit none).
+        let emit: Vec<f64> = power.iter().zip(&s.entries).map(|(&p, e)| if matches!(e, Entry::Custom(_)) { 0.0 } else { p }).collect();
+        s.emit_cdf = cumulative(&emit);
         // The choice: uniform among light objects (each mesh instance's emitters, each
         // emitting shape, each point, spot and directional light, the environment, each
         // user light), and within a mesh instance by the triangles' power (as Mitsuba
@@ -244,18 +273,7 @@ impl LightSet {
         for (p, g) in power.iter_mut().zip(&group) {
             *p = *p / group_power[g].max(f64::MIN_POSITIVE) / groups;
         }
-        let total: f64 = power.iter().sum();
-        let mut acc = 0f64;
-        s.cdf = power
-            .iter()
-            .map(|&p| {
-                acc += p;
-                (acc / total) as f32
-            })
-            .collect();
-        if let Some(last) = s.cdf.last_mut() {
-            *last = 1.0;
-        }
+        s.cdf = cumulative(&power);
         s
     }
 
@@ -346,6 +364,83 @@ impl LightSet {
         self.env.as_ref().map(|(_, e)| e.eval(dir))
     }
 
+    /// A ray of light leaving one of the lights (chosen by `u` in proportion to power; a
+    /// point on it by `u_pos`, a direction by `u_dir`), for light paths: area lights emit
+    /// cosine-weighted from a uniform point, point lights uniformly in all directions,
+    /// spot lights uniformly within their outer cone (times the falloff), directional
+    /// and environment light from a uniform point of a disk of the scene's bounding radius
+    /// across the scene, facing the light's direction. User lights emit nothing (they
+    /// only answer toward a point: they light surfaces directly, not through paths).
+    pub fn sample_emission(&self, u: f32, u_pos: (f32, f32), u_dir: (f32, f32), textures: &[lucent_scene::Texture]) -> Option<EmissionSample> {
+        let i = self.emit_cdf.partition_point(|&c| c <= u).min(self.entries.len().checked_sub(1)?);
+        let lo = if i == 0 { 0.0 } else { self.emit_cdf[i - 1] };
+        let pmf = self.emit_cdf[i] - lo;
+        if pmf <= 0.0 {
+            return None;
+        }
+        // A start on the disk of the scene's bounding sphere facing `dir`, behind the scene.
+        let disk_start = |dir: Vec3| {
+            let (t, b) = dir.any_orthonormal_pair();
+            let d = concentric_disk(u_pos) * self.radius;
+            self.centre - dir * self.radius + t * d.x + b * d.y
+        };
+        let disk_area = PI * self.radius * self.radius;
+        let mut e = match &self.entries[i] {
+            Entry::Tri(t) => {
+                let (mut a, mut b) = u_pos;
+                if a + b > 1.0 {
+                    (a, b) = (1.0 - a, 1.0 - b);
+                }
+                let le = match t.tex {
+                    Some((tex, uv)) => {
+                        let uvq = uv[0] * (1.0 - a - b) + uv[1] * a + uv[2] * b;
+                        t.le * crate::texture::sample(&textures[tex as usize], uvq).truncate()
+                    }
+                    None => t.le,
+                };
+                area_emission(t.p0 + t.e1 * a + t.e2 * b, t.n, t.area, le, u_dir)?
+            }
+            Entry::Sphere { c, r, le } => {
+                let n = uniform_sphere(u_pos);
+                area_emission(*c + n * *r, n, 4.0 * PI * r * r, *le, u_dir)?
+            }
+            Entry::Disk { c, ax, ay, n, area, le } => {
+                let d = concentric_disk(u_pos);
+                area_emission(*c + *ax * d.x + *ay * d.y, *n, *area, *le, u_dir)?
+            }
+            Entry::Delta(k) => {
+                let l = self.delta.get(*k)?;
+                match l.kind {
+                    LightKind::Point { position } => EmissionSample { p: position, dir: uniform_sphere(u_dir), n: None, flux: l.color * (4.0 * PI) },
+                    LightKind::Spot { position, direction, outer, .. } => {
+                        let axis = direction.normalize_or_zero();
+                        let cos_max = outer.cos();
+                        let cos_t = 1.0 - u_dir.0 * (1.0 - cos_max);
+                        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+                        let (sp, cp) = (2.0 * PI * u_dir.1).sin_cos();
+                        let (t, b) = axis.any_orthonormal_pair();
+                        let dir = (t * (sin_t * cp) + b * (sin_t * sp) + axis * cos_t).normalize_or_zero();
+                        // (The falloff is what a shading point on this direction receives.)
+                        let falloff = delta_sample(l, position + dir)?.li;
+                        EmissionSample { p: position, dir, n: None, flux: falloff * (2.0 * PI * (1.0 - cos_max)) }
+                    }
+                    LightKind::Directional { direction } => {
+                        let dir = direction.normalize_or_zero();
+                        EmissionSample { p: disk_start(dir), dir, n: None, flux: l.color * disk_area }
+                    }
+                }
+            }
+            Entry::Env => {
+                let s = self.env.as_ref()?.1.sample(u_dir)?;
+                let dir = -s.dir;
+                EmissionSample { p: disk_start(dir), dir, n: None, flux: s.li * (disk_area / s.pdf) }
+            }
+            Entry::Custom(_) => return None,
+        };
+        e.flux /= pmf;
+        (e.flux.is_finite() && e.flux.max_element() > 0.0 && e.dir != Vec3::ZERO && e.p.is_finite()).then_some(e)
+    }
+
     /// The density with which [`LightSet::sample`] picks direction `dir` of the
     /// environment.
     pub fn env_pdf(&self, dir: Vec3) -> f32 {
@@ -354,6 +449,46 @@ impl LightSet {
             None => 0.0,
         }
     }
+}
+
+/// The normalised cumulative sums of `w` (all zero when `w` sums to zero).
+fn cumulative(w: &[f64]) -> Vec<f32> {
+    let total: f64 = w.iter().sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return vec![0.0; w.len()];
+    }
+    let mut acc = 0f64;
+    let mut cdf: Vec<f32> = w
+        .iter()
+        .map(|&p| {
+            acc += p;
+            (acc / total) as f32
+        })
+        .collect();
+    // (The last entry with any weight ends at exactly 1.)
+    if let Some(last) = w.iter().rposition(|&p| p > 0.0) {
+        for c in &mut cdf[last..] {
+            *c = 1.0;
+        }
+    }
+    cdf
+}
+
+/// A point and a cosine-weighted direction about `n` leaving an area light of radiance
+/// `le` and area `area`: the flux is `le · area · π`.
+fn area_emission(q: Vec3, n: Vec3, area: f32, le: Vec3, u: (f32, f32)) -> Option<EmissionSample> {
+    let local = crate::bsdf::cosine_hemisphere(u);
+    let (t, b) = n.any_orthonormal_pair();
+    let dir = (t * local.x + b * local.y + n * local.z).normalize_or_zero();
+    (local.z > 0.0 && dir != Vec3::ZERO).then_some(EmissionSample { p: q, dir, n: Some(n), flux: le * (area * PI) })
+}
+
+/// A uniformly chosen unit vector.
+fn uniform_sphere(u: (f32, f32)) -> Vec3 {
+    let z = 1.0 - 2.0 * u.0;
+    let s = (1.0 - z * z).max(0.0).sqrt();
+    let (sp, cp) = (2.0 * PI * u.1).sin_cos();
+    Vec3::new(s * cp, s * sp, z)
 }
 
 /// An area light's point `q` (normal `n`, one-sided, of total area `area`) seen from `p`.

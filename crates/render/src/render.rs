@@ -100,6 +100,13 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> crate::f
 pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u64) + Sync)) -> (Film, u64) {
     let (width, height) = (s.width, s.height);
     let region = Region::full(width, height, 0, s.spp.max(1));
+    if let Integrator::Vpl(v) = &s.integrator {
+        let (part, rays) = crate::integrator::vpl::render_region(w, cam, s, v, region, progress);
+        let mut acc = crate::film::FilmAccumulator::new(width, height);
+        // (A region of the whole image merges into an empty accumulator.)
+        let _ = acc.merge(part);
+        return (acc.resolve(w.scene.background), rays);
+    }
     // PERF: the film is not cleared first: the tiles write every pixel, traced or not, in
     // parallel (clearing 2.4 MB on one thread was a seventh of a sparse REND3R frame).
     let n_pixels = width as usize * height as usize;
@@ -120,6 +127,9 @@ pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u6
 /// samples are those [`render`] takes for an image of `spp` samples per pixel, so the
 /// regions of an image, merged, give its pixels.
 pub fn render_region(w: &World, cam: &Camera, s: &RenderSettings, region: Region, progress: &(dyn Fn(u64) + Sync)) -> (RegionFilm, u64) {
+    if let Integrator::Vpl(v) = &s.integrator {
+        return crate::integrator::vpl::render_region(w, cam, s, v, region, progress);
+    }
     let r = Region { x1: region.x1.min(s.width), y1: region.y1.min(s.height), ..region };
     let r = Region { x0: r.x0.min(r.x1), y0: r.y0.min(r.y1), s1: r.s1.max(r.s0), ..r };
     let mut film = RegionFilm::new(r);

@@ -474,6 +474,19 @@ impl World {
         self.accel.intersect_packet_among(rays, ids, out);
     }
 
+    /// Occlusion of coherent rays (for example shadow rays leaving one point), traced in
+    /// packets; surfaces cut out by alpha masks do not block (rays are then traced alone).
+    pub fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
+        if self.has_alpha {
+            for (o, r) in out.iter_mut().zip(rays) {
+                *o = self.occluded_solid(r);
+            }
+            return;
+        }
+        RAYS.with(|c| c.set(c.get() + rays.len() as u64));
+        self.accel.occluded_packet(rays, out);
+    }
+
     /// Occlusion of rays in SoA blocks (empty lanes allowed), `rays` of them real.
     pub(crate) fn occluded_blocks(&self, blocks: &[lucent_accel::RayBlock], out: &mut [bool], rays: usize) {
         RAYS.with(|c| c.set(c.get() + rays as u64));

@@ -6,12 +6,16 @@
 //!
 //! - [`whitted`]: Whitted ray tracing (point lights, hard shadows, mirror and glass);
 //! - [`path`]: path tracing (next-event estimation and BSDF sampling, MIS, roulette);
+//! - [`vpl`]: instant global illumination (virtual point lights, interleaved sampling,
+//!   the discontinuity buffer): whole frames, through [`vpl::render_region`];
 //! - the debug views, [`Integrator::EyeLight`] and [`Integrator::Normals`].
 
 pub mod path;
+pub mod vpl;
 pub mod whitted;
 
 pub use path::{LightSampling, PathSettings};
+pub use vpl::VplSettings;
 pub(crate) use whitted::NO_RAYS;
 pub use whitted::{fresnel_dielectric, li_packet, refract, WhittedSettings};
 
@@ -45,6 +49,10 @@ pub enum Integrator {
     /// Path tracing: all light transport the materials describe, converging with samples
     /// ([`path`]).
     Path(PathSettings),
+    /// Direct light plus indirect light from virtual point lights ([`vpl`]): the
+    /// renderer traces whole frames ([`vpl::render_region`]); [`Integrator::li`] is the
+    /// ray-by-ray reference (it makes the frame's VPLs on every call).
+    Vpl(VplSettings),
     /// A light at the eye, no shadows, no secondary rays: the fastest preview.
     EyeLight,
     /// Shading normals as colours (0.5 + 0.5 n), for inspecting geometry.
@@ -78,6 +86,7 @@ impl Integrator {
         match self {
             Self::Whitted(_) => "whitted",
             Self::Path(_) => "path",
+            Self::Vpl(_) => "vpl",
             Self::EyeLight => "eye light",
             Self::Normals => "normals",
         }
@@ -93,6 +102,7 @@ impl Integrator {
         match self {
             Self::Path(s) => s.sampler().get2(x, y, k, 0),
             _ if self.centred(spp) => (0.5, 0.5),
+            Self::Vpl(s) => s.sampler().get2(x, y, k, 0),
             _ => jitter(x, y, k),
         }
     }
@@ -105,6 +115,7 @@ impl Integrator {
     pub fn lens_offset(&self, x: u32, y: u32, k: u32) -> (f32, f32) {
         match self {
             Self::Path(s) => s.sampler().get2(x, y, k, path::LENS_PAIR),
+            Self::Vpl(s) => s.sampler().get2(x, y, k, path::LENS_PAIR),
             _ => jitter(x ^ 0x5bd1_e995, y, k),
         }
     }
@@ -116,6 +127,7 @@ impl Integrator {
     pub fn misses_show_background(&self, w: &World) -> bool {
         match self {
             Self::Path(s) => w.scene.environment.is_none() && !s.hide_emitters,
+            Self::Vpl(_) => w.scene.environment.is_none(),
             _ => true,
         }
     }
@@ -135,6 +147,7 @@ impl Integrator {
         match self {
             Self::Whitted(s) => whitted::li(w, ray, s, 0),
             Self::Path(s) => path::li(w, ray, s, pixel.0, pixel.1, sample, None),
+            Self::Vpl(s) => vpl::li_layers(w, ray, &vpl::VplSet::generate(w, s, sample), pixel).radiance(),
             Self::EyeLight | Self::Normals => self.debug_view(w, ray),
         }
     }

@@ -1,0 +1,645 @@
+//! Instant global illumination: indirect light from virtual point lights (VPLs), as
+//! SaarCOR lit its scenes. Keller, "Instant Radiosity" (SIGGRAPH 1997): light paths
+//! leave the lights and a VPL is left wherever one meets a non-specular surface; Wald,
+//! Kollig, Benthin, Keller and Slusallek, "Interactive Global Illumination using Fast Ray
+//! Tracing" (EGWR 2002), and Benthin, Wald and Slusallek, "A Scalable Approach to
+//! Interactive Global Illumination" (Eurographics 2003): interleaved sampling (the VPLs
+//! are split into M × M sets, pixel (x, y) is lit by set (x mod M, y mod M) only) and a
+//! discontinuity buffer that averages the indirect light over each M × M neighbourhood
+//! among neighbours of similar depth and normal, which gives every pixel the light of all
+//! sets at the cost of one.
+//!
+//! A pixel's radiance is
+//! - emission seen directly or through mirrors and glass (delta lobes are followed, up to
+//!   [`SPECULAR_DEPTH`] of them, as the path tracer does);
+//! - direct light at the first non-specular surface, by next-event estimation (one light
+//!   sample, as the path tracer chooses it);
+//! - indirect light there: for each VPL `v` of the pixel's set,
+//!   `Φ_v · f_v(ω_v, v→x) |cos| · f_x(x→v, ω_o) |cos| / max(d², d_min²) · V(v, x)`,
+//!   where `Φ_v` is the power the light path carried to `v` over the set's number of
+//!   paths, `f_v` the BSDF where the VPL lies (seen from where its light came) and `V`
+//!   the shadow ray's answer.
+//!
+//! Bias, as stated: clamping (`d_min` = [`VplSettings::clamp`] × the scene's diagonal)
+//! removes the light of VPLs nearer than `d_min`, which darkens concave corners and
+//! contact regions only; without clamping (`clamp = 0`) the estimate converges to the
+//! path tracer's (tests/vpl.rs). Caustics seen directly (light → mirror or glass → a
+//! diffuse surface seen by the camera) are not estimated: no VPL lies on a delta surface
+//! and next-event estimation cannot pass one. The user's lights ([`crate::LightModel`])
+//! give direct light only (they cannot start a light path).
+//!
+//! Shadow rays leave the VPL: the rays of a packet share their origin (the packet
+//! kernels cull whole triangles for rays of a common origin), one packet per VPL and
+//! tile, over the tile's pixels of that VPL's set.
+//!
+//! Random numbers: light paths from the [`Sampler`] (Owen-scrambled Sobol'), path `i` of
+//! frame `k` its index `i` in a sequence scrambled per frame, so each frame (sample index)
+//! has its own set and a still image converges as frames accumulate; camera-side numbers
+//! from the pixel's sampler, as the path tracer's. Everything is a pure function of
+//! (pixel, sample): images do not depend on thread count or tile order.
+
+use super::material;
+use super::path::{bsdf_frame, shading_normal, Frame};
+use crate::bsdf::Bsdf;
+use crate::camera::Camera;
+use crate::film::{Region, RegionFilm};
+use crate::render::{RenderSettings, TILE};
+use crate::sampler::Sampler;
+use crate::world::World;
+use glam::Vec3;
+use lucent_accel::{Hit, Ray};
+use rayon::prelude::*;
+
+/// The instant-radiosity integrator's settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VplSettings {
+    /// VPLs per frame (at least; light paths are finished and every set gets as many
+    /// paths).
+    pub count: u32,
+    /// Most bounces of a light path (each may leave a VPL); paths also end by Russian
+    /// roulette after the third.
+    pub max_depth: u32,
+    /// The least distance, as a fraction of the scene's diagonal, at which a VPL's light
+    /// is evaluated (the geometry term's clamp); 0: no clamping (unbiased, noisier).
+    pub clamp: f32,
+    /// Interleaving: the VPLs are split into `interleave²` sets, one per pixel of each
+    /// `interleave` × `interleave` square (1: every pixel sees every VPL).
+    pub interleave: u32,
+    /// Filter the indirect light with the discontinuity buffer (removes the interleaving
+    /// pattern).
+    pub discontinuity: bool,
+    /// The sampler's seed.
+    pub seed: u32,
+}
+
+impl Eq for VplSettings {}
+
+impl Default for VplSettings {
+    fn default() -> Self {
+        Self { count: 256, max_depth: 16, clamp: DEFAULT_CLAMP, interleave: 4, discontinuity: true, seed: super::path::DEFAULT_SEED }
+    }
+}
+
+/// The default clamp (fraction of the scene's diagonal; see [`VplSettings::clamp`]).
+pub const DEFAULT_CLAMP: f32 = 0.04;
+
+/// Most delta lobes (mirror, glass) a camera path follows to its shading point.
+pub const SPECULAR_DEPTH: u32 = 8;
+
+/// The sampler row of light paths (far from any pixel's).
+const LIGHT_ROW: u32 = 0x7fff_f000;
+
+impl VplSettings {
+    /// The sampler of the camera side.
+    #[must_use]
+    pub fn sampler(&self) -> Sampler {
+        Sampler::new(self.seed)
+    }
+
+    /// Sets of VPLs (`interleave²`).
+    #[must_use]
+    pub fn sets(&self) -> u32 {
+        self.interleave.clamp(1, 64).pow(2)
+    }
+
+    /// The set of pixel (x, y).
+    #[inline]
+    #[must_use]
+    pub fn set_of(&self, x: u32, y: u32) -> u32 {
+        let m = self.interleave.clamp(1, 64);
+        (y % m) * m + x % m
+    }
+}
+
+/// A virtual point light.
+#[derive(Clone, Copy, Debug)]
+pub struct Vpl<'w> {
+    /// Position.
+    pub p: Vec3,
+    /// Where its shadow rays start: off the surface on the side of its geometric normal,
+    /// and on the other side.
+    org: [Vec3; 2],
+    ng: Vec3,
+    frame: Frame,
+    /// Toward where its light came from (local).
+    wo: Vec3,
+    bsdf: Bsdf<'w>,
+    /// Power (over the set's number of paths).
+    pub flux: Vec3,
+}
+
+/// The VPLs of one frame, grouped by set.
+#[derive(Clone, Debug)]
+pub struct VplSet<'w> {
+    /// The settings it was made with.
+    pub settings: VplSettings,
+    /// The frame (sample index) it belongs to.
+    pub frame: u32,
+    vpls: Vec<Vpl<'w>>,
+    /// Where each set's VPLs lie in `vpls`.
+    ranges: Vec<std::ops::Range<usize>>,
+    /// Light paths per set.
+    pub paths_per_set: u32,
+}
+
+impl<'w> VplSet<'w> {
+    /// The VPLs of frame (sample index) `frame`: light paths, one set after another,
+    /// until there are [`VplSettings::count`] VPLs and every set has as many paths (or
+    /// 64 × `count` paths left none: a scene whose light escapes).
+    #[must_use]
+    pub fn generate(w: &'w World, s: &VplSettings, frame: u32) -> Self {
+        let sets = s.sets() as usize;
+        let mut per_set: Vec<Vec<Vpl<'w>>> = vec![Vec::new(); sets];
+        let lights = &w.light_set;
+        let sampler = Sampler::new(s.seed ^ 0x9e37_79b9);
+        let cap = (s.count as usize).saturating_mul(64).max(sets);
+        let (mut paths, mut total) = (0usize, 0usize);
+        while total < s.count as usize || !paths.is_multiple_of(sets) {
+            if paths >= cap && paths.is_multiple_of(sets) {
+                break;
+            }
+            let i = paths as u32;
+            let set = paths % sets;
+            paths += 1;
+            if lights.is_empty() {
+                continue;
+            }
+            let u = |pair: u32| sampler.get2(frame, LIGHT_ROW, i, pair);
+            let choice = |k: u32| sampler.get1(frame, LIGHT_ROW + 1, i, k);
+            let Some(e) = lights.sample_emission(choice(0), u(0), u(1), &w.scene.textures) else { continue };
+            let org = match e.n {
+                // (Off the emitting surface by a bound on the point's rounding error.)
+                Some(n) => e.p + n * (e.p.abs().max_element() * 8.0 * f32::EPSILON + f32::MIN_POSITIVE),
+                None => e.p,
+            };
+            let mut ray = Ray::new(org, e.dir);
+            let mut beta = e.flux;
+            for depth in 0..s.max_depth {
+                let Some((hit_ray, hit)) = w.intersect_solid(&ray) else { break };
+                let surf = w.surface(&hit_ray, &hit);
+                let d = hit_ray.dir.normalize();
+                let ns = shading_normal(w, &hit_ray, &hit, &surf);
+                let (bsdf, fr) = bsdf_frame(w, &surf, ns, d);
+                let wo = fr.to_local(-d);
+                if !bsdf.is_delta() {
+                    let off = surf.offset();
+                    per_set[set].push(Vpl {
+                        p: surf.p,
+                        org: [surf.p + surf.ng * off, surf.p - surf.ng * off],
+                        ng: surf.ng,
+                        frame: fr,
+                        wo,
+                        bsdf,
+                        flux: beta,
+                    });
+                    total += 1;
+                }
+                let Some(bs) = bsdf.sample(wo, choice(2 + 2 * depth), u(2 + depth)) else { break };
+                // Light (importance) crosses a refracting boundary without the radiance's
+                // 1/η² (Veach 1997, §5.2): the sample's weight carries it, so it is undone.
+                let prev = beta;
+                beta *= bs.weight * (bs.eta * bs.eta);
+                if !beta.is_finite() || beta.max_element() <= 0.0 {
+                    break;
+                }
+                // Russian roulette after the third bounce: survival by the power kept.
+                if depth >= 3 {
+                    let q = (beta.max_element() / prev.max_element().max(1e-30)).min(0.95);
+                    if choice(3 + 2 * depth) >= q {
+                        break;
+                    }
+                    beta /= q;
+                }
+                ray = surf.spawn(fr.to_world(bs.wi));
+            }
+        }
+        let paths_per_set = (paths / sets).max(1) as u32;
+        let mut vpls = Vec::with_capacity(total);
+        let mut ranges = Vec::with_capacity(sets);
+        for mut v in per_set {
+            for x in &mut v {
+                x.flux /= paths_per_set as f32;
+            }
+            let start = vpls.len();
+            vpls.extend(v);
+            ranges.push(start..vpls.len());
+        }
+        Self { settings: *s, frame, vpls, ranges, paths_per_set }
+    }
+
+    /// Every VPL.
+    #[must_use]
+    pub fn all(&self) -> &[Vpl<'w>] {
+        &self.vpls
+    }
+
+    /// The VPLs of set `k`.
+    #[must_use]
+    pub fn set(&self, k: u32) -> &[Vpl<'w>] {
+        self.ranges.get(k as usize).map_or(&[], |r| &self.vpls[r.clone()])
+    }
+}
+
+/// The first non-specular surface a camera ray leads to, as the VPLs light it.
+#[derive(Clone, Copy, Debug)]
+struct Shade<'w> {
+    p: Vec3,
+    ng: Vec3,
+    off: f32,
+    frame: Frame,
+    wo: Vec3,
+    bsdf: Bsdf<'w>,
+    /// Throughput of the specular chain that led here.
+    beta: Vec3,
+}
+
+impl Shade<'_> {
+    /// Where a shadow ray toward `q` ends: off the surface on `q`'s side.
+    #[inline]
+    fn end_toward(&self, q: Vec3) -> Vec3 {
+        let n = if (q - self.p).dot(self.ng) < 0.0 { -self.ng } else { self.ng };
+        self.p + n * self.off
+    }
+}
+
+/// One pixel sample's parts: what the discontinuity buffer needs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Layers {
+    /// Emission seen directly (or through mirrors and glass), and the background.
+    pub emitted: Vec3,
+    /// The light reflected at the shading point, direct and indirect, over the albedo
+    /// (demodulated): what the discontinuity buffer filters (as Wald et al. filter the
+    /// irradiance of all their point lights).
+    pub lit: Vec3,
+    /// The albedo the indirect light is demodulated by (the shading point's, times the
+    /// specular chain's throughput).
+    pub albedo: Vec3,
+    /// Shading normal of the first surface (zero: none).
+    pub normal: Vec3,
+    /// Distance to the first surface (infinite: none).
+    pub depth: f32,
+}
+
+impl Layers {
+    /// The sample's radiance.
+    #[inline]
+    #[must_use]
+    pub fn radiance(&self) -> Vec3 {
+        self.emitted + modulate(self) * self.lit
+    }
+}
+
+/// The least albedo demodulation divides by (per channel).
+const ALBEDO_MIN: f32 = 1e-3;
+
+/// Follows a camera ray (its first hit given, when known) through delta lobes to its
+/// shading point: the emission on the way into `l.emitted`, the first surface's normal
+/// and distance into `l`; returns the shading point and its direct light.
+fn camera_path<'w>(w: &'w World, camera_ray: &Ray, s: &VplSettings, (x, y): (u32, u32), k: u32, first: Option<Option<Hit>>, l: &mut Layers) -> Option<(Shade<'w>, Vec3)> {
+    let px = s.sampler().pixel(x, y);
+    let lights = &w.light_set;
+    let textures = &w.scene.textures;
+    let mut beta = Vec3::ONE;
+    let mut ray = *camera_ray;
+    let mut first = first;
+    l.depth = f32::INFINITY;
+    for depth in 0..=SPECULAR_DEPTH {
+        let found = match first.take() {
+            Some(Some(h)) if !w.has_alpha() => Some((ray, h)),
+            Some(None) => None,
+            _ => w.intersect_solid(&ray),
+        };
+        let Some((hit_ray, hit)) = found else {
+            let d = ray.dir.normalize();
+            l.emitted += beta * lights.env_radiance(d).unwrap_or(w.scene.background);
+            return None;
+        };
+        ray = hit_ray;
+        let surf = w.surface(&ray, &hit);
+        let d = ray.dir.normalize();
+        let mat = material(w, surf.material);
+        if mat.emission.max_element() > 0.0 && d.dot(surf.ng) < 0.0 {
+            let le = match mat.emission_tex.and_then(|t| textures.get(t as usize)) {
+                Some(t) => mat.emission * crate::texture::sample(t, surf.uv).truncate(),
+                None => mat.emission,
+            };
+            l.emitted += beta * le;
+        }
+        let ns = shading_normal(w, &ray, &hit, &surf);
+        if depth == 0 {
+            l.normal = ns;
+            l.depth = (surf.p - camera_ray.org).length();
+        }
+        let (bsdf, fr) = bsdf_frame(w, &surf, ns, d);
+        let wo = fr.to_local(-d);
+        if !bsdf.is_delta() {
+            // Direct light: next-event estimation alone (emitters met through delta lobes
+            // counted above; no BSDF-sampled direct light to weigh against).
+            let mut direct = Vec3::ZERO;
+            if let Some(ls) = lights.sample(surf.p, px.get1_hashed(k, depth), px.get2(k, 1 + depth), textures) {
+                let f = bsdf.eval(wo, fr.to_local(ls.dir));
+                if f.max_element() > 0.0 {
+                    let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
+                    if !w.occluded_solid(&surf.spawn(ls.dir).with_range(0.0, tmax)) {
+                        direct = beta * f * ls.li / ls.pdf;
+                    }
+                }
+            }
+            l.albedo = beta * w.prepared(surf.material).albedo(textures, surf.uv);
+            return Some((Shade { p: surf.p, ng: surf.ng, off: surf.offset(), frame: fr, wo, bsdf, beta }, direct));
+        }
+        let Some(bs) = bsdf.sample(wo, px.get1_hashed(k, 0x100 + depth), (0.5, 0.5)) else { return None };
+        beta *= bs.weight;
+        if !beta.is_finite() || beta.max_element() <= 0.0 {
+            return None;
+        }
+        ray = surf.spawn(fr.to_world(bs.wi));
+    }
+    None
+}
+
+/// A VPL's light at a shading point, before the shadow ray: the contribution and the
+/// shadow ray (from the VPL toward the point); `None` when it is zero.
+#[inline]
+fn vpl_term(v: &Vpl, sh: &Shade, d_min2: f32) -> Option<(Vec3, Ray)> {
+    let to = sh.p - v.p;
+    let d2 = to.length_squared();
+    if !(d2 > 0.0) {
+        return None;
+    }
+    let dir = to / d2.sqrt();
+    let fv = v.bsdf.eval(v.wo, v.frame.to_local(dir));
+    if fv.max_element() <= 0.0 {
+        return None;
+    }
+    let fx = sh.bsdf.eval(sh.wo, sh.frame.to_local(-dir));
+    if fx.max_element() <= 0.0 {
+        return None;
+    }
+    let c = v.flux * fv * fx * sh.beta / d2.max(d_min2);
+    if !c.is_finite() {
+        return None;
+    }
+    let org = if to.dot(v.ng) >= 0.0 { v.org[0] } else { v.org[1] };
+    let seg = sh.end_toward(v.p) - org;
+    let len = seg.length();
+    (len > 0.0).then(|| (c, Ray::new(org, seg / len).with_range(0.0, len)))
+}
+
+/// The squared least distance of a VPL's light (see [`VplSettings::clamp`]).
+fn d_min2(w: &World, s: &VplSettings) -> f32 {
+    let d = s.clamp.max(0.0) * w.scale();
+    if d.is_finite() {
+        d * d
+    } else {
+        0.0
+    }
+}
+
+/// One pixel sample, ray by ray (the reference the tiled renderer must match): its
+/// layers, with the indirect light of the VPLs of the pixel's set.
+#[must_use]
+pub fn li_layers(w: &World, ray: &Ray, set: &VplSet, pixel: (u32, u32)) -> Layers {
+    let (s, k) = (&set.settings, set.frame);
+    let mut l = Layers::default();
+    let Some((sh, direct)) = camera_path(w, ray, s, pixel, k, None, &mut l) else { return l };
+    let d_min2 = d_min2(w, s);
+    let mut ind = direct;
+    for v in set.set(s.set_of(pixel.0, pixel.1)) {
+        if let Some((c, r)) = vpl_term(v, &sh, d_min2) {
+            if !w.occluded_solid(&r) {
+                ind += c;
+            }
+        }
+    }
+    l.lit = demodulate(ind, l.albedo);
+    l
+}
+
+#[inline]
+fn demodulate(ind: Vec3, albedo: Vec3) -> Vec3 {
+    let v = ind / albedo.max(Vec3::splat(ALBEDO_MIN));
+    if v.is_finite() {
+        v
+    } else {
+        Vec3::ZERO
+    }
+}
+
+/// A VPL image sample's albedo as demodulation uses it.
+#[inline]
+fn modulate(l: &Layers) -> Vec3 {
+    l.albedo.max(Vec3::splat(ALBEDO_MIN))
+}
+
+/// The layers of every pixel of `r` (row-major) for the sample `set` belongs to, tile by
+/// tile on all cores: camera rays of an 8 × 8 block as a packet, then per tile and VPL
+/// one packet of shadow rays from the VPL to the tile's pixels of its set. Returns the
+/// rays traced.
+pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, r: Region, out: &mut [Layers]) -> u64 {
+    let (s, k) = (&set.settings, set.frame);
+    let width = r.x1 - r.x0;
+    if width == 0 || r.y1 <= r.y0 {
+        return 0;
+    }
+    let d_min2 = d_min2(w, s);
+    let integrator = rs.integrator;
+    let spp = rs.spp.max(1);
+    let packets = rs.traversal.packets;
+    // Bands of TILE rows, tiles of TILE columns.
+    out.par_chunks_mut((width * TILE) as usize)
+        .enumerate()
+        .map(|(band, rows)| {
+            let y0 = r.y0 + band as u32 * TILE;
+            let y1 = (y0 + TILE).min(r.y1);
+            let before = crate::world::rays_traced_here();
+            let mut x0 = r.x0;
+            while x0 < r.x1 {
+                let x1 = (x0 + TILE).min(r.x1);
+                const N: usize = (TILE * TILE) as usize;
+                let mut shades: [Option<Shade>; N] = [None; N];
+                let mut layers = [Layers::default(); N];
+                let mut coords = [(0u32, 0u32); N];
+                // Light reflected at each pixel's shading point: direct, then the VPLs'.
+                let mut ind = [Vec3::ZERO; N];
+                let mut n = 0;
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        coords[n] = (x, y);
+                        n += 1;
+                    }
+                }
+                // Camera rays, 64 at a time.
+                for c in (0..n).step_by(64) {
+                    let m = (n - c).min(64);
+                    let mut rays = super::NO_RAYS;
+                    let mut pts = [(0f32, 0f32); 64];
+                    for (p, &(x, y)) in pts.iter_mut().zip(&coords[c..c + m]) {
+                        let (jx, jy) = integrator.pixel_offset(x, y, k, spp);
+                        *p = (x as f32 + jx, y as f32 + jy);
+                    }
+                    cam.rays_at(&pts[..m], &mut rays[..m]);
+                    if cam.has_lens() {
+                        for (ray, &(x, y)) in rays[..m].iter_mut().zip(&coords[c..c + m]) {
+                            *ray = cam.through_lens(ray, integrator.lens_offset(x, y, k));
+                        }
+                    }
+                    let mut hits = [None; 64];
+                    let first = packets && super::coherent(&rays[..m]);
+                    if first {
+                        w.intersect_packet(&rays[..m], &mut hits[..m]);
+                    }
+                    for j in 0..m {
+                        let (x, y) = coords[c + j];
+                        if let Some((sh, direct)) = camera_path(w, &rays[j], s, (x, y), k, first.then_some(hits[j]), &mut layers[c + j]) {
+                            shades[c + j] = Some(sh);
+                            ind[c + j] = direct;
+                        }
+                    }
+                }
+                // Indirect light: per set, per VPL, one packet of the set's pixels.
+                let mut who = [0usize; N];
+                for si in 0..s.sets() {
+                    let mut m = 0;
+                    for (j, sh) in shades[..n].iter().enumerate() {
+                        if sh.is_some() && s.set_of(coords[j].0, coords[j].1) == si {
+                            who[m] = j;
+                            m += 1;
+                        }
+                    }
+                    if m == 0 {
+                        continue;
+                    }
+                    for v in set.set(si) {
+                        for c in (0..m).step_by(64) {
+                            let cm = (m - c).min(64);
+                            let mut rays = super::NO_RAYS;
+                            let mut terms = [(0usize, Vec3::ZERO); 64];
+                            let mut q = 0;
+                            for &j in &who[c..c + cm] {
+                                let Some(sh) = &shades[j] else { continue };
+                                if let Some((t, ray)) = vpl_term(v, sh, d_min2) {
+                                    rays[q] = ray;
+                                    terms[q] = (j, t);
+                                    q += 1;
+                                }
+                            }
+                            if q == 0 {
+                                continue;
+                            }
+                            let mut blocked = [false; 64];
+                            if packets {
+                                w.occluded_packet(&rays[..q], &mut blocked[..q]);
+                            } else {
+                                for (b, ray) in blocked[..q].iter_mut().zip(&rays[..q]) {
+                                    *b = w.occluded_solid(ray);
+                                }
+                            }
+                            for (&(j, t), &b) in terms[..q].iter().zip(&blocked[..q]) {
+                                if !b {
+                                    ind[j] += t;
+                                }
+                            }
+                        }
+                    }
+                }
+                for j in 0..n {
+                    let (x, y) = coords[j];
+                    let mut l = layers[j];
+                    l.lit = demodulate(ind[j], l.albedo);
+                    rows[((y - y0) * width + (x - r.x0)) as usize] = l;
+                }
+                x0 = x1;
+            }
+            crate::world::rays_traced_here() - before
+        })
+        .sum()
+}
+
+/// The discontinuity buffer at pixel (x, y) of `layers` (region `r`, row-major): the
+/// demodulated reflected light averaged over the `m` × `m` neighbourhood (for even `m`,
+/// the (m + 1)-wide window with half weights on its outer rows and columns, so that each
+/// set counts once), over the neighbours whose surface lies within 5% of the pixel's
+/// distance and whose normal is within 25° of its normal. Pixels that see no surface
+/// keep their own value.
+#[must_use]
+pub fn discontinuity(layers: &[Layers], r: Region, m: u32, x: u32, y: u32) -> Vec3 {
+    let width = r.x1 - r.x0;
+    let at = |x: u32, y: u32| &layers[((y - r.y0) * width + (x - r.x0)) as usize];
+    let c = at(x, y);
+    if m <= 1 || !c.depth.is_finite() || c.normal == Vec3::ZERO {
+        return c.lit;
+    }
+    let h = (m / 2) as i64;
+    let even = m.is_multiple_of(2);
+    let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
+    for dy in -h..=h {
+        let yy = i64::from(y) + dy;
+        if yy < i64::from(r.y0) || yy >= i64::from(r.y1) {
+            continue;
+        }
+        let wy = if even && dy.abs() == h { 0.5 } else { 1.0 };
+        for dx in -h..=h {
+            let xx = i64::from(x) + dx;
+            if xx < i64::from(r.x0) || xx >= i64::from(r.x1) {
+                continue;
+            }
+            let wx = if even && dx.abs() == h { 0.5 } else { 1.0 };
+            let q = at(xx as u32, yy as u32);
+            if !q.depth.is_finite() || (q.depth - c.depth).abs() > 0.05 * c.depth || q.normal.dot(c.normal) < 0.906 {
+                continue;
+            }
+            sum += q.lit * (wx * wy);
+            wsum += wx * wy;
+        }
+    }
+    if wsum > 0.0 {
+        sum / wsum
+    } else {
+        c.lit
+    }
+}
+
+/// Renders a region (rectangle × samples) with virtual point lights: per sample, the
+/// frame's VPLs, the layers of the region and a margin of `interleave / 2` pixels
+/// around it (which the discontinuity buffer reads; the layers are a pure function of
+/// pixel and sample, so regions merged give the whole image's pixels), then per pixel
+/// `emitted + albedo × lit`, the reflected light filtered when
+/// [`VplSettings::discontinuity`] is on. `progress(tiles)` as [`crate::render`] calls it
+/// (during the last sample). Returns the region's film and the rays traced.
+pub fn render_region(w: &World, cam: &Camera, rs: &RenderSettings, s: &VplSettings, region: Region, progress: &(dyn Fn(u64) + Sync)) -> (RegionFilm, u64) {
+    let r = Region { x1: region.x1.min(rs.width), y1: region.y1.min(rs.height), ..region };
+    let r = Region { x0: r.x0.min(r.x1), y0: r.y0.min(r.y1), s1: r.s1.max(r.s0), ..r };
+    let mut film = RegionFilm::new(r);
+    if r.is_empty() {
+        return (film, 0);
+    }
+    let m = s.interleave.clamp(1, 64);
+    let margin = if s.discontinuity && m > 1 { m / 2 } else { 0 };
+    let ext = Region {
+        x0: r.x0.saturating_sub(margin),
+        y0: r.y0.saturating_sub(margin),
+        x1: (r.x1 + margin).min(rs.width),
+        y1: (r.y1 + margin).min(rs.height),
+        ..r
+    };
+    let mut layers = vec![Layers::default(); ext.pixels()];
+    let mut rays = 0;
+    for k in r.s0..r.s1 {
+        let set = VplSet::generate(w, s, k);
+        rays += trace_layers(w, cam, rs, &set, ext, &mut layers);
+        let ew = ext.x1 - ext.x0;
+        for y in r.y0..r.y1 {
+            for x in r.x0..r.x1 {
+                let l = &layers[((y - ext.y0) * ew + (x - ext.x0)) as usize];
+                let lit = if margin > 0 { discontinuity(&layers, ext, m, x, y) } else { l.lit };
+                let v = l.emitted + modulate(l) * lit;
+                film.add(x, y, if v.is_finite() { v } else { Vec3::ZERO }, 1.0);
+            }
+        }
+        if k + 1 == r.s1 {
+            progress(u64::from(r.x1.div_ceil(TILE) - r.x0 / TILE) * u64::from(r.y1.div_ceil(TILE) - r.y0 / TILE));
+        }
+    }
+    (film, rays)
+}
