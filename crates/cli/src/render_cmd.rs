@@ -60,9 +60,9 @@ pub struct RenderArgs {
     /// (shading normals as colours).
     #[arg(long, value_parser = INTEGRATORS)]
     pub integrator: Option<String>,
-    /// Whitted: most reflection/refraction generations (default 6). Path: most path
-    /// segments, as Mitsuba counts them (1: emitters only, 2: direct light; default: the
-    /// scene file's, else unlimited).
+    /// Whitted: most reflection/refraction generations (default 6). Path and VPL: most
+    /// path segments, as Mitsuba counts them (1: emitters only, 2: direct light; default:
+    /// the scene file's, else unlimited).
     #[arg(long)]
     pub max_depth: Option<u32>,
     /// Path: the depth from which Russian roulette may end paths (default: the scene
@@ -75,6 +75,10 @@ pub struct RenderArgs {
     /// Path: the sampler's seed (another seed, another equally good set of samples).
     #[arg(long)]
     pub seed: Option<u32>,
+    /// Denoise the image (an edge-avoiding à-trous filter guided by the first surface's
+    /// albedo, normal and distance): a few samples per pixel look like many more.
+    #[arg(long)]
+    pub denoise: bool,
     /// VPL: virtual point lights per frame (each sample of a pixel is a frame with its own
     /// set).
     #[arg(long, default_value_t = VplSettings::default().count)]
@@ -115,12 +119,12 @@ pub const INTEGRATORS: [&str; 5] = ["whitted", "path", "vpl", "eye-light", "norm
 
 /// The integrator `--integrator NAME` (one of [`INTEGRATORS`]) names, with the settings of
 /// `--max-depth` and `--no-shadows` (Whitted) or `--max-depth`, `--rr-depth` and
-/// `--hide-emitters` (path), or `--max-depth` (VPL: most bounces of its light paths; its
-/// other options are set by the caller).
+/// `--hide-emitters` (path), or `--max-depth` (VPL, counted as the path tracer counts;
+/// its other options are set by the caller).
 pub fn integrator_of(name: &str, max_depth: Option<u32>, no_shadows: bool, rr_depth: u32, hide_emitters: bool) -> Integrator {
     match name {
         "eye-light" => Integrator::EyeLight,
-        "vpl" => Integrator::Vpl(VplSettings { max_depth: max_depth.unwrap_or(VplSettings::default().max_depth), ..VplSettings::default() }),
+        "vpl" => Integrator::Vpl(VplSettings { max_depth: max_depth.unwrap_or(u32::MAX), ..VplSettings::default() }),
         "normals" => Integrator::Normals,
         "path" => {
             Integrator::Path(PathSettings { max_depth: max_depth.unwrap_or(u32::MAX), rr_depth, hide_emitters, ..PathSettings::default() })
@@ -281,7 +285,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
         (i, _) => i,
     };
-    if matches!(integrator, Integrator::Path(_) | Integrator::Vpl(_)) && scene.lights.is_empty() && scene.environment.is_none() && !has_emitters(&scene) {
+    if matches!(integrator, Integrator::Path(_) | Integrator::Vpl(_))
+        && scene.lights.is_empty()
+        && scene.environment.is_none()
+        && !has_emitters(&scene)
+    {
         tracing::warn!("the scene has no lights: lit by a white sky (a constant environment of radiance 1)");
         scene.environment = Some(lucent_scene::Environment { scale: glam::Vec3::ONE, image: None, to_world: glam::Affine3A::IDENTITY });
     }
@@ -328,12 +336,22 @@ pub fn run(a: RenderArgs) -> Result<()> {
         Some(budget) => render_for(&world, &cam, &settings, budget, a.spp.unwrap_or(1))?,
     };
     let render_s = t2.elapsed().as_secs_f64();
-    if a.aovs {
+    let aovs = (a.aovs || a.denoise).then(|| lucent_render::render_aovs(&world, &cam, w, h));
+    let film = match &aovs {
+        Some(aovs) if a.denoise => {
+            let t = Instant::now();
+            let f = lucent_render::denoise(&film, aovs, &lucent_render::DenoiseSettings::default());
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            println!("denoised in {ms:.1} ms (guides included: {:.1} ms)", (t2.elapsed().as_secs_f64() - render_s) * 1e3);
+            f
+        }
+        _ => film,
+    };
+    if let (true, Some(aovs)) = (a.aovs, &aovs) {
         if !a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
             bail!("--aovs needs an .exr output (got {})", a.output.display());
         }
-        let aovs = lucent_render::render_aovs(&world, &cam, w, h);
-        film.save_exr_with_aovs(&a.output, &aovs)?;
+        film.save_exr_with_aovs(&a.output, aovs)?;
     } else {
         film.save(&a.output)?;
     }

@@ -38,6 +38,9 @@ pub struct Aovs {
     pub normal: Film,
     /// Distance.
     pub depth: Vec<f32>,
+    /// Emitted radiance of the surface toward the camera (zero for most; not written to
+    /// files): a denoiser keeps it out of what it filters.
+    pub emission: Film,
 }
 
 /// A rendered image in linear RGB.

@@ -10,6 +10,7 @@
 pub mod bsdf;
 pub mod camera;
 mod coverage;
+pub mod denoise;
 pub mod film;
 pub mod integrator;
 pub mod lights;
@@ -23,6 +24,7 @@ mod world;
 pub use bsdf::{Bsdf, BsdfModel, BsdfSample};
 pub use camera::{framing_camera, Camera};
 pub use coverage::{Coverage, BLOCK_EDGE};
+pub use denoise::{denoise, DenoiseSettings};
 pub use film::{Aovs, Film, FilmAccumulator, MergeError, OutputError, Region, RegionFilm};
 pub use integrator::{Block, Integrator, LightSampling, PathSettings, Traversal, VplSettings, WhittedSettings};
 pub use lights::{EmissionSample, LightModel, LightSample};

@@ -371,7 +371,13 @@ impl LightSet {
     /// and environment light from a uniform point of a disk of the scene's bounding radius
     /// across the scene, facing the light's direction. User lights emit nothing (they
     /// only answer toward a point: they light surfaces directly, not through paths).
-    pub fn sample_emission(&self, u: f32, u_pos: (f32, f32), u_dir: (f32, f32), textures: &[lucent_scene::Texture]) -> Option<EmissionSample> {
+    pub fn sample_emission(
+        &self,
+        u: f32,
+        u_pos: (f32, f32),
+        u_dir: (f32, f32),
+        textures: &[lucent_scene::Texture],
+    ) -> Option<EmissionSample> {
         let i = self.emit_cdf.partition_point(|&c| c <= u).min(self.entries.len().checked_sub(1)?);
         let lo = if i == 0 { 0.0 } else { self.emit_cdf[i - 1] };
         let pmf = self.emit_cdf[i] - lo;
@@ -411,7 +417,9 @@ impl LightSet {
             Entry::Delta(k) => {
                 let l = self.delta.get(*k)?;
                 match l.kind {
-                    LightKind::Point { position } => EmissionSample { p: position, dir: uniform_sphere(u_dir), n: None, flux: l.color * (4.0 * PI) },
+                    LightKind::Point { position } => {
+                        EmissionSample { p: position, dir: uniform_sphere(u_dir), n: None, flux: l.color * (4.0 * PI) }
+                    }
                     LightKind::Spot { position, direction, outer, .. } => {
                         let axis = direction.normalize_or_zero();
                         let cos_max = outer.cos();

@@ -70,26 +70,37 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
 }
 
 /// The guide layers of a denoiser for every pixel, from the ray through its centre: the
-/// albedo, shading normal and distance of the first surface it sees (see
+/// albedo, shading normal and distance of the first surface it sees; and the emission
+/// seen, as the mean over the centre and four points of the pixel's quarters (when the
+/// scene has emitters), so that pixels an emitter covers even in part are known (see
 /// [`crate::film::Aovs`]).
 #[must_use]
 pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> crate::film::Aovs {
-    let rows: Vec<Vec<(Vec3, Vec3, f32)>> = (0..height)
+    let emitters = w.scene.materials.iter().any(|m| m.emission.max_element() > 0.0);
+    let rows: Vec<Vec<(Vec3, Vec3, f32, Vec3)>> = (0..height)
         .into_par_iter()
         .map(|y| {
             (0..width)
                 .map(|x| {
                     let r = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
-                    crate::integrator::path::aovs(w, &r)
+                    let mut a = crate::integrator::path::aovs(w, &r);
+                    if emitters {
+                        for (dx, dy) in [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)] {
+                            a.3 += crate::integrator::path::aovs(w, &cam.ray(x as f32 + dx, y as f32 + dy)).3;
+                        }
+                        a.3 /= 5.0;
+                    }
+                    a
                 })
                 .collect()
         })
         .collect();
-    let flat: Vec<(Vec3, Vec3, f32)> = rows.into_iter().flatten().collect();
+    let flat: Vec<(Vec3, Vec3, f32, Vec3)> = rows.into_iter().flatten().collect();
     crate::film::Aovs {
         albedo: Film { width, height, pixels: flat.iter().map(|a| a.0).collect() },
         normal: Film { width, height, pixels: flat.iter().map(|a| a.1).collect() },
         depth: flat.iter().map(|a| a.2).collect(),
+        emission: Film { width, height, pixels: flat.iter().map(|a| a.3).collect() },
     }
 }
 

@@ -300,16 +300,25 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
     }
 }
 
-/// What a denoiser's guide layers hold for a camera ray: the albedo, the shading normal
-/// and the distance of its first visible surface (the background's colour, zero and
-/// infinity where it meets nothing).
-pub(crate) fn aovs(w: &World, ray: &Ray) -> (Vec3, Vec3, f32) {
+/// What a denoiser's guide layers hold for a camera ray: the albedo, the shading normal,
+/// the distance and the emitted radiance of its first visible surface (the background's
+/// colour, zero, infinity and zero where it meets nothing).
+pub(crate) fn aovs(w: &World, ray: &Ray) -> (Vec3, Vec3, f32, Vec3) {
     let Some((r, hit)) = w.intersect_solid(ray) else {
-        return (w.scene.background, Vec3::ZERO, f32::INFINITY);
+        return (w.scene.background, Vec3::ZERO, f32::INFINITY, Vec3::ZERO);
     };
     let surf = w.surface(&r, &hit);
     let ns = shading_normal(w, &r, &hit, &surf);
     let albedo = w.prepared(surf.material).albedo(&w.scene.textures, surf.uv);
     let depth = (surf.p - ray.org).length();
-    (albedo, ns, depth)
+    let mat = material(w, surf.material);
+    let emission = if mat.emission.max_element() > 0.0 && r.dir.dot(surf.ng) < 0.0 {
+        match mat.emission_tex.and_then(|t| w.scene.textures.get(t as usize)) {
+            Some(t) => mat.emission * crate::texture::sample(t, surf.uv).truncate(),
+            None => mat.emission,
+        }
+    } else {
+        Vec3::ZERO
+    };
+    (albedo, ns, depth, emission)
 }

@@ -56,8 +56,11 @@ pub struct VplSettings {
     /// VPLs per frame (at least; light paths are finished and every set gets as many
     /// paths).
     pub count: u32,
-    /// Most bounces of a light path (each may leave a VPL); paths also end by Russian
-    /// roulette after the third.
+    /// Most path segments, as the path tracer counts them (`u32::MAX`: unlimited): a
+    /// VPL left at a light path's `d`-th surface (from 1) lights a camera ray's surface
+    /// through paths of `d + 2` segments, so only those with `d + 2 ≤ max_depth` are
+    /// made. Light paths also end by Russian roulette after the third surface, and after
+    /// [`MAX_BOUNCES`].
     pub max_depth: u32,
     /// The least distance, as a fraction of the scene's diagonal, at which a VPL's light
     /// is evaluated (the geometry term's clamp); 0: no clamping (unbiased, noisier).
@@ -76,18 +79,21 @@ impl Eq for VplSettings {}
 
 impl Default for VplSettings {
     fn default() -> Self {
-        Self { count: 256, max_depth: 16, clamp: DEFAULT_CLAMP, interleave: 4, discontinuity: true, seed: super::path::DEFAULT_SEED }
+        Self { count: 256, max_depth: u32::MAX, clamp: DEFAULT_CLAMP, interleave: 4, discontinuity: true, seed: super::path::DEFAULT_SEED }
     }
 }
 
 /// The default clamp (fraction of the scene's diagonal; see [`VplSettings::clamp`]).
 pub const DEFAULT_CLAMP: f32 = 0.04;
 
+/// Most surfaces a light path meets.
+pub const MAX_BOUNCES: u32 = 64;
+
 /// Most delta lobes (mirror, glass) a camera path follows to its shading point.
 pub const SPECULAR_DEPTH: u32 = 8;
 
-/// The sampler row of light paths (far from any pixel's).
-const LIGHT_ROW: u32 = 0x7fff_f000;
+/// The sampler row of light paths (far from any pixel's; two rows per set).
+const LIGHT_ROW: u32 = 0x7fff_0000;
 
 impl VplSettings {
     /// The sampler of the camera side.
@@ -158,14 +164,16 @@ impl<'w> VplSet<'w> {
             if paths >= cap && paths.is_multiple_of(sets) {
                 break;
             }
-            let i = paths as u32;
+            // Each set's paths are a sequence of their own (every set covers the lights).
             let set = paths % sets;
+            let i = (paths / sets) as u32;
+            let row = LIGHT_ROW + 2 * set as u32;
             paths += 1;
             if lights.is_empty() {
                 continue;
             }
-            let u = |pair: u32| sampler.get2(frame, LIGHT_ROW, i, pair);
-            let choice = |k: u32| sampler.get1(frame, LIGHT_ROW + 1, i, k);
+            let u = |pair: u32| sampler.get2(frame, row, i, pair);
+            let choice = |k: u32| sampler.get1(frame, row + 1, i, k);
             let Some(e) = lights.sample_emission(choice(0), u(0), u(1), &w.scene.textures) else { continue };
             let org = match e.n {
                 // (Off the emitting surface by a bound on the point's rounding error.)
@@ -174,7 +182,7 @@ impl<'w> VplSet<'w> {
             };
             let mut ray = Ray::new(org, e.dir);
             let mut beta = e.flux;
-            for depth in 0..s.max_depth {
+            for depth in 0..MAX_BOUNCES.min(s.max_depth.saturating_sub(2)) {
                 let Some((hit_ray, hit)) = w.intersect_solid(&ray) else { break };
                 let surf = w.surface(&hit_ray, &hit);
                 let d = hit_ray.dir.normalize();
@@ -295,7 +303,15 @@ const ALBEDO_MIN: f32 = 1e-3;
 /// Follows a camera ray (its first hit given, when known) through delta lobes to its
 /// shading point: the emission on the way into `l.emitted`, the first surface's normal
 /// and distance into `l`; returns the shading point and its direct light.
-fn camera_path<'w>(w: &'w World, camera_ray: &Ray, s: &VplSettings, (x, y): (u32, u32), k: u32, first: Option<Option<Hit>>, l: &mut Layers) -> Option<(Shade<'w>, Vec3)> {
+fn camera_path<'w>(
+    w: &'w World,
+    camera_ray: &Ray,
+    s: &VplSettings,
+    (x, y): (u32, u32),
+    k: u32,
+    first: Option<Option<Hit>>,
+    l: &mut Layers,
+) -> Option<(Shade<'w>, Vec3)> {
     let px = s.sampler().pixel(x, y);
     let lights = &w.light_set;
     let textures = &w.scene.textures;
@@ -607,7 +623,14 @@ pub fn discontinuity(layers: &[Layers], r: Region, m: u32, x: u32, y: u32) -> Ve
 /// `emitted + albedo × lit`, the reflected light filtered when
 /// [`VplSettings::discontinuity`] is on. `progress(tiles)` as [`crate::render`] calls it
 /// (during the last sample). Returns the region's film and the rays traced.
-pub fn render_region(w: &World, cam: &Camera, rs: &RenderSettings, s: &VplSettings, region: Region, progress: &(dyn Fn(u64) + Sync)) -> (RegionFilm, u64) {
+pub fn render_region(
+    w: &World,
+    cam: &Camera,
+    rs: &RenderSettings,
+    s: &VplSettings,
+    region: Region,
+    progress: &(dyn Fn(u64) + Sync),
+) -> (RegionFilm, u64) {
     let r = Region { x1: region.x1.min(rs.width), y1: region.y1.min(rs.height), ..region };
     let r = Region { x0: r.x0.min(r.x1), y0: r.y0.min(r.y1), s1: r.s1.max(r.s0), ..r };
     let mut film = RegionFilm::new(r);
