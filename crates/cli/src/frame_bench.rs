@@ -12,15 +12,15 @@ use std::time::Instant;
 
 /// A benchmark preset: file under the scenes folder, camera (eye, look-at, up, vfov) and
 /// SaarCOR's Table 3 frame rate at 512×384 where the paper gives one.
-struct Preset {
-    name: &'static str,
-    file: &'static str,
-    cam: [f32; 10],
+pub(crate) struct Preset {
+    pub name: &'static str,
+    pub file: &'static str,
+    pub cam: [f32; 10],
     saarcor_fps: Option<f32>,
 }
 
 /// The presets of `shared/bench/compare.sh` (cameras from `shared/scenes/README.md`).
-const PRESETS: &[Preset] = &[
+pub(crate) const PRESETS: &[Preset] = &[
     Preset {
         name: "conference",
         file: "conference/conference.obj.gz",

@@ -17,6 +17,7 @@ mod run_cmd;
 mod stats;
 mod threads;
 mod view_cmd;
+mod vpl_bench;
 
 #[derive(Parser)]
 #[command(
@@ -151,8 +152,9 @@ enum Cmd {
     /// Keys: W/A/S/D/Q/E move (forward/left/back/right/down/up); hold a mouse button and drag
     /// to look (fly) or to orbit (orbit mode); Tab: fly/orbit; scroll: speed; Home: back to
     /// the scene's camera; 1: shadows on/off; 2: reflection depth (0,1,2,4,6,10); 3:
-    /// orthographic/perspective; 4: integrator (whitted, path, eye light, normals); P or F12:
-    /// screenshot PNG; Space: pause a REND3R program; Esc: quit. Needs an X11 display
+    /// orthographic/perspective; 4: integrator (whitted, path, VPL, eye light, normals); 5:
+    /// denoiser on/off (path and VPL: denoised while moving, fading out as a still image
+    /// gathers samples); P or F12: screenshot PNG; Space: pause a REND3R program; Esc: quit. Needs an X11 display
     /// (DISPLAY); without one it says so and exits.
     View {
         /// Scene (.obj, .obj.gz, .ply, .gltf, .glb) or REND3R program (.rdr, .mem, .bin).
@@ -187,6 +189,9 @@ enum Cmd {
         /// Close after this many seconds.
         #[arg(long)]
         quit_after: Option<f64>,
+        /// The integrator shown first (key 4 cycles them).
+        #[arg(long, default_value = "whitted", value_parser = render_cmd::INTEGRATORS)]
+        integrator: String,
     },
     /// Serve REND3R as a networked device: clients stream programs over TCP (or UDP, or the
     /// page's WebSocket) and get one frame back per `nf`; a page at --http shows them live.
@@ -306,6 +311,29 @@ struct PinArgs {
 
 #[derive(Subcommand)]
 enum BenchCmd {
+    /// Virtual point lights and the denoiser (issue 35): VPL frames per second on
+    /// Conference and the animated BART kitchen (2 threads), the rays per second of the
+    /// frame's VPL shadow rays against its camera rays, and relMSE against converged path
+    /// tracing (Cornell box, Sponza, kitchen) of VPL images with and without the
+    /// discontinuity buffer and of 4 samples denoised against 64 raw. The references are
+    /// path traced once and cached in target/bench-cache/ (minutes each).
+    Vpl {
+        /// The shared scenes folder.
+        #[arg(long, default_value = "../shared/scenes")]
+        dir: PathBuf,
+        /// Frame size.
+        #[arg(long, default_value = "512x384", value_parser = render_cmd::parse_size)]
+        size: (u32, u32),
+        /// Timed frames (the median is reported).
+        #[arg(long, default_value_t = 10)]
+        frames: usize,
+        /// Samples per pixel of the path-traced references.
+        #[arg(long, default_value_t = 256)]
+        reference_spp: u32,
+        /// Frame rates and ray rates only.
+        #[arg(long)]
+        speed_only: bool,
+    },
     /// Shaded frames per second (primary rays, one shadow ray per light, shading; no
     /// reflections) on the benchmark presets at 512x384 and 1024x768, traced in packets and
     /// ray by ray. One JSON line per figure, and SaarCOR's Table 3 rate where it has one.
@@ -521,7 +549,7 @@ fn run() -> Result<()> {
             let integrator = render_cmd::integrator_of(&integrator, max_depth, no_shadows, 5, false);
             animate_cmd::run(animate_cmd::AnimateArgs { scene, demo, from, to, fps, size, camera, spp, integrator, output })
         }
-        Cmd::View { input, demo, camera, size, target_fps, samples, moving_scale, mode, screenshots, report, quit_after } => {
+        Cmd::View { input, demo, camera, size, target_fps, samples, moving_scale, mode, screenshots, report, quit_after, integrator } => {
             view_cmd::run(view_cmd::ViewArgs {
                 input,
                 demo,
@@ -534,6 +562,7 @@ fn run() -> Result<()> {
                 screenshots,
                 report,
                 quit_after,
+                integrator,
             })
         }
         Cmd::Asm { program, output, format, camera_table } => isa_cmd::asm(&program, output, format, isa_cmd::table(camera_table == "old")),
@@ -566,6 +595,9 @@ fn run() -> Result<()> {
         }
         Cmd::Bench(BenchCmd::Leaks { rays, seed }) => leaks_bench::run(rays, seed),
         Cmd::Bench(BenchCmd::Path { data, dir }) => path_bench::run(&data, &dir),
+        Cmd::Bench(BenchCmd::Vpl { dir, size, frames, reference_spp, speed_only }) => {
+            vpl_bench::run(&vpl_bench::VplOptions { dir, size, frames, reference_spp, speed_only })
+        }
         Cmd::Bench(BenchCmd::Net { soak: true, soak_clients, soak_frames, .. }) => net_cmd::soak(soak_clients, soak_frames),
         Cmd::Bench(BenchCmd::Net { clients, seconds, size, format, .. }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),
         Cmd::Serve(a) => net_cmd::serve(lucent_net::ServerConfig {

@@ -19,6 +19,7 @@ pub struct ViewArgs {
     pub screenshots: PathBuf,
     pub report: bool,
     pub quit_after: Option<f64>,
+    pub integrator: String,
 }
 
 fn is_program(p: &Path) -> bool {
@@ -35,6 +36,13 @@ pub fn run(a: ViewArgs) -> Result<()> {
         screenshot_dir: a.screenshots.clone(),
         report: a.report,
         quit_after: a.quit_after,
+        view: match a.integrator.as_str() {
+            "path" => 1,
+            "vpl" => 2,
+            "eye-light" => 3,
+            "normals" => 4,
+            _ => 0,
+        },
     };
     let content = match a.input.as_deref() {
         Some(p) if is_program(p) => {

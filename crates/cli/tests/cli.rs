@@ -75,6 +75,42 @@ fn render_path_for_a_time_budget() {
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--time"));
 }
 
+/// The VPL integrator and the denoiser from the command line, on the Cornell box: the
+/// walls show their colours, the ceiling is lit by indirect light only, the denoised
+/// image keeps the raw one's mean, and bad VPL options are refused.
+#[test]
+fn render_vpl_and_denoise() {
+    let d = tempfile::tempdir().expect("tmp");
+    let cornell = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes/cornell_box/cornell_box.obj");
+    let cam = "278,273,-800,278,273,0,0,1,0,39.3";
+    let mean = |p: &Path| {
+        let img = image::open(p).expect("exr").to_rgb32f();
+        (img.pixels().map(|p| f64::from(p.0[0] + p.0[1] + p.0[2])).sum::<f64>(), img)
+    };
+    let mut means = Vec::new();
+    for extra in [&[][..], &["--denoise"][..]] {
+        let out = d.path().join(format!("vpl{}.exr", extra.len()));
+        let o = lucent()
+            .arg("render")
+            .arg(&cornell)
+            .args(["--integrator", "vpl", "--size", "64x64", "--camera", cam, "--threads", "2", "-o"])
+            .arg(&out)
+            .args(extra)
+            .output()
+            .expect("run");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let (m, img) = mean(&out);
+        let (left, right, top) = (img.get_pixel(4, 32).0, img.get_pixel(59, 32).0, img.get_pixel(32, 4).0);
+        assert!(left[0] > 2.0 * left[1] && right[1] > 2.0 * right[0], "walls: left {left:?}, right {right:?}");
+        assert!(top.iter().all(|&c| c > 0.02), "the ceiling is lit: {top:?}");
+        means.push(m);
+    }
+    assert!((means[1] / means[0] - 1.0).abs() < 0.02, "denoising changed the mean: {means:?}");
+    let o =
+        lucent().arg("render").arg(&cornell).args(["--integrator", "vpl", "--interleave", "0", "-o", "/tmp/x.png"]).output().expect("run");
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--interleave"));
+}
+
 /// Output piped into a reader that stops early (`lucent disasm … | head -2`) ends the
 /// command quietly, as `cat` does, not with a panic about a broken pipe.
 #[cfg(unix)]

@@ -46,6 +46,20 @@ const ALBEDO_MIN: f32 = 1e-3;
 /// The B3 spline's weights at offsets -2..=2.
 const B3: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
 
+/// `x^n` by squaring, inline (`powi` is a library call).
+#[inline]
+fn pow_u(mut x: f32, mut n: u32) -> f32 {
+    let mut r = 1.0;
+    while n > 0 {
+        if n & 1 == 1 {
+            r *= x;
+        }
+        x *= x;
+        n >>= 1;
+    }
+    r
+}
+
 #[inline]
 fn lum(c: Vec3) -> f32 {
     crate::world::luminance(c)
@@ -146,6 +160,7 @@ pub fn denoise(color: &Film, aovs: &Aovs, s: &DenoiseSettings) -> Film {
             ((m2 / k - mean * mean).max(0.0) * k / (k - 1.0)) as f32
         })
         .collect();
+    let normal_exp = if s.sigma_normal.fract() == 0.0 && (0.0..=1024.0).contains(&s.sigma_normal) { s.sigma_normal as i32 } else { -1 };
     for it in 0..s.iterations.min(12) {
         let step = 1i64 << it;
         // The variance at each pixel, blurred over 3 × 3 (SVGF: a steadier estimate).
@@ -196,14 +211,21 @@ pub fn denoise(color: &Film, aovs: &Aovs, s: &DenoiseSettings) -> Film {
                         if !q.valid {
                             continue;
                         }
-                        let wn = g.n.dot(q.n).max(0.0).powf(s.sigma_normal);
+                        let cos = g.n.dot(q.n).max(0.0);
+                        // PERF: an integer exponent by multiplications (powf was most of a pass).
+                        let wn = if normal_exp >= 0 { pow_u(cos, normal_exp as u32) } else { cos.powf(s.sigma_normal) };
                         if wn <= 0.0 {
                             continue;
                         }
                         let expect = g.dz.0 * dx.abs() as f32 + g.dz.1 * dy.abs() as f32;
                         let ez = (g.z - q.z).abs() / (s.sigma_depth * expect + 1e-3 * g.z);
                         let el = (lp - lum(c[j])).abs() / sl;
-                        let wt = hx * hy * wn * (-(ez + el)).exp();
+                        let e = ez + el;
+                        // (Weights below e^-30 count for nothing.)
+                        if e > 30.0 {
+                            continue;
+                        }
+                        let wt = hx * hy * wn * (-e).exp();
                         sum += c[j] * wt;
                         wsum += wt;
                         vsum += wt * wt * var[j];

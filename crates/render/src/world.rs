@@ -347,8 +347,13 @@ impl World {
         &self.lights
     }
 
-    /// Replaces the lights used for rendering (the top level's shadow-ray grids follow).
+    /// Replaces the lights used for rendering (the top level's shadow-ray grids, and the
+    /// lights the path tracer and the VPL integrator sample, follow).
     pub fn set_lights(&mut self, lights: Vec<Light>) {
+        if lights != self.scene.lights {
+            self.scene.lights.clone_from(&lights);
+            self.light_set = LightSet::of(&self.scene, &self.custom_lights);
+        }
         self.lights = lights;
         self.sync_shadow_grids();
     }

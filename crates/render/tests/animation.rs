@@ -136,11 +136,14 @@ fn animation_frames_do_not_depend_on_thread_count() {
     let s = load(&scene("bart/kitchen/kitchen.gltf")).expect("load");
     let mut w = World::new(s, MeshOptions::default()).expect("world");
     let cam: CameraDesc = w.set_time(7.5).expect("pose").expect("animated camera");
-    let st = RenderSettings::new(64, 48);
     let c = Camera::new(&cam, 64, 48);
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool").install(|| render(&w, &c, &st, &|_| {}).0);
-    let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("pool").install(|| render(&w, &c, &st, &|_| {}).0);
-    assert_eq!(one.pixels, two.pixels);
+    // Whitted, and the VPL integrator (its VPLs made anew for the posed frame).
+    for integrator in [lucent_render::Integrator::default(), lucent_render::Integrator::Vpl(lucent_render::VplSettings::default())] {
+        let st = RenderSettings { integrator, ..RenderSettings::new(64, 48) };
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool").install(|| render(&w, &c, &st, &|_| {}).0);
+        let two = rayon::ThreadPoolBuilder::new().num_threads(3).build().expect("pool").install(|| render(&w, &c, &st, &|_| {}).0);
+        assert_eq!(one.pixels, two.pixels, "{}", integrator.name());
+    }
     // And the camera moves: another time, another view.
     let cam2 = w.set_time(12.0).expect("pose").expect("camera");
     assert!((cam2.eye - cam.eye).length() > 0.1);

@@ -6,7 +6,10 @@ use crate::control::{Accumulator, Adaptive, CameraController, NavMode, Plan};
 use crate::font::draw_text;
 use glam::Vec3;
 use lucent_device::{render_frame, FrameSettings, Processor, Step};
-use lucent_render::{render_region, Camera, Film, Integrator, PathSettings, Region, RenderSettings, WhittedSettings, World};
+use lucent_render::{
+    denoise, render_aovs, render_region, Camera, DenoiseSettings, Film, Integrator, PathSettings, Region, RenderSettings, VplSettings,
+    WhittedSettings, World,
+};
 use std::collections::HashSet;
 use std::num::NonZeroU32;
 use std::path::PathBuf;
@@ -46,6 +49,9 @@ pub struct ViewOptions {
     pub report: bool,
     /// Close after this many seconds (for measurements and tests).
     pub quit_after: Option<f64>,
+    /// The integrator shown first (key 4 cycles): 0 Whitted, 1 path, 2 VPL, 3 eye light,
+    /// 4 normals.
+    pub view: usize,
 }
 
 /// What the window shows.
@@ -87,7 +93,10 @@ struct Gfx {
 }
 
 /// How many integrators key 4 cycles through.
-const VIEWS: usize = 4;
+const VIEWS: usize = 5;
+
+/// Samples per pixel at which the denoised image has faded out (path tracer and VPL).
+const DENOISE_FADE_SPP: f32 = 64.0;
 
 struct App {
     opts: ViewOptions,
@@ -101,6 +110,14 @@ struct App {
     whitted: WhittedSettings,
     /// Which integrator shows (key 4 cycles): see [`App::integrator`].
     view: usize,
+    /// Denoise path-traced and VPL images (key 5).
+    denoise: bool,
+    /// What the window shows instead of the accumulated image: the denoised one.
+    shown: Option<Film>,
+    /// The denoiser's guides, and the camera and size they were made for.
+    guides: Option<(lucent_scene::CameraDesc, (u32, u32), lucent_render::Aovs)>,
+    /// Milliseconds the last denoise took (guides included).
+    denoise_ms: f64,
     gfx: Option<Gfx>,
     error: Option<ViewerError>,
     keys: HashSet<KeyCode>,
@@ -132,16 +149,57 @@ struct App {
 const DEPTHS: [u32; 6] = [0, 1, 2, 4, 6, 10];
 
 impl App {
-    /// The integrator shown: Whitted with the keys' settings, the path tracer (which
-    /// accumulates while the camera is still, and shows one sample per pixel at the reduced
-    /// resolution while it moves), the eye light, or normals.
+    /// The integrator shown: Whitted with the keys' settings, the path tracer or the VPL
+    /// integrator (which accumulate while the camera is still, and show one sample per
+    /// pixel at the reduced resolution, denoised, while it moves), the eye light, or
+    /// normals.
     fn integrator(&self) -> Integrator {
         match self.view % VIEWS {
             0 => Integrator::Whitted(self.whitted),
             1 => Integrator::Path(PathSettings::default()),
-            2 => Integrator::EyeLight,
+            2 => Integrator::Vpl(VplSettings::default()),
+            3 => Integrator::EyeLight,
             _ => Integrator::Normals,
         }
+    }
+
+    /// Whether the image shown is denoised.
+    fn denoising(&self) -> bool {
+        self.denoise && matches!(self.integrator(), Integrator::Path(_) | Integrator::Vpl(_))
+    }
+
+    /// The denoised image of the accumulated one, faded toward it as samples grow (fully
+    /// denoised at one sample, not at all from [`DENOISE_FADE_SPP`]).
+    fn denoise_shown(&mut self, camera: &lucent_scene::CameraDesc, size: (u32, u32)) {
+        self.shown = None;
+        if !self.denoising() {
+            return;
+        }
+        let spp = self.acc.passes() as f32;
+        let keep = (1.0 - (spp - 1.0) / (DENOISE_FADE_SPP - 1.0)).clamp(0.0, 1.0);
+        if keep <= 0.0 {
+            return;
+        }
+        let Some(world) = self.world.as_ref() else { return };
+        let t = Instant::now();
+        let fresh = !matches!(&self.guides, Some((d, s, _)) if d == camera && *s == size);
+        if fresh {
+            let c = Camera::new(camera, size.0, size.1);
+            self.guides = Some((*camera, size, render_aovs(world, &c, size.0, size.1)));
+        }
+        let Some((_, _, aovs)) = &self.guides else { return };
+        let raw = self.acc.film();
+        if (raw.width, raw.height) != size {
+            return;
+        }
+        let mut d = denoise(&raw, aovs, &DenoiseSettings::default());
+        if keep < 1.0 {
+            for (o, r) in d.pixels.iter_mut().zip(&raw.pixels) {
+                *o = *o * keep + *r * (1.0 - keep);
+            }
+        }
+        self.shown = Some(d);
+        self.denoise_ms = t.elapsed().as_secs_f64() * 1e3;
     }
 
     /// True while the picture changes: the user steers or an animation plays.
@@ -229,6 +287,7 @@ impl App {
                 }
             }
             KeyCode::Digit4 => self.view = (self.view + 1) % VIEWS,
+            KeyCode::Digit5 => self.denoise = !self.denoise,
             KeyCode::Space => {
                 if let Some(p) = self.program.as_mut() {
                     p.paused = !p.paused;
@@ -252,7 +311,7 @@ impl App {
     fn screenshot(&mut self) {
         let film = match &self.program {
             Some(p) => p.last.clone(),
-            None => Some(self.acc.film()),
+            None => Some(self.shown.clone().unwrap_or_else(|| self.acc.film())),
         };
         let Some(film) = film else { return };
         let _ = std::fs::create_dir_all(&self.opts.screenshot_dir);
@@ -314,7 +373,8 @@ impl App {
             return std::mem::take(&mut self.dirty);
         };
         let (Some(world), Some(cam)) = (self.world.as_ref(), self.cam.as_ref()) else { return false };
-        let camera = Camera::new(&cam.desc(), plan.width, plan.height);
+        let desc = cam.desc();
+        let camera = Camera::new(&desc, plan.width, plan.height);
         // The first pass is the one-sample image (pixel centres); the passes after it add the
         // jittered samples 1, 2, ... of the image of `max_samples` samples.
         let spp = if plan.sample == 0 { 1 } else { self.adaptive.max_samples };
@@ -327,6 +387,7 @@ impl App {
             self.adaptive.finished(&plan, 0.0, false);
         }
         self.acc.add(film, plan.accumulate);
+        self.denoise_shown(&desc, (plan.width, plan.height));
         self.count(rays, moving, plan);
         true
     }
@@ -421,13 +482,23 @@ impl App {
             Some(_) => format!(" | t {:.2} s {}", self.anim_time, if self.anim_playing { "playing" } else { "paused" }),
             None => String::new(),
         };
+        let integrator = match self.integrator() {
+            Integrator::Vpl(v) => format!("vpl {} VPLs {}x{}", v.count, v.interleave, v.interleave),
+            i => i.name().to_string(),
+        };
+        let denoise = if self.shown.is_some() {
+            format!(" | denoised ({:.0} ms)", self.denoise_ms)
+        } else if self.denoising() {
+            " | denoise faded".to_string()
+        } else {
+            String::new()
+        };
         format!(
-            "{:.1} fps | {:.1} Mrays/s | {res} | {}/{} spp | {} | shadows {} | depth {} | {proj} | {mode} | {}{anim}",
+            "{:.1} fps | {:.1} Mrays/s | {res} | {}/{} spp | {integrator}{denoise} | shadows {} | depth {} | {proj} | {mode} | {}{anim}",
             self.fps,
             self.mrays,
             self.adaptive.samples(),
             self.adaptive.max_samples,
-            self.integrator().name(),
             if self.whitted.shadows { "on" } else { "off" },
             self.whitted.max_depth,
             self.stats
@@ -480,7 +551,10 @@ impl App {
                 Some(f) => crate::control::blit(&f.pixels, f.width, f.height, 1.0, &mut buf, full.0, full.1),
                 None => buf.fill(0),
             },
-            None => self.acc.blit(&mut buf, full.0, full.1),
+            None => match &self.shown {
+                Some(f) => crate::control::blit(&f.pixels, f.width, f.height, 1.0, &mut buf, full.0, full.1),
+                None => self.acc.blit(&mut buf, full.0, full.1),
+            },
         }
         let scale = if full.0 >= 900 { 2 } else { 1 };
         draw_text(&mut buf, full.0 as usize, 4, 4, scale, &hud, 0x00ff_ff80);
@@ -622,6 +696,7 @@ pub fn run(content: Content, opts: ViewOptions) -> Result<(), ViewerError> {
     let event_loop = EventLoop::new().map_err(|e| ViewerError::NoDisplay(e.to_string()))?;
     let now = Instant::now();
     let adaptive = Adaptive::new(opts.target_fps, opts.max_samples, opts.moving_scale);
+    let view = opts.view % VIEWS;
     let mut app = App {
         opts,
         name: String::new(),
@@ -632,7 +707,11 @@ pub fn run(content: Content, opts: ViewOptions) -> Result<(), ViewerError> {
         adaptive,
         acc: Accumulator::default(),
         whitted: WhittedSettings::default(),
-        view: 0,
+        view,
+        denoise: true,
+        shown: None,
+        guides: None,
+        denoise_ms: 0.0,
         gfx: None,
         error: None,
         keys: HashSet::new(),

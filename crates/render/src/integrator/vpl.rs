@@ -44,6 +44,11 @@ use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::film::{Region, RegionFilm};
 use crate::render::{RenderSettings, TILE};
+
+/// Tile edge of VPL frames: 16 × 16 pixels (with 4 × 4 interleaving a VPL's shadow rays
+/// from one tile are a packet of 16). Measured on the Cornell box at 512 × 384 (4 frames,
+/// 2 threads): 32 × 32 tiles (packets of 64) took the same CPU time and more wall time.
+const VPL_TILE: u32 = 16;
 use crate::sampler::Sampler;
 use crate::world::World;
 use glam::Vec3;
@@ -449,8 +454,8 @@ fn modulate(l: &Layers) -> Vec3 {
 }
 
 /// The layers of every pixel of `r` (row-major) for the sample `set` belongs to, tile by
-/// tile on all cores: camera rays of an 8 × 8 block as a packet, then per tile and VPL
-/// one packet of shadow rays from the VPL to the tile's pixels of its set. Returns the
+/// tile (32 × 32) on all cores: camera rays of each 8 × 8 block as a packet, then per
+/// tile and VPL one packet of shadow rays from the VPL to the tile's pixels of its set. Returns the
 /// rays traced.
 pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, r: Region, out: &mut [Layers]) -> u64 {
     let (s, k) = (&set.settings, set.frame);
@@ -462,27 +467,36 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
     let integrator = rs.integrator;
     let spp = rs.spp.max(1);
     let packets = rs.traversal.packets;
-    // Bands of TILE rows, tiles of TILE columns.
-    out.par_chunks_mut((width * TILE) as usize)
+    // Bands of VPL_TILE rows, tiles of VPL_TILE columns; per band, the tile's buffers.
+    const N: usize = (VPL_TILE * VPL_TILE) as usize;
+    out.par_chunks_mut((width * VPL_TILE) as usize)
         .enumerate()
         .map(|(band, rows)| {
-            let y0 = r.y0 + band as u32 * TILE;
-            let y1 = (y0 + TILE).min(r.y1);
+            let y0 = r.y0 + band as u32 * VPL_TILE;
+            let y1 = (y0 + VPL_TILE).min(r.y1);
             let before = crate::world::rays_traced_here();
+            let mut shades: Vec<Option<Shade>> = vec![None; N];
+            let mut layers = vec![Layers::default(); N];
+            let mut coords = vec![(0u32, 0u32); N];
+            // Light reflected at each pixel's shading point: direct, then the VPLs'.
+            let mut ind = vec![Vec3::ZERO; N];
+            let mut who = vec![0usize; N];
             let mut x0 = r.x0;
             while x0 < r.x1 {
-                let x1 = (x0 + TILE).min(r.x1);
-                const N: usize = (TILE * TILE) as usize;
-                let mut shades: [Option<Shade>; N] = [None; N];
-                let mut layers = [Layers::default(); N];
-                let mut coords = [(0u32, 0u32); N];
-                // Light reflected at each pixel's shading point: direct, then the VPLs'.
-                let mut ind = [Vec3::ZERO; N];
+                let x1 = (x0 + VPL_TILE).min(r.x1);
+                shades.fill(None);
+                layers.fill(Layers::default());
+                ind.fill(Vec3::ZERO);
                 let mut n = 0;
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        coords[n] = (x, y);
-                        n += 1;
+                // (In 8 × 8 blocks: each a coherent packet of camera rays.)
+                for by in (y0..y1).step_by(8) {
+                    for bx in (x0..x1).step_by(8) {
+                        for y in by..(by + 8).min(y1) {
+                            for x in bx..(bx + 8).min(x1) {
+                                coords[n] = (x, y);
+                                n += 1;
+                            }
+                        }
                     }
                 }
                 // Camera rays, 64 at a time.
@@ -514,7 +528,6 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
                     }
                 }
                 // Indirect light: per set, per VPL, one packet of the set's pixels.
-                let mut who = [0usize; N];
                 for si in 0..s.sets() {
                     let mut m = 0;
                     for (j, sh) in shades[..n].iter().enumerate() {
@@ -665,4 +678,48 @@ pub fn render_region(
         }
     }
     (film, rays)
+}
+
+/// The rays of one VPL frame, grouped as the renderer traces them (for measuring their
+/// speed apart from shading): the camera rays, one packet per 8 × 8 block, and the shadow
+/// rays toward the VPLs, one packet per 16 × 16 tile, set and VPL (rays of zero
+/// contribution left out, as the renderer does).
+#[must_use]
+pub fn frame_rays(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet) -> (Vec<Vec<Ray>>, Vec<Vec<Ray>>) {
+    let (s, k) = (&set.settings, set.frame);
+    let d_min2 = d_min2(w, s);
+    let spp = rs.spp.max(1);
+    let (mut primary, mut shadow) = (Vec::new(), Vec::new());
+    for ty in (0..rs.height).step_by(VPL_TILE as usize) {
+        for tx in (0..rs.width).step_by(VPL_TILE as usize) {
+            let mut shades = Vec::new();
+            for by in (ty..(ty + VPL_TILE).min(rs.height)).step_by(8) {
+                for bx in (tx..(tx + VPL_TILE).min(rs.width)).step_by(8) {
+                    let mut rays = Vec::new();
+                    for y in by..(by + 8).min(rs.height) {
+                        for x in bx..(bx + 8).min(rs.width) {
+                            let (jx, jy) = rs.integrator.pixel_offset(x, y, k, spp);
+                            let ray = cam.ray(x as f32 + jx, y as f32 + jy);
+                            let mut l = Layers::default();
+                            if let Some((sh, _)) = camera_path(w, &ray, s, (x, y), k, None, &mut l) {
+                                shades.push((s.set_of(x, y), sh));
+                            }
+                            rays.push(ray);
+                        }
+                    }
+                    primary.push(rays);
+                }
+            }
+            for si in 0..s.sets() {
+                for v in set.set(si) {
+                    let rays: Vec<Ray> =
+                        shades.iter().filter(|(k, _)| *k == si).filter_map(|(_, sh)| vpl_term(v, sh, d_min2).map(|(_, r)| r)).collect();
+                    if !rays.is_empty() {
+                        shadow.push(rays);
+                    }
+                }
+            }
+        }
+    }
+    (primary, shadow)
 }
