@@ -87,8 +87,8 @@ fn rays_per_s(w: &World, packets: &[Vec<lucent_accel::Ray>], occluded: bool, sin
     let mut times: Vec<f64> = (0..3)
         .map(|_| {
             let t = Instant::now();
-            let mut hits = vec![None; 64];
-            let mut blocked = vec![false; 64];
+            let mut hits = [None; 64];
+            let mut blocked = [false; 64];
             let mut sink = 0usize;
             for p in packets {
                 for c in p.chunks(64) {

@@ -324,3 +324,29 @@ fn viewer_plays_a_gltf_animation_and_space_pauses_it() {
     let d = xwd(&display, &wid);
     assert!(d.diff(&c) < 0.01, "paused: {}", d.diff(&c));
 }
+
+/// The VPL integrator in the viewer (`--integrator vpl`, denoised while it gathers
+/// samples): the Cornell box converges with its red and green walls; key 5 (denoiser off)
+/// and key 4 (next integrator: the eye light) each give another converged picture.
+#[test]
+#[ignore = "needs Xvfb, xdotool and xwd: run by scripts/test"]
+fn viewer_shows_vpl_frames_and_cycles_integrators() {
+    let (_x, display) = xvfb();
+    let cornell = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../render/tests/data/mitsuba/cornell_box/scene.xml");
+    let (_viewer, wid) = view(&display, &["--size", "256x256", "--samples", "4", "--integrator", "vpl"], &cornell);
+    wait_title(&display, &wid, "[converged]", 60);
+    let vpl = xwd(&display, &wid);
+    let (left, right) = (vpl.at(20, 140), vpl.at(236, 140));
+    assert!(left[0] > 2 * left[1].max(20) && right[1] > right[0] + 15 && right[1] > 2 * right[2], "walls: left {left:?}, right {right:?}");
+    focus(&display, &wid);
+    xdo(&display, &["key", "5"]);
+    std::thread::sleep(Duration::from_millis(300));
+    wait_title(&display, &wid, "[converged]", 60);
+    let raw = xwd(&display, &wid);
+    assert!(raw.diff(&vpl) > 0.05, "denoiser off changes the picture: {}", raw.diff(&vpl));
+    xdo(&display, &["key", "4"]);
+    std::thread::sleep(Duration::from_millis(300));
+    wait_title(&display, &wid, "[converged]", 60);
+    let eye = xwd(&display, &wid);
+    assert!(eye.diff(&raw) > 2.0, "the eye light looks otherwise: {}", eye.diff(&raw));
+}
