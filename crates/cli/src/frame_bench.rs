@@ -53,6 +53,12 @@ pub(crate) const PRESETS: &[Preset] = &[
     },
 ];
 
+/// Where the Embree harness (`shared/bench`) puts its one point light in a scene of
+/// bounds `lo..hi`: above the centre of the bounds.
+pub(crate) fn harness_light(lo: Vec3, hi: Vec3) -> Vec3 {
+    (lo + hi) * 0.5 + Vec3::new(0.0, 0.45 * (hi - lo).y, 0.0)
+}
+
 /// Options of `bench frame`.
 pub struct FrameOptions {
     pub scenes: Vec<String>,
@@ -77,8 +83,7 @@ pub fn run(o: &FrameOptions) -> Result<()> {
         let scene = lucent_scene::load(&path).with_context(|| format!("cannot load the {name} preset from {}", path.display()))?;
         let (lo, hi) = scene.bounds().with_context(|| format!("{}: the scene is empty", path.display()))?;
         let mut world = World::new(scene, MeshOptions::default())?;
-        // One point light where the harness puts it: above the centre of the bounds.
-        let light = (lo + hi) * 0.5 + Vec3::new(0.0, 0.45 * (hi - lo).y, 0.0);
+        let light = harness_light(lo, hi);
         world.set_lights(vec![Light { kind: LightKind::Point { position: light }, color: Vec3::ONE, inverse_square: false }]);
         let desc = CameraDesc::from_view(&p.cam);
         for &(w, h) in &o.sizes {

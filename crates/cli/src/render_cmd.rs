@@ -248,6 +248,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(t) = a.threads {
         rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot set the thread count")?;
     }
+    // (Refused before any work.)
+    if a.aovs && !a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+        bail!("--aovs needs an .exr output (got {})", a.output.display());
+    }
     let t0 = Instant::now();
     let name = a.integrator.clone().unwrap_or_else(|| "path".into());
     // Without a scene, the path tracer shows its studio and the others the feature demo.
@@ -348,9 +352,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
         _ => film,
     };
     if let (true, Some(aovs)) = (a.aovs, &aovs) {
-        if !a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-            bail!("--aovs needs an .exr output (got {})", a.output.display());
-        }
         film.save_exr_with_aovs(&a.output, aovs)?;
     } else {
         film.save(&a.output)?;

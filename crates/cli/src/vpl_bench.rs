@@ -53,9 +53,9 @@ fn load(o: &VplOptions, name: &str) -> Result<(World, CameraDesc)> {
             let scene = lucent_scene::load(&path).with_context(|| format!("{}", path.display()))?;
             let (lo, hi) = scene.bounds().context("empty scene")?;
             let mut world = World::new(scene, MeshOptions::default())?;
-            // The Embree harness's light: above the centre of the bounds (with the inverse
-            // square law, so that light falls off as physically based light does).
-            let light = (lo + hi) * 0.5 + Vec3::new(0.0, 0.45 * (hi - lo).y, 0.0);
+            // The Embree harness's light (with the inverse square law, so that light falls
+            // off as physically based light does).
+            let light = crate::frame_bench::harness_light(lo, hi);
             let power = (hi - lo).length_squared() * 0.05;
             world.set_lights(vec![Light { kind: LightKind::Point { position: light }, color: Vec3::splat(power), inverse_square: true }]);
             Ok((world, CameraDesc::from_view(&p.cam)))

@@ -72,11 +72,7 @@ struct DiskSun {
 impl LightModel for DiskSun {
     fn sample(&self, _p: Vec3, u: (f32, f32)) -> Option<LightSample> {
         let cos_max = self.half_angle.cos();
-        let cos_t = 1.0 - u.0 * (1.0 - cos_max);
-        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        let (s, c) = (2.0 * PI * u.1).sin_cos();
-        let (t, b) = self.toward.any_orthonormal_pair();
-        let dir = (t * (sin_t * c) + b * (sin_t * s) + self.toward * cos_t).normalize();
+        let dir = lucent_render::lights::uniform_cone(self.toward, cos_max, u);
         Some(LightSample { dir, dist: f32::INFINITY, li: self.radiance, pdf: 1.0 / (2.0 * PI * (1.0 - cos_max)), delta: false })
     }
 

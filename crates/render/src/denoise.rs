@@ -18,6 +18,8 @@
 //! with holes: pass `i` takes every `2^i`-th pixel, so five passes reach 62 pixels out.
 
 use crate::film::{Aovs, Film};
+use crate::integrator::vpl::{ALBEDO_MIN, FILTER_ALBEDO_MIN};
+use crate::world::luminance as lum;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -44,9 +46,6 @@ impl Default for DenoiseSettings {
     }
 }
 
-/// The least albedo the colour is divided by (per channel).
-const ALBEDO_MIN: f32 = 1e-3;
-
 /// The B3 spline's weights at offsets -2..=2.
 const B3: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
 
@@ -62,11 +61,6 @@ fn pow_u(mut x: f32, mut n: u32) -> f32 {
         n >>= 1;
     }
     r
-}
-
-#[inline]
-fn lum(c: Vec3) -> f32 {
-    crate::world::luminance(c)
 }
 
 /// A guide pixel: whether it sees a surface, and that surface's normal and distance.
@@ -106,8 +100,8 @@ pub fn denoise(color: &Film, aovs: &Aovs, s: &DenoiseSettings) -> Film {
             let (nn, z) = (aovs.normal.pixels[i], aovs.depth[i]);
             // (Emitters pass through: their light is not the albedo's to scale.)
             let emits = aovs.emission.pixels[i].max_element() > 0.0;
-            // (Nor dark surfaces: see `vpl::FILTER_ALBEDO_MIN`.)
-            let dark = aovs.albedo.pixels[i].max_element() < crate::integrator::vpl::FILTER_ALBEDO_MIN;
+            // (Nor dark surfaces: see `FILTER_ALBEDO_MIN`.)
+            let dark = aovs.albedo.pixels[i].max_element() < FILTER_ALBEDO_MIN;
             Guide {
                 valid: z.is_finite() && z > 0.0 && nn != Vec3::ZERO && !emits && !dark && color.pixels[i].is_finite(),
                 n: nn,

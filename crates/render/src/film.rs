@@ -290,6 +290,13 @@ impl Region {
     pub const fn full(width: u32, height: u32, s0: u32, s1: u32) -> Self {
         Self { x0: 0, y0: 0, x1: width, y1: height, s0, s1 }
     }
+    /// The part of the region inside a `width` × `height` image (an empty range where
+    /// nothing is left: never one that ends before it starts).
+    #[must_use]
+    pub fn clip(self, width: u32, height: u32) -> Self {
+        let r = Self { x1: self.x1.min(width), y1: self.y1.min(height), ..self };
+        Self { x0: r.x0.min(r.x1), y0: r.y0.min(r.y1), s1: r.s1.max(r.s0), ..r }
+    }
     /// Pixels in the region.
     #[must_use]
     pub fn pixels(&self) -> usize {

@@ -423,11 +423,7 @@ impl LightSet {
                     LightKind::Spot { position, direction, outer, .. } => {
                         let axis = direction.normalize_or_zero();
                         let cos_max = outer.cos();
-                        let cos_t = 1.0 - u_dir.0 * (1.0 - cos_max);
-                        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-                        let (sp, cp) = (2.0 * PI * u_dir.1).sin_cos();
-                        let (t, b) = axis.any_orthonormal_pair();
-                        let dir = (t * (sin_t * cp) + b * (sin_t * sp) + axis * cos_t).normalize_or_zero();
+                        let dir = uniform_cone(axis, cos_max, u_dir);
                         // (The falloff is what a shading point on this direction receives.)
                         let falloff = delta_sample(l, position + dir)?.li;
                         EmissionSample { p: position, dir, n: None, flux: falloff * (2.0 * PI * (1.0 - cos_max)) }
@@ -491,12 +487,25 @@ fn area_emission(q: Vec3, n: Vec3, area: f32, le: Vec3, u: (f32, f32)) -> Option
     (local.z > 0.0 && dir != Vec3::ZERO).then_some(EmissionSample { p: q, dir, n: Some(n), flux: le * (area * PI) })
 }
 
-/// A uniformly chosen unit vector.
-fn uniform_sphere(u: (f32, f32)) -> Vec3 {
+/// A uniformly chosen unit vector, for `u` in [0, 1)².
+#[must_use]
+pub fn uniform_sphere(u: (f32, f32)) -> Vec3 {
     let z = 1.0 - 2.0 * u.0;
     let s = (1.0 - z * z).max(0.0).sqrt();
     let (sp, cp) = (2.0 * PI * u.1).sin_cos();
     Vec3::new(s * cp, s * sp, z)
+}
+
+/// A direction chosen uniformly within the cone of unit `axis` whose half-angle has
+/// cosine `cos_max`, for `u` in [0, 1)²; its density per solid angle is
+/// `1 / (2π (1 − cos_max))` (Shirley and Wang 1994).
+#[must_use]
+pub fn uniform_cone(axis: Vec3, cos_max: f32, u: (f32, f32)) -> Vec3 {
+    let cos_t = 1.0 - u.0 * (1.0 - cos_max);
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let (sp, cp) = (2.0 * PI * u.1).sin_cos();
+    let (t, b) = axis.any_orthonormal_pair();
+    (t * (sin_t * cp) + b * (sin_t * sp) + axis * cos_t).normalize_or_zero()
 }
 
 /// An area light's point `q` (normal `n`, one-sided, of total area `area`) seen from `p`.
@@ -526,16 +535,13 @@ fn concentric_disk(u: (f32, f32)) -> Vec2 {
 }
 
 /// A direction toward a sphere: uniformly within the cone it subtends from outside
-/// (Shirley and Wang 1994), or toward a uniformly chosen point of it from inside.
+/// ([`uniform_cone`]), or toward a uniformly chosen point of it from inside.
 fn sphere_sample(p: Vec3, c: Vec3, r: f32, le: Vec3, u: (f32, f32)) -> Option<LightSample> {
     let to_c = c - p;
     let d2 = to_c.length_squared();
     if d2 <= r * r * (1.0 + 1e-4) {
         // Inside (or on): a uniform point of the surface, seen from p.
-        let z = 1.0 - 2.0 * u.0;
-        let s = (1.0 - z * z).max(0.0).sqrt();
-        let (sp, cp) = (2.0 * PI * u.1).sin_cos();
-        let n = Vec3::new(s * cp, s * sp, z);
+        let n = uniform_sphere(u);
         return area_sample(p, c + n * r, -n, 4.0 * PI * r * r, le).map(|mut x| {
             // (It emits outward; seen from inside, its inner side does not emit.)
             x.li = Vec3::ZERO;
@@ -546,11 +552,7 @@ fn sphere_sample(p: Vec3, c: Vec3, r: f32, le: Vec3, u: (f32, f32)) -> Option<Li
     let w = to_c / d;
     let sin2_max = (r * r / d2).min(1.0);
     let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
-    let cos_t = 1.0 - u.0 * (1.0 - cos_max);
-    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-    let (sp, cp) = (2.0 * PI * u.1).sin_cos();
-    let (t, b) = w.any_orthonormal_pair();
-    let dir = (t * (sin_t * cp) + b * (sin_t * sp) + w * cos_t).normalize();
+    let dir = uniform_cone(w, cos_max, u);
     // The nearer intersection of the ray with the sphere.
     let bq = dir.dot(to_c);
     let disc = bq * bq - (d2 - r * r);
@@ -767,12 +769,7 @@ impl EnvLight {
     /// A direction (unit, world) and its density per solid angle.
     fn sample(&self, u: (f32, f32)) -> Option<LightSample> {
         let (local, pdf) = match &self.map {
-            None => {
-                let z = 1.0 - 2.0 * u.0;
-                let s = (1.0 - z * z).max(0.0).sqrt();
-                let (sp, cp) = (2.0 * PI * u.1).sin_cos();
-                (Vec3::new(s * cp, s * sp, z), 1.0 / (4.0 * PI))
-            }
+            None => (uniform_sphere(u), 1.0 / (4.0 * PI)),
             Some((_, dist)) => {
                 let (uv, p) = dist.sample(u);
                 let (theta, phi) = (uv.y * PI, uv.x * 2.0 * PI);

@@ -86,7 +86,7 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> crate::f
                     let mut a = crate::integrator::path::aovs(w, &r);
                     if emitters {
                         for (dx, dy) in [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)] {
-                            a.3 += crate::integrator::path::aovs(w, &cam.ray(x as f32 + dx, y as f32 + dy)).3;
+                            a.3 += crate::integrator::path::emission_seen(w, &cam.ray(x as f32 + dx, y as f32 + dy));
                         }
                         a.3 /= 5.0;
                     }
@@ -141,8 +141,7 @@ pub fn render_region(w: &World, cam: &Camera, s: &RenderSettings, region: Region
     if let Integrator::Vpl(v) = &s.integrator {
         return crate::integrator::vpl::render_region(w, cam, s, v, region, progress);
     }
-    let r = Region { x1: region.x1.min(s.width), y1: region.y1.min(s.height), ..region };
-    let r = Region { x0: r.x0.min(r.x1), y0: r.y0.min(r.y1), s1: r.s1.max(r.s0), ..r };
+    let r = region.clip(s.width, s.height);
     let mut film = RegionFilm::new(r);
     if r.is_empty() {
         return (film, 0);

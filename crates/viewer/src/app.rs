@@ -188,11 +188,11 @@ impl App {
             self.guides = Some((*camera, size, render_aovs(world, &c, size.0, size.1)));
         }
         let Some((_, _, aovs)) = &self.guides else { return };
-        let raw = self.acc.film();
+        let raw = self.acc.image();
         if (raw.width, raw.height) != size {
             return;
         }
-        let mut d = denoise(&raw, aovs, &DenoiseSettings::default());
+        let mut d = denoise(raw, aovs, &DenoiseSettings::default());
         if keep < 1.0 {
             for (o, r) in d.pixels.iter_mut().zip(&raw.pixels) {
                 *o = *o * keep + *r * (1.0 - keep);

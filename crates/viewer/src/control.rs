@@ -299,6 +299,12 @@ impl Accumulator {
         self.image.clone()
     }
 
+    /// The average, borrowed.
+    #[must_use]
+    pub fn image(&self) -> &Film {
+        &self.image
+    }
+
     /// Passes added.
     #[must_use]
     pub fn passes(&self) -> u32 {

@@ -92,31 +92,40 @@ impl Integrator {
         }
     }
 
+    /// The low-discrepancy sampler the path tracer and the VPL integrator draw from
+    /// (`None` for the others).
+    #[inline]
+    fn sampler(&self) -> Option<crate::sampler::Sampler> {
+        match self {
+            Self::Path(s) => Some(s.sampler()),
+            Self::Vpl(s) => Some(s.sampler()),
+            _ => None,
+        }
+    }
+
     /// Where in pixel (x, y) sample `k` of an image of `spp` samples per pixel lies, as an
-    /// offset in [0, 1)²: for the path tracer, the sampler's first pair of dimensions; for
-    /// the others, the centre when the image has one sample, else a jittered position that
-    /// is a pure function of (x, y, k) ([`jitter`]).
+    /// offset in [0, 1)²: the centre when [`Integrator::centred`]; else, for the path
+    /// tracer and VPLs, the sampler's first pair of dimensions, and for the others a
+    /// jittered position that is a pure function of (x, y, k) ([`jitter`]).
     #[inline]
     #[must_use]
     pub fn pixel_offset(&self, x: u32, y: u32, k: u32, spp: u32) -> (f32, f32) {
-        match self {
-            Self::Path(s) => s.sampler().get2(x, y, k, 0),
+        match self.sampler() {
             _ if self.centred(spp) => (0.5, 0.5),
-            Self::Vpl(s) => s.sampler().get2(x, y, k, 0),
-            _ => jitter(x, y, k),
+            Some(s) => s.get2(x, y, k, 0),
+            None => jitter(x, y, k),
         }
     }
 
     /// Where on the lens sample `k` of pixel (x, y) passes, in [0, 1)² (cameras with a
-    /// thin lens): for the path tracer, a pair of the sampler's dimensions of its own; for
-    /// the others, a hash.
+    /// thin lens): for the path tracer and VPLs, a pair of the sampler's dimensions of its
+    /// own; for the others, a hash.
     #[inline]
     #[must_use]
     pub fn lens_offset(&self, x: u32, y: u32, k: u32) -> (f32, f32) {
-        match self {
-            Self::Path(s) => s.sampler().get2(x, y, k, path::LENS_PAIR),
-            Self::Vpl(s) => s.sampler().get2(x, y, k, path::LENS_PAIR),
-            _ => jitter(x ^ 0x5bd1_e995, y, k),
+        match self.sampler() {
+            Some(s) => s.get2(x, y, k, path::LENS_PAIR),
+            None => jitter(x ^ 0x5bd1_e995, y, k),
         }
     }
 
@@ -210,6 +219,15 @@ fn coherent(rays: &[Ray]) -> bool {
         hi = hi.max(d);
     }
     (hi - lo).max_element() <= PACKET_SPREAD
+}
+
+/// The radiance `mat` emits at texture coordinates `uv` (its emission times its emission
+/// texture, when it has one), on the side its normal points to.
+pub(crate) fn emitted(w: &World, mat: &Material, uv: glam::Vec2) -> Vec3 {
+    match mat.emission_tex.and_then(|t| w.scene.textures.get(t as usize)) {
+        Some(t) => mat.emission * sample(t, uv).truncate(),
+        None => mat.emission,
+    }
 }
 
 /// Material `index` of the scene, or the default one for an index out of range (PERF:

@@ -23,7 +23,7 @@
 //! without an environment, rays that leave the scene see the background colour
 //! (a constant environment that next-event estimation does not sample).
 
-use super::material;
+use super::{emitted, material};
 use crate::bsdf::Bsdf;
 use crate::sampler::Sampler;
 use crate::world::{Surface, World};
@@ -231,10 +231,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         let mat = material(w, surf.material);
         // Emission, on the side the surface's normal points to.
         if mat.emission.max_element() > 0.0 && d.dot(surf.ng) < 0.0 && !hidden(depth) {
-            let le = match mat.emission_tex.and_then(|t| textures.get(t as usize)) {
-                Some(t) => mat.emission * crate::texture::sample(t, surf.uv).truncate(),
-                None => mat.emission,
-            };
+            let le = emitted(w, mat, surf.uv);
             let weight = if prev_delta {
                 1.0
             } else {
@@ -311,14 +308,24 @@ pub(crate) fn aovs(w: &World, ray: &Ray) -> (Vec3, Vec3, f32, Vec3) {
     let ns = shading_normal(w, &r, &hit, &surf);
     let albedo = w.prepared(surf.material).albedo(&w.scene.textures, surf.uv);
     let depth = (surf.p - ray.org).length();
+    (albedo, ns, depth, emission_at(w, &r, &surf))
+}
+
+/// The radiance the first surface a camera ray meets emits toward it (zero where it
+/// meets nothing).
+pub(crate) fn emission_seen(w: &World, ray: &Ray) -> Vec3 {
+    match w.intersect_solid(ray) {
+        Some((r, hit)) => emission_at(w, &r, &w.surface(&r, &hit)),
+        None => Vec3::ZERO,
+    }
+}
+
+/// What `surf`, met by `r`, emits back along it.
+fn emission_at(w: &World, r: &Ray, surf: &Surface) -> Vec3 {
     let mat = material(w, surf.material);
-    let emission = if mat.emission.max_element() > 0.0 && r.dir.dot(surf.ng) < 0.0 {
-        match mat.emission_tex.and_then(|t| w.scene.textures.get(t as usize)) {
-            Some(t) => mat.emission * crate::texture::sample(t, surf.uv).truncate(),
-            None => mat.emission,
-        }
+    if mat.emission.max_element() > 0.0 && r.dir.dot(surf.ng) < 0.0 {
+        emitted(w, mat, surf.uv)
     } else {
         Vec3::ZERO
-    };
-    (albedo, ns, depth, emission)
+    }
 }

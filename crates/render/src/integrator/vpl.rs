@@ -41,8 +41,8 @@
 //! from the pixel's sampler, as the path tracer's. Everything is a pure function of
 //! (pixel, sample): images do not depend on thread count or tile order.
 
-use super::material;
 use super::path::{bsdf_frame, shading_normal, Frame};
+use super::{emitted, material};
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::film::{Region, RegionFilm};
@@ -169,6 +169,9 @@ impl<'w> VplSet<'w> {
         let sets = s.sets() as usize;
         let mut per_set: Vec<Vec<Vpl<'w>>> = vec![Vec::new(); sets];
         let lights = &w.light_set;
+        if lights.is_empty() {
+            return Self { settings: *s, frame, vpls: Vec::new(), ranges: vec![0..0; sets], paths_per_set: 0 };
+        }
         let sampler = Sampler::new(s.seed ^ 0x9e37_79b9);
         let cap = (s.count as usize).saturating_mul(64).max(sets);
         let (mut paths, mut total) = (0usize, 0usize);
@@ -181,9 +184,6 @@ impl<'w> VplSet<'w> {
             let i = (paths / sets) as u32;
             let row = LIGHT_ROW + 2 * set as u32;
             paths += 1;
-            if lights.is_empty() {
-                continue;
-            }
             let u = |pair: u32| sampler.get2(frame, row, i, pair);
             let choice = |k: u32| sampler.get1(frame, row + 1, i, k);
             let Some(e) = lights.sample_emission(choice(0), u(0), u(1), &w.scene.textures) else { continue };
@@ -309,8 +309,8 @@ impl Layers {
     }
 }
 
-/// The least albedo demodulation divides by (per channel).
-const ALBEDO_MIN: f32 = 1e-3;
+/// The least albedo demodulation divides by (per channel), here and in the denoiser.
+pub(crate) const ALBEDO_MIN: f32 = 1e-3;
 
 /// Follows a camera ray (its first hit given, when known) through delta lobes to its
 /// shading point: the emission on the way into `l.emitted`, the first surface's normal
@@ -347,11 +347,7 @@ fn camera_path<'w>(
         let d = ray.dir.normalize();
         let mat = material(w, surf.material);
         if mat.emission.max_element() > 0.0 && d.dot(surf.ng) < 0.0 {
-            let le = match mat.emission_tex.and_then(|t| textures.get(t as usize)) {
-                Some(t) => mat.emission * crate::texture::sample(t, surf.uv).truncate(),
-                None => mat.emission,
-            };
-            l.emitted += beta * le;
+            l.emitted += beta * emitted(w, mat, surf.uv);
         }
         let ns = shading_normal(w, &ray, &hit, &surf);
         if depth == 0 {
@@ -669,8 +665,7 @@ pub fn render_region(
     region: Region,
     progress: &(dyn Fn(u64) + Sync),
 ) -> (RegionFilm, u64) {
-    let r = Region { x1: region.x1.min(rs.width), y1: region.y1.min(rs.height), ..region };
-    let r = Region { x0: r.x0.min(r.x1), y0: r.y0.min(r.y1), s1: r.s1.max(r.s0), ..r };
+    let r = region.clip(rs.width, rs.height);
     let mut film = RegionFilm::new(r);
     if r.is_empty() {
         return (film, 0);
