@@ -61,6 +61,75 @@ impl Camera {
         }
     }
 
+    /// Words in [`Camera::to_bits`].
+    pub const BITS: usize = 22;
+
+    /// The camera as words, bit for bit (for sending it to another process:
+    /// [`Camera::from_bits`] gives back the same camera, hence the same rays).
+    #[must_use]
+    pub fn to_bits(&self) -> [u32; Self::BITS] {
+        let v = |v: Vec3| v.to_array().map(f32::to_bits);
+        let [e, f, r, u] = [v(self.eye), v(self.forward), v(self.right), v(self.up)];
+        [
+            e[0],
+            e[1],
+            e[2],
+            f[0],
+            f[1],
+            f[2],
+            r[0],
+            r[1],
+            r[2],
+            u[0],
+            u[1],
+            u[2],
+            self.half_w.to_bits(),
+            self.half_h.to_bits(),
+            u32::from(self.ortho),
+            u32::from(self.normalize),
+            self.tmin.to_bits(),
+            self.tmax.to_bits(),
+            self.width,
+            self.height,
+            self.lens_radius.to_bits(),
+            self.focus.to_bits(),
+        ]
+    }
+
+    /// The camera [`Camera::to_bits`] wrote, or `None` for words no camera has (a flag
+    /// other than 0 or 1, a size of 0, a non-finite vector or extent, a clip range that is
+    /// not `0 <= near < far`, a negative lens).
+    #[must_use]
+    pub fn from_bits(b: &[u32; Self::BITS]) -> Option<Self> {
+        let f = |i: usize| f32::from_bits(b[i]);
+        let v = |i: usize| Vec3::new(f(i), f(i + 1), f(i + 2));
+        let flag = |i: usize| match b[i] {
+            0 => Some(false),
+            1 => Some(true),
+            _ => None,
+        };
+        let c = Self {
+            eye: v(0),
+            forward: v(3),
+            right: v(6),
+            up: v(9),
+            half_w: f(12),
+            half_h: f(13),
+            ortho: flag(14)?,
+            normalize: flag(15)?,
+            tmin: f(16),
+            tmax: f(17),
+            width: b[18],
+            height: b[19],
+            lens_radius: f(20),
+            focus: f(21),
+        };
+        let finite = [c.eye, c.forward, c.right, c.up].iter().all(|v| v.is_finite())
+            && [c.half_w, c.half_h, c.lens_radius, c.focus].iter().all(|x| x.is_finite());
+        let ok = finite && c.width > 0 && c.height > 0 && c.tmin >= 0.0 && c.tmax > c.tmin && c.lens_radius >= 0.0;
+        ok.then_some(c)
+    }
+
     /// The same camera with a thin lens (Mitsuba's `thinlens`): rays start on a disk of
     /// radius `aperture_radius` about the eye, across the view, and pass through the
     /// point their pinhole ray meets at depth `focus_distance`. A radius of zero (or a

@@ -122,13 +122,28 @@ pub fn render(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u6
     // parallel (clearing 2.4 MB on one thread was a seventh of a sparse REND3R frame).
     let n_pixels = width as usize * height as usize;
     let mut pixels: Vec<Vec3> = Vec::with_capacity(n_pixels);
-    let sink = MeanSink { out: FilmPtr(pixels.as_mut_ptr()), width, bg: [w.scene.background; 8], n: region.s1 };
+    // Pixels whose rays provably miss get what tracing them would give, and what
+    // `render_region`'s sums resolve to: n backgrounds summed, over n (bit for bit the
+    // image of merged regions, on this machine or over MPI).
+    let bg = background_sum(w.scene.background, region.s1);
+    let bg = if region.s1 <= 1 { bg } else { bg / region.s1 as f32 };
+    let sink = MeanSink { out: FilmPtr(pixels.as_mut_ptr()), width, bg: [bg; 8], n: region.s1 };
     let rays = render_tiles(w, cam, s, region, progress, &sink);
     // SAFETY: every pixel lies in exactly one tile and one of its blocks, and each block
     // wrote each of its pixels (see `render_tiles`). (Had a tile panicked, the length would
     // still be zero here.)
     unsafe { pixels.set_len(n_pixels) };
     (Film { width, height, pixels }, rays)
+}
+
+/// What tracing `n` samples that miss sums to: the background, once per sample (a pixel
+/// whose rays provably miss gets it without tracing).
+fn background_sum(bg: Vec3, n: u32) -> Vec3 {
+    if n == 1 {
+        bg
+    } else {
+        (0..n).fold(Vec3::ZERO, |a, _| a + bg)
+    }
 }
 
 /// Renders one region of the image (a rectangle of pixels × a range of sample indices):
@@ -146,11 +161,8 @@ pub fn render_region(w: &World, cam: &Camera, s: &RenderSettings, region: Region
     if r.is_empty() {
         return (film, 0);
     }
-    let bg = w.scene.background;
     let n = r.s1 - r.s0;
-    // A pixel whose rays provably miss gets what tracing them would sum: the background,
-    // once per sample.
-    let bg_sum = if n == 1 { bg } else { (0..n).fold(Vec3::ZERO, |a, _| a + bg) };
+    let bg_sum = background_sum(w.scene.background, n);
     let sink = SumSink { sum: FilmPtr(film.sum.as_mut_ptr()), weight: WeightPtr(film.weight.as_mut_ptr()), region: r, bg_sum, n };
     let rays = render_tiles(w, cam, s, r, progress, &sink);
     (film, rays)
