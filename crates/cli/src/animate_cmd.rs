@@ -21,9 +21,16 @@ pub struct AnimateArgs {
     pub spp: u32,
     pub integrator: Integrator,
     pub output: PathBuf,
+    pub threads: Option<usize>,
+    pub mpi_mode: String,
+    pub mpi: crate::mpi_cmd::MpiArgs,
 }
 
 pub fn run(a: AnimateArgs) -> Result<()> {
+    let session = crate::mpi_cmd::Session::start(&a.mpi)?;
+    if let Some(t) = a.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot set the thread count")?;
+    }
     if !(a.fps.is_finite() && a.fps > 0.0) {
         bail!("--fps must be a positive number (got {})", a.fps);
     }
@@ -45,10 +52,13 @@ pub fn run(a: AnimateArgs) -> Result<()> {
     };
     let fallback = crate::render_cmd::choose_camera(&scene, None, false)?;
     let frames = ((to - from) * a.fps).floor() as u64 + 1;
-    std::fs::create_dir_all(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
     let t0 = Instant::now();
     let mut world = World::new(scene, MeshOptions::default())?;
     world.ensure_light(fallback.eye);
+    if let Some(s) = session.as_ref().filter(|s| s.rank() != 0) {
+        return s.serve(&mut world, fixed, fallback);
+    }
+    std::fs::create_dir_all(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
     println!("{name}: built in {:.1} ms; {frames} frames from {from:.3} s to {to:.3} s at {} fps", t0.elapsed().as_secs_f64() * 1e3, a.fps);
     let settings = RenderSettings { spp: a.spp.max(1), integrator: a.integrator, ..RenderSettings::new(a.size.0, a.size.1) };
     let bar = if std::io::stderr().is_terminal() { ProgressBar::new(frames) } else { ProgressBar::hidden() };
@@ -56,6 +66,9 @@ pub fn run(a: AnimateArgs) -> Result<()> {
         ProgressStyle::with_template("{spinner} frames [{bar:40}] {pos}/{len} {per_sec} eta {eta}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    if let Some(s) = &session {
+        return animate_mpi(s, &a, &mut world, (fixed, fallback), from, frames, &settings, &bar);
+    }
     let (mut update_ms, mut render_ms) = (Vec::new(), Vec::new());
     for k in 0..frames {
         let t = from + k as f32 / a.fps;
@@ -79,5 +92,48 @@ pub fn run(a: AnimateArgs) -> Result<()> {
         1e3 / (u + r).max(1e-9),
         rayon::current_num_threads()
     );
+    Ok(())
+}
+
+/// `lucent animate --mpi` on rank 0: the frames over every rank (whole frames to each, or
+/// each frame's tiles shared), each written as it completes.
+#[allow(clippy::too_many_arguments)]
+fn animate_mpi(
+    s: &crate::mpi_cmd::Session,
+    a: &AnimateArgs,
+    world: &mut World,
+    (fixed, fallback): (Option<lucent_scene::CameraDesc>, lucent_scene::CameraDesc),
+    from: f32,
+    frames: u64,
+    settings: &RenderSettings,
+    bar: &ProgressBar,
+) -> Result<()> {
+    use crate::mpi_cmd::AnimateMode;
+    let mode = match a.mpi_mode.as_str() {
+        "frames" => AnimateMode::Frames,
+        "tiles" => AnimateMode::Tiles,
+        _ if frames >= 2 * s.size() as u64 => AnimateMode::Frames,
+        _ => AnimateMode::Tiles,
+    };
+    let times: Vec<f32> = (0..frames).map(|k| from + k as f32 / a.fps).collect();
+    let t = Instant::now();
+    let st = s.animate(world, fixed, fallback, &times, settings, mode, &mut |k, film| {
+        film.save(&a.output.join(format!("frame-{:04}.png", k + 1)))?;
+        bar.inc(1);
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    let all = t.elapsed().as_secs_f64();
+    println!(
+        "{frames} frames at {}x{} -> {} on {} ranks ({:?}): {:.2} s, {:.2} frames/s",
+        settings.width,
+        settings.height,
+        a.output.display(),
+        s.size(),
+        mode,
+        all,
+        frames as f64 / all.max(1e-9),
+    );
+    println!("{}", crate::render_cmd::cluster_summary(s.size(), &st));
     Ok(())
 }

@@ -9,6 +9,7 @@ mod dynamic_bench;
 mod frame_bench;
 mod isa_cmd;
 mod leaks_bench;
+mod mpi_cmd;
 mod net_cmd;
 mod path_bench;
 mod rend3r_bench;
@@ -145,6 +146,16 @@ enum Cmd {
         /// Output folder for frame-0001.png, ...
         #[arg(short, long, default_value = "frames")]
         output: PathBuf,
+        /// Worker threads (per rank with --mpi; default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// With --mpi: `frames` gives each rank whole frames, `tiles` shares each frame's
+        /// tiles among the ranks, `auto` takes frames when there are at least twice as many
+        /// frames as ranks.
+        #[arg(long, default_value = "auto", value_parser = ["auto", "frames", "tiles"])]
+        mpi_mode: String,
+        #[command(flatten)]
+        mpi: mpi_cmd::MpiArgs,
     },
     /// Open a window and fly through a scene (or watch a REND3R program), Pixel-Planes style:
     /// reduced resolution while moving, full resolution refined sample by sample when still.
@@ -192,6 +203,11 @@ enum Cmd {
         /// The integrator shown first (key 4 cycles them).
         #[arg(long, default_value = "whitted", value_parser = render_cmd::INTEGRATORS)]
         integrator: String,
+        /// Worker threads (per rank with --mpi; default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        #[command(flatten)]
+        mpi: mpi_cmd::MpiArgs,
     },
     /// Serve REND3R as a networked device: clients stream programs over TCP (or UDP, or the
     /// page's WebSocket) and get one frame back per `nf`; a page at --http shows them live.
@@ -545,26 +561,71 @@ fn run() -> Result<()> {
     match cli.cmd {
         Cmd::Render(args) => render_cmd::run(args),
         Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo),
-        Cmd::Animate { scene, demo, from, to, fps, size, camera, spp, integrator, max_depth, no_shadows, output } => {
+        Cmd::Animate {
+            scene,
+            demo,
+            from,
+            to,
+            fps,
+            size,
+            camera,
+            spp,
+            integrator,
+            max_depth,
+            no_shadows,
+            output,
+            threads,
+            mpi_mode,
+            mpi,
+        } => {
             let integrator = render_cmd::integrator_of(&integrator, max_depth, no_shadows, 5, false);
-            animate_cmd::run(animate_cmd::AnimateArgs { scene, demo, from, to, fps, size, camera, spp, integrator, output })
-        }
-        Cmd::View { input, demo, camera, size, target_fps, samples, moving_scale, mode, screenshots, report, quit_after, integrator } => {
-            view_cmd::run(view_cmd::ViewArgs {
-                input,
+            animate_cmd::run(animate_cmd::AnimateArgs {
+                scene,
                 demo,
-                camera,
+                from,
+                to,
+                fps,
                 size,
-                target_fps,
-                samples,
-                moving_scale,
-                mode: if mode == "raster" { lucent_device::Mode::Raster } else { lucent_device::Mode::Raytrace },
-                screenshots,
-                report,
-                quit_after,
+                camera,
+                spp,
                 integrator,
+                output,
+                threads,
+                mpi_mode,
+                mpi,
             })
         }
+        Cmd::View {
+            input,
+            demo,
+            camera,
+            size,
+            target_fps,
+            samples,
+            moving_scale,
+            mode,
+            screenshots,
+            report,
+            quit_after,
+            integrator,
+            threads,
+            mpi,
+        } => view_cmd::run(view_cmd::ViewArgs {
+            input,
+            demo,
+            camera,
+            size,
+            target_fps,
+            samples,
+            moving_scale,
+            mode: if mode == "raster" { lucent_device::Mode::Raster } else { lucent_device::Mode::Raytrace },
+            screenshots,
+            report,
+            quit_after,
+            integrator,
+            threads,
+            mpi,
+        }),
         Cmd::Asm { program, output, format, camera_table } => isa_cmd::asm(&program, output, format, isa_cmd::table(camera_table == "old")),
         Cmd::Run { program, mode, sets, size, frames, seconds, painter, spp, camera_table, output, compat, switches } => {
             run_cmd::run(run_cmd::RunArgs {

@@ -112,6 +112,8 @@ pub struct RenderArgs {
     /// others, up to 2× the build).
     #[arg(long, default_value = "high", value_parser = ["high", "sah", "spatial"])]
     pub quality: String,
+    #[command(flatten)]
+    pub mpi: crate::mpi_cmd::MpiArgs,
 }
 
 /// The integrators `--integrator` names.
@@ -245,6 +247,8 @@ pub fn choose_camera(scene: &Scene, camera: Option<&[f32]>, ortho: bool) -> Resu
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
+    // (MPI starts first: a rank of `mpirun` renders the same image as the others.)
+    let session = crate::mpi_cmd::Session::start(&a.mpi)?;
     if let Some(t) = a.threads {
         rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot set the thread count")?;
     }
@@ -324,9 +328,35 @@ pub fn run(a: RenderArgs) -> Result<()> {
             }
         }
     }
+    if let Some(s) = session.as_ref().filter(|s| s.rank() != 0) {
+        return s.serve(&mut world, None, desc);
+    }
     let t2 = Instant::now();
-    let (film, rays, spp) = match a.time {
-        None => {
+    let mut cluster = None;
+    let (film, rays, spp) = match (&session, a.time) {
+        (Some(s), budget) => {
+            // Every rank's samples, as they come back.
+            let bar = if std::io::stderr().is_terminal() {
+                match budget {
+                    None => ProgressBar::new(u64::from(w) * u64::from(h) * u64::from(settings.spp)),
+                    Some(_) => ProgressBar::no_length(),
+                }
+            } else {
+                ProgressBar::hidden()
+            };
+            bar.set_style(
+                ProgressStyle::with_template(&format!(
+                    "{{spinner}} rendering on {} ranks [{{bar:40}}] {{pos}} samples {{elapsed}}",
+                    s.size()
+                ))
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            let (acc, rays, spp, st) = s.render(&mut world, &cam, &settings, budget, a.spp.unwrap_or(1), &bar)?;
+            bar.finish_and_clear();
+            cluster = Some((s.size(), st));
+            (acc.resolve(world.scene().background), rays, spp)
+        }
+        (None, None) => {
             let tiles = (w.div_ceil(lucent_render::TILE) * h.div_ceil(lucent_render::TILE)) as u64;
             let bar = if std::io::stderr().is_terminal() { ProgressBar::new(tiles) } else { ProgressBar::hidden() };
             bar.set_style(
@@ -337,7 +367,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             bar.finish_and_clear();
             (film, rays, settings.spp)
         }
-        Some(budget) => render_for(&world, &cam, &settings, budget, a.spp.unwrap_or(1))?,
+        (None, Some(budget)) => render_for(&world, &cam, &settings, budget, a.spp.unwrap_or(1))?,
     };
     let render_s = t2.elapsed().as_secs_f64();
     let aovs = (a.aovs || a.denoise).then(|| lucent_render::render_aovs(&world, &cam, w, h));
@@ -370,8 +400,28 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let samples = f64::from(w) * f64::from(h) * f64::from(spp);
     println!("{:.3} M samples/s", samples / render_s.max(1e-9) * 1e-6);
     println!("{rays} rays, {:.2} Mrays/s", rays as f64 / render_s.max(1e-9) * 1e-6);
+    if let Some((ranks, st)) = cluster {
+        println!("{}", cluster_summary(ranks, &st));
+    }
     println!("wrote {}", a.output.display());
     Ok(())
+}
+
+/// One line on what a distributed run cost.
+pub fn cluster_summary(ranks: usize, st: &lucent_cluster::RunStats) -> String {
+    let per: Vec<String> = st.jobs_per_rank.iter().map(usize::to_string).collect();
+    let n = st.jobs.max(1) as f64;
+    format!(
+        "mpi: {ranks} ranks, {} regions (per rank {}), {:.2} MB sent and {:.2} MB received by rank 0; per region: render {:.2} ms, \
+         round-trip overhead {:.2} ms, merge {:.3} ms",
+        st.jobs,
+        per.join("/"),
+        st.bytes_out as f64 / 1e3,
+        st.bytes_in as f64 / 1e3,
+        st.render_seconds / n * 1e3,
+        (st.turnaround_seconds - st.render_seconds).max(0.0) / n * 1e3,
+        st.merge_seconds / n * 1e3
+    )
 }
 
 /// Renders for `budget` seconds: passes of whole-image regions of the next samples (one

@@ -20,6 +20,8 @@ pub struct ViewArgs {
     pub report: bool,
     pub quit_after: Option<f64>,
     pub integrator: String,
+    pub threads: Option<usize>,
+    pub mpi: crate::mpi_cmd::MpiArgs,
 }
 
 fn is_program(p: &Path) -> bool {
@@ -28,6 +30,10 @@ fn is_program(p: &Path) -> bool {
 }
 
 pub fn run(a: ViewArgs) -> Result<()> {
+    let session = crate::mpi_cmd::Session::start(&a.mpi)?;
+    if let Some(t) = a.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot set the thread count")?;
+    }
     let opts = ViewOptions {
         size: a.size,
         target_fps: a.target_fps,
@@ -44,7 +50,9 @@ pub fn run(a: ViewArgs) -> Result<()> {
             _ => 0,
         },
     };
+    let mut passes = None;
     let content = match a.input.as_deref() {
+        Some(p) if is_program(p) && session.is_some() => anyhow::bail!("--mpi renders scenes; REND3R programs run on one process"),
         Some(p) if is_program(p) => {
             let (words, sets) = crate::run_cmd::load_program(p, lucent_isa::CameraTable::Final)?;
             let processor = Processor::new(words, lucent_isa::CameraTable::Final).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
@@ -59,10 +67,17 @@ pub fn run(a: ViewArgs) -> Result<()> {
             let stats = format!("{} tris, {} instances, {} lights", st.triangles, st.instances, scene.lights.len());
             let mut world = World::new(scene, MeshOptions::default()).context("cannot build the scene")?;
             world.ensure_light(home.eye);
+            if let Some(s) = &session {
+                // Every rank renders the passes the window on rank 0 shows.
+                if s.rank() != 0 {
+                    return s.serve(&mut world, None, home);
+                }
+                passes = Some(s.passes(&world)?);
+            }
             let name = input.map_or_else(|| a.demo.label(), |p| p.display().to_string());
             Content::Scene { world: Box::new(world), home, stats, name }
         }
     };
-    lucent_viewer::run(content, opts)?;
+    lucent_viewer::run_with(content, opts, passes)?;
     Ok(())
 }

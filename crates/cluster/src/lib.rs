@@ -111,7 +111,7 @@ fn regions_text(v: &[Region]) -> String {
     format!("{} region{}: {}", v.len(), if v.len() == 1 { "" } else { "s" }, list.join("; "))
 }
 
-fn inflight_text(v: &[(usize, Vec<Region>)]) -> String {
+pub(crate) fn inflight_text(v: &[(usize, Vec<Region>)]) -> String {
     let held: Vec<String> = v.iter().filter(|(_, r)| !r.is_empty()).map(|(k, r)| format!("rank {k}: {}", regions_text(r))).collect();
     if held.is_empty() {
         "none".into()
@@ -202,9 +202,9 @@ impl Renderer for SceneRenderer<'_> {
             WorldRef::Owned(w) => w,
         };
         let s = &frame.settings;
-        let camera = frame.camera.unwrap_or_else(|| {
-            lucent_render::Camera::new(&self.fixed.or(self.animated).unwrap_or(self.fallback), s.width, s.height)
-        });
+        let camera = frame
+            .camera
+            .unwrap_or_else(|| lucent_render::Camera::new(&self.fixed.or(self.animated).unwrap_or(self.fallback), s.width, s.height));
         Ok(lucent_render::render_region(world, &camera, s, region, &|_| {}))
     }
 }

@@ -63,7 +63,12 @@ pub struct Master {
     current: Vec<Option<u32>>,
     /// Per rank, its thread count (from its hello; 0 before).
     threads: Vec<u32>,
+    /// Told what each rank holds (see [`Master::on_held`]).
+    observer: Option<Observer>,
 }
+
+/// Told which regions each rank holds.
+type Observer = Box<dyn FnMut(&str)>;
 
 /// A region handed out: (index in the work, when it became the rank's first).
 type Held = (usize, Instant);
@@ -78,9 +83,11 @@ impl Master {
     /// transport reports.
     pub fn new(hub: Hub, digest: u64, opts: MasterOptions) -> Result<Self, ClusterError> {
         let n = hub.size();
-        let mut m = Self { hub, opts, digest, next_frame: 0, current: vec![None; n], threads: vec![0; n] };
+        let mut m = Self { hub, opts, digest, next_frame: 0, current: vec![None; n], threads: vec![0; n], observer: None };
         let start = Instant::now();
-        while m.threads.contains(&0) {
+        // (Local ranks are threads of this process, with its world: their hello, checked
+        // like any other, comes when they start.)
+        while let Some(waiting) = (0..n).find(|&r| m.hub.is_remote(r) && m.threads[r] == 0) {
             match m.hub.try_recv()? {
                 Some((rank, bytes)) => {
                     if let Msg::Failed { message, .. } = m.decode(rank, &bytes)? {
@@ -89,14 +96,20 @@ impl Master {
                 }
                 None => {
                     if start.elapsed() > opts.hello_timeout {
-                        let rank = m.threads.iter().position(|&t| t == 0).unwrap_or(0);
-                        return Err(ClusterError::Silent { rank, silent: start.elapsed(), regions: Vec::new() });
+                        return Err(ClusterError::Silent { rank: waiting, silent: start.elapsed(), regions: Vec::new() });
                     }
                     std::thread::sleep(Duration::from_micros(200));
                 }
             }
         }
         Ok(m)
+    }
+
+    /// Has `f` told, at most every 20 ms while a run waits, which regions each rank holds
+    /// (the text [`ClusterError::Terminated`] shows): for a signal handler that must say it
+    /// without asking this thread.
+    pub fn on_held(&mut self, f: Box<dyn FnMut(&str)>) {
+        self.observer = Some(f);
     }
 
     /// Ranks (rank 0 included).
@@ -159,16 +172,20 @@ impl Master {
         // (Messages that waited since the last run, heartbeats mostly, are read first.)
         let mut heard = vec![start; n];
         let (mut next, mut done) = (0usize, 0usize);
+        // Whether what ranks hold changed since the observer was told, and when it was.
+        let (mut changed, mut told) = (true, start - Duration::from_secs(1));
         while done < work.len() {
             // Hand out: one more region per rank per sweep, so ranks share the queue's
             // start evenly.
             for _ in 0..self.opts.depth {
+                #[allow(clippy::needless_range_loop)] // (r also names the rank)
                 for r in 0..n {
                     if next >= work.len() || held[r].len() >= self.opts.depth {
                         continue;
                     }
                     let (f, region) = work[next];
-                    let frame = frames.get(f).ok_or_else(|| ClusterError::Protocol { rank: 0, what: format!("work {next} names frame {f}") })?;
+                    let frame =
+                        frames.get(f).ok_or_else(|| ClusterError::Protocol { rank: 0, what: format!("work {next} names frame {f}") })?;
                     if self.current[r] != Some(frame.id) {
                         self.send(r, &Msg::Frame(*frame), &mut stats)?;
                         self.current[r] = Some(frame.id);
@@ -176,6 +193,7 @@ impl Master {
                     self.send(r, &Msg::Job { id: next as u32, region }, &mut stats)?;
                     held[r].push_back((next, Instant::now()));
                     next += 1;
+                    changed = true;
                 }
             }
             let Some((rank, bytes)) = self.hub.try_recv()? else {
@@ -183,6 +201,10 @@ impl Master {
                     return Err(ClusterError::Terminated { inflight: held_regions(&held, work) });
                 }
                 let now = Instant::now();
+                if let (Some(f), true) = (self.observer.as_mut(), changed && now.duration_since(told) > Duration::from_millis(20)) {
+                    f(&crate::inflight_text(&held_regions(&held, work)));
+                    (changed, told) = (false, now);
+                }
                 if let Some(r) = (0..n).find(|&r| now.duration_since(heard[r]) > self.opts.timeout) {
                     let regions = held[r].iter().map(|&(i, _)| work[i].1).collect();
                     return Err(ClusterError::Silent { rank: r, silent: now.duration_since(heard[r]), regions });
@@ -218,6 +240,7 @@ impl Master {
                     on_done(id, film, rays)?;
                     stats.merge_seconds += t.elapsed().as_secs_f64();
                     done += 1;
+                    changed = true;
                 }
                 Msg::Failed { id, message } => {
                     let region = id.and_then(|i| work.get(i as usize)).map(|w| w.1);
@@ -227,6 +250,9 @@ impl Master {
                     return Err(ClusterError::Protocol { rank, what: format!("a worker sent {}", kind(&m)) });
                 }
             }
+        }
+        if let Some(f) = self.observer.as_mut() {
+            f("none");
         }
         stats.seconds = start.elapsed().as_secs_f64();
         Ok(stats)
@@ -245,12 +271,14 @@ impl Master {
     /// # Errors
     /// What the transport reports.
     pub fn stop_rank(&mut self, rank: usize) -> Result<(), ClusterError> {
-        self.current.get_mut(rank).map(|c| *c = None);
+        if let Some(c) = self.current.get_mut(rank) {
+            *c = None;
+        }
         self.hub.send(rank, Msg::Stop.encode())
     }
 
     /// Tells every rank to leave (ranks already gone are skipped).
-    pub fn stop(mut self) {
+    pub fn stop(&mut self) {
         for r in 0..self.hub.size() {
             let _ = self.hub.send(r, Msg::Stop.encode());
         }

@@ -4,14 +4,15 @@
 
 use crate::link::{Link, Remote};
 use crate::ClusterError;
-use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::point_to_point::MatchedReceiveVec;
+use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::traits::{Destination, Source};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
 
 /// The MPI environment of this process (finalised when dropped).
 pub struct Mpi {
-    _universe: mpi::environment::Universe,
+    universe: mpi::environment::Universe,
     world: SimpleCommunicator,
 }
 
@@ -28,7 +29,7 @@ impl Mpi {
             return Err(ClusterError::Mpi(format!("the MPI library offers threads at level {level:?}, lucent needs Funneled")));
         }
         let world = universe.world();
-        Ok(Self { _universe: universe, world })
+        Ok(Self { universe, world })
     }
 
     /// This process's rank.
@@ -43,34 +44,52 @@ impl Mpi {
         usize::try_from(self.world.size()).unwrap_or(1)
     }
 
-    /// The master's transport to ranks 1.. (for [`crate::Hub::new`]).
+    /// The master's transport to ranks 1.. (for [`crate::Hub::new`]). It must not outlive
+    /// this value (MPI is finalised when it is dropped).
     #[must_use]
-    pub fn remote(&self) -> Box<dyn Remote + '_> {
-        Box::new(MpiRemote { world: &self.world })
+    pub fn remote(&self) -> Box<dyn Remote> {
+        Box::new(MpiRemote { world: self.universe.world() })
     }
 
-    /// A worker's link to rank 0.
+    /// A worker's link to rank 0 (not to outlive this value either).
     #[must_use]
-    pub fn link(&self) -> MpiLink<'_> {
-        MpiLink { world: &self.world }
+    pub fn link(&self) -> MpiLink {
+        MpiLink { world: self.universe.world() }
+    }
+
+    /// What ends the run (not to outlive this value either).
+    #[must_use]
+    pub fn aborter(&self) -> Aborter {
+        Aborter { world: self.universe.world() }
     }
 
     /// Ends every rank of the run with `code` (mpirun's exit code).
     pub fn abort(&self, code: i32) -> ! {
-        use mpi::topology::Communicator as _;
         self.world.abort(code)
     }
 }
 
-struct MpiRemote<'a> {
-    world: &'a SimpleCommunicator,
+/// Ends every rank of the run.
+pub struct Aborter {
+    world: SimpleCommunicator,
+}
+
+impl Aborter {
+    /// Ends every rank of the run with `code` (mpirun's exit code).
+    pub fn abort(&self, code: i32) -> ! {
+        self.world.abort(code)
+    }
+}
+
+struct MpiRemote {
+    world: SimpleCommunicator,
 }
 
 fn rank_of(r: usize) -> Result<i32, ClusterError> {
     i32::try_from(r).map_err(|_| ClusterError::Mpi(format!("rank {r} is out of range")))
 }
 
-impl Remote for MpiRemote<'_> {
+impl Remote for MpiRemote {
     fn size(&self) -> usize {
         usize::try_from(self.world.size()).unwrap_or(1)
     }
@@ -90,11 +109,11 @@ impl Remote for MpiRemote<'_> {
 }
 
 /// A worker rank's link to rank 0.
-pub struct MpiLink<'a> {
-    world: &'a SimpleCommunicator,
+pub struct MpiLink {
+    world: SimpleCommunicator,
 }
 
-impl Link for MpiLink<'_> {
+impl Link for MpiLink {
     fn send(&mut self, bytes: Vec<u8>) -> Result<(), ClusterError> {
         self.world.process_at_rank(0).send(&bytes[..]);
         Ok(())
@@ -106,12 +125,43 @@ impl Link for MpiLink<'_> {
 
 static TERMINATED: AtomicBool = AtomicBool::new(false);
 
+/// What each rank holds, as the master last said ([`note_held`]).
+static HELD: Mutex<String> = Mutex::new(String::new());
+
 extern "C" fn on_terminate(_signal: libc::c_int) {
     TERMINATED.store(true, Ordering::SeqCst);
+    // mpirun sends SIGKILL a second after SIGTERM: say what was in flight now, and leave.
+    // Only a lock that is free is taken (`try_lock`: an atomic exchange, no allocation), and
+    // only write(2) and _exit(2) are called, both async-signal-safe.
+    let head = b"error: the run was terminated (mpirun ends every rank when one dies: see its message for which); regions in flight: ";
+    // SAFETY: write(2) of valid buffers to stderr, then _exit(2).
+    unsafe {
+        libc::write(2, head.as_ptr().cast(), head.len());
+        match HELD.try_lock() {
+            Ok(held) if !held.is_empty() => {
+                libc::write(2, held.as_ptr().cast(), held.len());
+            }
+            _ => {
+                let s = b"unknown";
+                libc::write(2, s.as_ptr().cast(), s.len());
+            }
+        }
+        libc::write(2, b"\n".as_ptr().cast(), 1);
+        libc::_exit(143);
+    }
 }
 
-/// Notes SIGTERM (what mpirun sends every rank when one dies, before it kills them) in a
-/// flag [`terminated`] reads, so rank 0 can say which regions were in flight.
+/// Records what each rank holds, for the SIGTERM handler to say.
+pub fn note_held(text: &str) {
+    if let Ok(mut h) = HELD.lock() {
+        h.clear();
+        h.push_str(text);
+    }
+}
+
+/// Notes SIGTERM (what mpirun sends every rank when one dies, a second before it kills
+/// them): rank 0 says at once which regions were in flight (as [`note_held`] last recorded
+/// them) and exits; [`terminated`] tells the master's loop, for a handler that could not.
 pub fn watch_termination() {
     // SAFETY: the handler only stores to an atomic (async-signal-safe); `signal` is given a
     // valid handler of the type it expects.

@@ -368,7 +368,9 @@ impl Msg {
                 let at = i.at;
                 // (Checked before allocating: the region's size comes from the bytes.)
                 if bytes.len() - at != n * 16 {
-                    return Err(i.invalid(at, format!("region {region:?} needs {} bytes of sums, the message has {}", n * 16, bytes.len() - at)));
+                    return Err(
+                        i.invalid(at, format!("region {region:?} needs {} bytes of sums, the message has {}", n * 16, bytes.len() - at))
+                    );
                 }
                 let mut film = RegionFilm::new(region);
                 for k in 0..n {
@@ -420,7 +422,12 @@ mod tests {
             Integrator::EyeLight,
             Integrator::Normals,
         ]
-        .map(|integrator| RenderSettings { spp: 9, integrator, traversal: Traversal { packets: false }, ..RenderSettings::new(33, 7) });
+        .map(|integrator| RenderSettings {
+            spp: 9,
+            integrator,
+            traversal: Traversal { packets: false },
+            ..RenderSettings::new(33, 7)
+        });
         let mut msgs = vec![
             Msg::Hello { digest: 0x0123_4567_89ab_cdef, threads: 64 },
             Msg::Job { id: 5, region: Region { x0: 0, y0: 16, x1: 64, y1: 80, s0: 0, s1: 16 } },

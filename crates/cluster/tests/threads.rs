@@ -3,7 +3,9 @@
 //! rank count and the order results arrive in; faults end the run with the rank named.
 
 use lucent_accel::MeshOptions;
-use lucent_cluster::{scene_digest, serve, tiles, ClusterError, Fault, Frame, Hub, Master, MasterOptions, Renderer, SceneRenderer, WorkerOptions, WorldRef};
+use lucent_cluster::{
+    scene_digest, serve, tiles, ClusterError, Fault, Frame, Hub, Master, MasterOptions, Renderer, SceneRenderer, WorkerOptions, WorldRef,
+};
 use lucent_render::{render, Camera, FilmAccumulator, Integrator, PathSettings, Region, RegionFilm, RenderSettings, VplSettings, World};
 use std::time::{Duration, Instant};
 
@@ -170,7 +172,10 @@ fn a_failed_render_ends_the_run_with_the_rank_and_region() {
 fn a_rank_with_another_scene_is_refused() {
     let work = tiles(64, 64, 16, 0, 1);
     let mk = |k: usize| -> (Box<dyn Renderer>, WorkerOptions) {
-        (Box::new(Faulty { fail_at: None, sleep: Duration::ZERO }), WorkerOptions { digest: if k == 1 { 7 } else { 5 }, ..WorkerOptions::default() })
+        (
+            Box::new(Faulty { fail_at: None, sleep: Duration::ZERO }),
+            WorkerOptions { digest: if k == 1 { 7 } else { 5 }, ..WorkerOptions::default() },
+        )
     };
     let e = cluster_render(2, MasterOptions::default(), 5, faulty_frame(), &work, &mk).expect_err("digest");
     assert!(matches!(e, ClusterError::Digest { rank: 1, theirs: 7, ours: 5 }), "{e}");

@@ -7,8 +7,8 @@ use crate::font::draw_text;
 use glam::Vec3;
 use lucent_device::{render_frame, FrameSettings, Processor, Step};
 use lucent_render::{
-    denoise, render_aovs, render_region, Camera, DenoiseSettings, Film, Integrator, PathSettings, Region, RenderSettings, VplSettings,
-    WhittedSettings, World,
+    denoise, render_aovs, render_region, Camera, DenoiseSettings, Film, Integrator, PathSettings, Region, RegionFilm, RenderSettings,
+    VplSettings, WhittedSettings, World,
 };
 use std::collections::HashSet;
 use std::num::NonZeroU32;
@@ -52,6 +52,16 @@ pub struct ViewOptions {
     /// The integrator shown first (key 4 cycles): 0 Whitted, 1 path, 2 VPL, 3 eye light,
     /// 4 normals.
     pub view: usize,
+}
+
+/// Renders the viewer's passes somewhere else: other processes, for `lucent view --mpi`
+/// (a display wall driven from one window). Given the world (posed at `time` if it is
+/// animated) and a pass's camera, settings and region, it returns what
+/// [`lucent_render::render_region`] would (the same sums, bit for bit) and the rays traced.
+pub trait PassRenderer {
+    /// Renders one pass.
+    fn render(&mut self, world: &World, time: Option<f32>, camera: &Camera, settings: &RenderSettings, region: Region)
+        -> (RegionFilm, u64);
 }
 
 /// What the window shows.
@@ -100,6 +110,8 @@ const DENOISE_FADE_SPP: f32 = 64.0;
 
 struct App {
     opts: ViewOptions,
+    /// Where passes are rendered, when not here.
+    passes: Option<Box<dyn PassRenderer>>,
     name: String,
     world: Option<Box<World>>,
     program: Option<Program>,
@@ -380,7 +392,11 @@ impl App {
         let spp = if plan.sample == 0 { 1 } else { self.adaptive.max_samples };
         let rs = RenderSettings { spp, integrator: self.integrator(), ..RenderSettings::new(plan.width, plan.height) };
         let region = Region::full(plan.width, plan.height, plan.sample, plan.sample + 1);
-        let (film, rays) = render_region(world, &camera, &rs, region, &|_| {});
+        let time = self.anim_range.map(|_| self.anim_time);
+        let (film, rays) = match self.passes.as_mut() {
+            Some(p) => p.render(world, time, &camera, &rs, region),
+            None => render_region(world, &camera, &rs, region, &|_| {}),
+        };
         if moving {
             self.pending = Some((plan, moving, now));
         } else {
@@ -690,6 +706,11 @@ impl ApplicationHandler for App {
 
 /// Opens the window and runs until it is closed.
 pub fn run(content: Content, opts: ViewOptions) -> Result<(), ViewerError> {
+    run_with(content, opts, None)
+}
+
+/// [`run`], with the passes rendered by `passes` (when given).
+pub fn run_with(content: Content, opts: ViewOptions, passes: Option<Box<dyn PassRenderer>>) -> Result<(), ViewerError> {
     if std::env::var_os("DISPLAY").is_none_or(|d| d.is_empty()) && std::env::var_os("WAYLAND_DISPLAY").is_none() {
         return Err(ViewerError::NoDisplay("DISPLAY is not set".into()));
     }
@@ -699,6 +720,7 @@ pub fn run(content: Content, opts: ViewOptions) -> Result<(), ViewerError> {
     let view = opts.view % VIEWS;
     let mut app = App {
         opts,
+        passes,
         name: String::new(),
         world: None,
         program: None,

@@ -15,4 +15,4 @@ mod app;
 pub mod control;
 pub mod font;
 
-pub use app::{run, Content, ViewOptions, ViewerError};
+pub use app::{run, run_with, Content, PassRenderer, ViewOptions, ViewerError};
