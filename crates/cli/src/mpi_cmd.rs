@@ -182,6 +182,7 @@ mod imp {
             f: impl FnOnce(&mut Master) -> Result<T, ClusterError>,
         ) -> Result<T> {
             let opts = self.worker_options(world);
+            let digest = opts.digest;
             let mut hub = Hub::new(Some(self.mpi.remote()));
             let mut link = hub.attach_local(0);
             let r = std::thread::scope(|s| {
@@ -189,7 +190,7 @@ mod imp {
                     let mut r = SceneRenderer::new(WorldRef::Owned(world), fixed, fallback);
                     serve(&mut link, &mut r, &opts)
                 });
-                let r = Master::new(hub, opts.digest, self.master_options()).and_then(|mut m| {
+                let r = Master::new(hub, digest, self.master_options()).and_then(|mut m| {
                     m.on_held(Box::new(lucent_cluster::mpi::note_held));
                     let r = f(&mut m);
                     m.stop();
@@ -386,7 +387,7 @@ mod imp {
                 .map(|r| (0, Region { x0: r.x0 + region.x0, x1: r.x1 + region.x0, y0: r.y0 + region.y0, y1: r.y1 + region.y0, ..r }))
                 .collect();
             let mut link = self.master.hub_mut().attach_local(0);
-            let opts = WorkerOptions { fault: None, ..self.opts };
+            let opts = WorkerOptions { fault: None, ..self.opts.clone() };
             let mut frame = [Frame { id: 0, time, settings: *settings, camera: Some(*camera) }];
             let r = std::thread::scope(|s| {
                 s.spawn(move || {

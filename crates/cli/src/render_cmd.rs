@@ -369,7 +369,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
         (None, Some(budget)) => render_for(&world, &cam, &settings, budget, a.spp.unwrap_or(1))?,
     };
-    let render_s = t2.elapsed().as_secs_f64();
+    // Over MPI: the runs' time (the wait for the other ranks to load their scene apart).
+    let render_s = cluster.as_ref().map_or_else(|| t2.elapsed().as_secs_f64(), |(_, st)| st.seconds);
+    if cluster.is_some() {
+        println!("mpi: every rank ready after {:.1} ms (loading and building their scenes)", (t2.elapsed().as_secs_f64() - render_s) * 1e3);
+    }
     let aovs = (a.aovs || a.denoise).then(|| lucent_render::render_aovs(&world, &cam, w, h));
     let film = match &aovs {
         Some(aovs) if a.denoise => {
@@ -412,7 +416,7 @@ pub fn cluster_summary(ranks: usize, st: &lucent_cluster::RunStats) -> String {
     let per: Vec<String> = st.jobs_per_rank.iter().map(usize::to_string).collect();
     let n = st.jobs.max(1) as f64;
     format!(
-        "mpi: {ranks} ranks, {} regions (per rank {}), {:.2} MB sent and {:.2} MB received by rank 0; per region: render {:.2} ms, \
+        "mpi: {ranks} ranks, {} regions (per rank {}), {:.1} kB sent and {:.1} kB received by rank 0; per region: render {:.2} ms, \
          round-trip overhead {:.2} ms, merge {:.3} ms",
         st.jobs,
         per.join("/"),

@@ -144,6 +144,19 @@ fn render_errors_are_clear() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("10 finite numbers"));
 }
 
+/// Without the `mpi` feature, `--mpi` says how to get it (and nothing else changes: the
+/// other tests run on this build).
+#[cfg(not(feature = "mpi"))]
+#[test]
+fn mpi_without_the_feature_says_how_to_build_it() {
+    for cmd in [&["render", "-o", "/tmp/never.png"][..], &["animate", "-o", "/tmp/never"], &["view"]] {
+        let o = lucent().args(cmd).arg("--mpi").output().expect("run");
+        assert!(!o.status.success());
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains("built without MPI") && e.contains("--features mpi"), "{cmd:?}: {e}");
+    }
+}
+
 #[test]
 fn info_prints_counts() {
     let o = lucent().arg("info").output().expect("run");

@@ -108,11 +108,25 @@ fn xwd(display: &str, wid: &str) -> Shot {
 /// two fresh-clone CI runs saw the first viewer of the run fail to connect to an Xvfb that
 /// had just taken another client, which never happened here.
 fn start_viewer(display: &str, setup: impl Fn(&mut Command)) -> (Kill, String) {
+    start_program(
+        display,
+        || {
+            let mut c = Command::new(env!("CARGO_BIN_EXE_lucent"));
+            c.arg("view");
+            c
+        },
+        setup,
+    )
+}
+
+/// [`start_viewer`] for the command `make` gives (`lucent view`, or `mpirun ... lucent
+/// view --mpi`).
+fn start_program(display: &str, make: impl Fn() -> Command, setup: impl Fn(&mut Command)) -> (Kill, String) {
     let errs = tempfile::tempdir().expect("tmp");
     for attempt in 0..3 {
         let log = errs.path().join(format!("stderr-{attempt}"));
-        let mut cmd = Command::new(env!("CARGO_BIN_EXE_lucent"));
-        cmd.arg("view").env("DISPLAY", display).stdout(Stdio::null()).stderr(std::fs::File::create(&log).expect("log"));
+        let mut cmd = make();
+        cmd.env("DISPLAY", display).stdout(Stdio::null()).stderr(std::fs::File::create(&log).expect("log"));
         setup(&mut cmd);
         let mut viewer = Kill(cmd.spawn().expect("lucent view"));
         let t = Instant::now();
@@ -349,4 +363,52 @@ fn viewer_shows_vpl_frames_and_cycles_integrators() {
     wait_title(&display, &wid, "[converged]", 60);
     let eye = xwd(&display, &wid);
     assert!(eye.diff(&raw) > 2.0, "the eye light looks otherwise: {}", eye.diff(&raw));
+}
+
+/// `lucent view --mpi` under `mpirun -np 3`: the window on rank 0 shows, converged, the
+/// very picture one process shows (the passes' tiles rendered on three ranks), and closing
+/// it ends every rank.
+#[cfg(feature = "mpi")]
+#[test]
+#[ignore = "needs Xvfb, xdotool, xwd and mpirun: run by scripts/test"]
+fn mpi_viewer_shows_the_one_process_picture() {
+    let (_x, display) = xvfb();
+    let args = ["--size", "200x150", "--samples", "4", "--integrator", "path", "--quit-after", "120"];
+    let one = {
+        let (_viewer, wid) = start_viewer(&display, |c| {
+            c.args(args);
+        });
+        let t = wait_title(&display, &wid, "[converged]", 60);
+        assert!(t.contains("[converged]"), "{t}");
+        xwd(&display, &wid)
+    };
+    let (mut mpi, wid) = start_program(
+        &display,
+        || {
+            let mut c = Command::new("mpirun");
+            c.args(["--allow-run-as-root", "--oversubscribe", "-x", "DISPLAY", "-np", "3", env!("CARGO_BIN_EXE_lucent"), "view", "--mpi"]);
+            c.args(["--mpi-tile", "32"]);
+            c
+        },
+        |c| {
+            c.args(args);
+        },
+    );
+    let t = wait_title(&display, &wid, "[converged]", 60);
+    assert!(t.contains("[converged]"), "{t}");
+    let many = xwd(&display, &wid);
+    assert_eq!((many.w, many.h), (one.w, one.h));
+    assert!(many.diff(&one) == 0.0, "three ranks' picture differs from one process's: {}", many.diff(&one));
+    // Esc closes the window; rank 0 tells the others to leave, and mpirun ends.
+    focus(&display, &wid);
+    xdo(&display, &["key", "Escape"]);
+    let t0 = Instant::now();
+    loop {
+        if let Ok(Some(status)) = mpi.0.try_wait() {
+            assert!(status.success(), "mpirun ended with {status}");
+            break;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(20), "the ranks did not end after the window closed");
+        std::thread::sleep(Duration::from_millis(100));
+    }
 }

@@ -50,6 +50,11 @@ fn cluster_render<'w>(
     })
 }
 
+/// A pool of its own for each worker (a worker keeps one of its pool's threads).
+fn pool() -> std::sync::Arc<rayon::ThreadPool> {
+    std::sync::Arc::new(rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("pool"))
+}
+
 fn bits(f: &lucent_render::Film) -> Vec<[u32; 3]> {
     f.pixels.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
 }
@@ -73,7 +78,10 @@ fn images_over_ranks_are_the_one_process_image() {
         for (ranks, tile) in [(1usize, 32u32), (3, 16), (4, 48)] {
             let work = tiles(w, h, tile, 0, spp);
             let mk = |_: usize| -> (Box<dyn Renderer + '_>, WorkerOptions) {
-                (Box::new(SceneRenderer::new(WorldRef::Shared(&wld), None, desc)), WorkerOptions { digest, ..WorkerOptions::default() })
+                (
+                    Box::new(SceneRenderer::new(WorldRef::Shared(&wld), None, desc)),
+                    WorkerOptions { digest, pool: Some(pool()), ..WorkerOptions::default() },
+                )
             };
             let (acc, stats) = cluster_render(ranks, MasterOptions::default(), digest, frame, &work, &mk).expect("run");
             assert_eq!(stats.jobs, work.len());
@@ -87,7 +95,10 @@ fn images_over_ranks_are_the_one_process_image() {
             let mut work = tiles(w, h, 32, 0, 1);
             work.extend(tiles(w, h, 32, 1, spp));
             let mk = |_: usize| -> (Box<dyn Renderer + '_>, WorkerOptions) {
-                (Box::new(SceneRenderer::new(WorldRef::Shared(&wld), None, desc)), WorkerOptions { digest, ..WorkerOptions::default() })
+                (
+                    Box::new(SceneRenderer::new(WorldRef::Shared(&wld), None, desc)),
+                    WorkerOptions { digest, pool: Some(pool()), ..WorkerOptions::default() },
+                )
             };
             let (a, _) = cluster_render(3, MasterOptions::default(), digest, frame, &work, &mk).expect("run");
             let (b, _) = cluster_render(2, MasterOptions::default(), digest, frame, &work, &mk).expect("run");
@@ -125,7 +136,10 @@ fn a_rank_that_stops_answering_is_named_with_its_regions() {
     let opts = MasterOptions { timeout: Duration::from_millis(600), ..MasterOptions::default() };
     let mk = |k: usize| -> (Box<dyn Renderer + Send>, WorkerOptions) {
         let fault = (k == 2).then_some(Fault::Hang { after: 2 });
-        (Box::new(Faulty { fail_at: None, sleep: Duration::from_millis(20) }), WorkerOptions { fault, ..WorkerOptions::default() })
+        (
+            Box::new(Faulty { fail_at: None, sleep: Duration::from_millis(20) }),
+            WorkerOptions { fault, pool: Some(pool()), ..WorkerOptions::default() },
+        )
     };
     // The workers run on threads of their own (the hung one never returns; the test
     // leaves it behind).
@@ -160,7 +174,7 @@ fn a_failed_render_ends_the_run_with_the_rank_and_region() {
     let work = tiles(64, 64, 16, 0, 1);
     let bad = work[9];
     let mk = move |_: usize| -> (Box<dyn Renderer>, WorkerOptions) {
-        (Box::new(Faulty { fail_at: Some(bad), sleep: Duration::ZERO }), WorkerOptions::default())
+        (Box::new(Faulty { fail_at: Some(bad), sleep: Duration::ZERO }), WorkerOptions { pool: Some(pool()), ..WorkerOptions::default() })
     };
     let e = cluster_render(3, MasterOptions::default(), 0, faulty_frame(), &work, &mk).expect_err("a render failed");
     let text = e.to_string();
@@ -174,7 +188,7 @@ fn a_rank_with_another_scene_is_refused() {
     let mk = |k: usize| -> (Box<dyn Renderer>, WorkerOptions) {
         (
             Box::new(Faulty { fail_at: None, sleep: Duration::ZERO }),
-            WorkerOptions { digest: if k == 1 { 7 } else { 5 }, ..WorkerOptions::default() },
+            WorkerOptions { digest: if k == 1 { 7 } else { 5 }, pool: Some(pool()), ..WorkerOptions::default() },
         )
     };
     let e = cluster_render(2, MasterOptions::default(), 5, faulty_frame(), &work, &mk).expect_err("digest");

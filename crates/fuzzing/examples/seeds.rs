@@ -123,6 +123,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     {
         put("http", format!("head{i}"), head.as_bytes())?;
     }
+    // Messages between MPI ranks, made by lucent's own encoder.
+    {
+        use lucent_cluster::{Frame, Msg};
+        use lucent_render::{Camera, Integrator, PathSettings, Region, RegionFilm, RenderSettings, VplSettings};
+        let desc = lucent_scene::CameraDesc::from_view(&[0.0, 1.0, 4.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 40.0]);
+        let mut film = RegionFilm::new(Region { x0: 8, y0: 4, x1: 12, y1: 7, s0: 0, s1: 2 });
+        film.add(9, 5, lucent_accel::glam::Vec3::new(0.5, 0.25, 1.0), 2.0);
+        let mut msgs = vec![
+            Msg::Hello { digest: 42, threads: 2 },
+            Msg::Job { id: 3, region: Region { x0: 0, y0: 0, x1: 64, y1: 64, s0: 0, s1: 16 } },
+            Msg::Done { id: 3, rays: 1000, seconds: 0.01, film },
+            Msg::Heartbeat,
+            Msg::Failed { id: Some(1), message: "cannot pose the scene".into() },
+            Msg::Stop,
+        ];
+        for (k, integrator) in
+            [Integrator::default(), Integrator::Path(PathSettings::default()), Integrator::Vpl(VplSettings::default()), Integrator::Normals]
+                .into_iter()
+                .enumerate()
+        {
+            let settings = RenderSettings { spp: 4, integrator, ..RenderSettings::new(64, 48) };
+            let camera = (k % 2 == 0).then(|| Camera::new(&desc, 64, 48));
+            msgs.push(Msg::Frame(Frame { id: k as u32, time: (k == 1).then_some(0.5), settings, camera }));
+        }
+        for (i, m) in msgs.iter().enumerate() {
+            put("cluster", format!("msg{i}"), &m.encode())?;
+        }
+    }
     for (t, n) in &counts {
         println!("{t:8} {n} seeds");
     }

@@ -38,6 +38,7 @@ pub const TARGETS: &[(&str, Harness)] = &[
     ("ws", websocket),
     ("http", http),
     ("xml", mitsuba),
+    ("cluster", cluster),
 ];
 
 /// The harness of target `name`.
@@ -110,6 +111,23 @@ pub fn mitsuba(data: &[u8]) {
     let Ok(text) = std::str::from_utf8(data) else { return };
     if let Ok(scene) = lucent_scene::parse_mitsuba(Path::new("fuzz.xml"), Path::new(NOWHERE), text) {
         build_all(&scene);
+    }
+}
+
+/// A message between MPI ranks (`lucent_cluster::Msg`): decoded, and a result merged into
+/// an image of the frame it claims (within the largest image, so the bound holds).
+pub fn cluster(data: &[u8]) {
+    use lucent_cluster::Msg;
+    let Ok(m) = Msg::decode(data) else { return };
+    let again = m.encode();
+    assert!(Msg::decode(&again).is_ok_and(|x| x.encode() == again), "a decoded message re-encodes to itself");
+    if let Msg::Done { film, .. } = m {
+        let r = film.region;
+        if r.pixels() <= 1 << 16 {
+            let mut acc = lucent_render::FilmAccumulator::new(r.x1.min(4096), r.y1.min(4096));
+            let _ = acc.merge(film);
+            let _ = acc.resolve(lucent_accel::glam::Vec3::ZERO);
+        }
     }
 }
 
