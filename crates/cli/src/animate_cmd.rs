@@ -5,24 +5,59 @@ use crate::stats::median;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_accel::MeshOptions;
-use lucent_render::{render, Camera, Integrator, RenderSettings, World};
+use lucent_render::{render, Camera, RenderSettings, World};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// Options of `lucent animate`.
+#[derive(clap::Args, Debug)]
 pub struct AnimateArgs {
+    /// Scene (.gltf/.glb with animations). Without it: the built-in demo (static).
     pub scene: Option<PathBuf>,
+    #[command(flatten)]
     pub demo: crate::render_cmd::DemoArg,
+    /// Start time in seconds (default: the first key).
+    #[arg(long, allow_hyphen_values = true)]
     pub from: Option<f32>,
+    /// End time in seconds (default: the last key).
+    #[arg(long, allow_hyphen_values = true)]
     pub to: Option<f32>,
+    /// Frames per second of animation time.
+    #[arg(long, default_value_t = 30.0)]
     pub fps: f32,
+    /// Frame size.
+    #[arg(long, default_value = "512x384", value_parser = crate::render_cmd::parse_size)]
     pub size: (u32, u32),
+    /// Fixed camera EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV instead of the scene's animated one.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, num_args = 1)]
     pub camera: Option<Vec<f32>>,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 1)]
     pub spp: u32,
-    pub integrator: Integrator,
+    /// What the rays compute: `whitted`, `path`, `vpl`, `eye-light` or `normals` (as
+    /// `lucent render`).
+    #[arg(long, default_value = "whitted", value_parser = crate::render_cmd::INTEGRATORS)]
+    pub integrator: String,
+    /// Whitted: most reflection/refraction generations (0: primary rays, shadows and
+    /// shading only; default 6). Path: most path segments (default unlimited).
+    #[arg(long)]
+    pub max_depth: Option<u32>,
+    /// Turn shadow rays off.
+    #[arg(long)]
+    pub no_shadows: bool,
+    /// Output folder for frame-0001.png, ...
+    #[arg(short, long, default_value = "frames")]
     pub output: PathBuf,
+    /// Worker threads (per rank with --mpi; default: all cores).
+    #[arg(long)]
     pub threads: Option<usize>,
+    /// With --mpi: `frames` gives each rank whole frames, `tiles` shares each frame's
+    /// tiles among the ranks, `auto` takes frames when there are at least twice as many
+    /// frames as ranks.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "frames", "tiles"])]
     pub mpi_mode: String,
+    #[command(flatten)]
     pub mpi: crate::mpi_cmd::MpiArgs,
 }
 
@@ -60,7 +95,8 @@ pub fn run(a: AnimateArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
     println!("{name}: built in {:.1} ms; {frames} frames from {from:.3} s to {to:.3} s at {} fps", t0.elapsed().as_secs_f64() * 1e3, a.fps);
-    let settings = RenderSettings { spp: a.spp.max(1), integrator: a.integrator, ..RenderSettings::new(a.size.0, a.size.1) };
+    let integrator = crate::render_cmd::integrator_of(&a.integrator, a.max_depth, a.no_shadows, 5, false);
+    let settings = RenderSettings { spp: a.spp.max(1), integrator, ..RenderSettings::new(a.size.0, a.size.1) };
     let bar = if std::io::stderr().is_terminal() { ProgressBar::new(frames) } else { ProgressBar::hidden() };
     bar.set_style(
         ProgressStyle::with_template("{spinner} frames [{bar:40}] {pos}/{len} {per_sec} eta {eta}")

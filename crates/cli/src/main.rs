@@ -109,54 +109,7 @@ enum Cmd {
     /// Render a glTF animation (BART kitchen/museum, glTF samples) to numbered PNGs with the
     /// scene's animated camera, printing per-frame update and render times. Rigid motion
     /// rebuilds only the top-level index; morphing meshes rebuild their own.
-    Animate {
-        /// Scene (.gltf/.glb with animations). Without it: the built-in demo (static).
-        scene: Option<PathBuf>,
-        #[command(flatten)]
-        demo: render_cmd::DemoArg,
-        /// Start time in seconds (default: the first key).
-        #[arg(long, allow_hyphen_values = true)]
-        from: Option<f32>,
-        /// End time in seconds (default: the last key).
-        #[arg(long, allow_hyphen_values = true)]
-        to: Option<f32>,
-        /// Frames per second of animation time.
-        #[arg(long, default_value_t = 30.0)]
-        fps: f32,
-        /// Frame size.
-        #[arg(long, default_value = "512x384", value_parser = render_cmd::parse_size)]
-        size: (u32, u32),
-        /// Fixed camera EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV instead of the scene's animated one.
-        #[arg(long, value_delimiter = ',', allow_hyphen_values = true, num_args = 1)]
-        camera: Option<Vec<f32>>,
-        /// Samples per pixel.
-        #[arg(long, default_value_t = 1)]
-        spp: u32,
-        /// What the rays compute: `whitted`, `path`, `eye-light` or `normals` (as `lucent
-        /// render`).
-        #[arg(long, default_value = "whitted", value_parser = render_cmd::INTEGRATORS)]
-        integrator: String,
-        /// Whitted: most reflection/refraction generations (0: primary rays, shadows and
-        /// shading only; default 6). Path: most path segments (default unlimited).
-        #[arg(long)]
-        max_depth: Option<u32>,
-        /// Turn shadow rays off.
-        #[arg(long)]
-        no_shadows: bool,
-        /// Output folder for frame-0001.png, ...
-        #[arg(short, long, default_value = "frames")]
-        output: PathBuf,
-        /// Worker threads (per rank with --mpi; default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// With --mpi: `frames` gives each rank whole frames, `tiles` shares each frame's
-        /// tiles among the ranks, `auto` takes frames when there are at least twice as many
-        /// frames as ranks.
-        #[arg(long, default_value = "auto", value_parser = ["auto", "frames", "tiles"])]
-        mpi_mode: String,
-        #[command(flatten)]
-        mpi: mpi_cmd::MpiArgs,
-    },
+    Animate(animate_cmd::AnimateArgs),
     /// Open a window and fly through a scene (or watch a REND3R program), Pixel-Planes style:
     /// reduced resolution while moving, full resolution refined sample by sample when still.
     ///
@@ -561,40 +514,7 @@ fn run() -> Result<()> {
     match cli.cmd {
         Cmd::Render(args) => render_cmd::run(args),
         Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo),
-        Cmd::Animate {
-            scene,
-            demo,
-            from,
-            to,
-            fps,
-            size,
-            camera,
-            spp,
-            integrator,
-            max_depth,
-            no_shadows,
-            output,
-            threads,
-            mpi_mode,
-            mpi,
-        } => {
-            let integrator = render_cmd::integrator_of(&integrator, max_depth, no_shadows, 5, false);
-            animate_cmd::run(animate_cmd::AnimateArgs {
-                scene,
-                demo,
-                from,
-                to,
-                fps,
-                size,
-                camera,
-                spp,
-                integrator,
-                output,
-                threads,
-                mpi_mode,
-                mpi,
-            })
-        }
+        Cmd::Animate(args) => animate_cmd::run(args),
         Cmd::View {
             input,
             demo,

@@ -114,8 +114,8 @@ pub fn mitsuba(data: &[u8]) {
     }
 }
 
-/// A message between MPI ranks (`lucent_cluster::Msg`): decoded, and a result merged into
-/// an image of the frame it claims (within the largest image, so the bound holds).
+/// A message between MPI ranks (`lucent_cluster::Msg`): decoded, re-encoded, and a small
+/// result merged into an image that holds it.
 pub fn cluster(data: &[u8]) {
     use lucent_cluster::Msg;
     let Ok(m) = Msg::decode(data) else { return };
@@ -123,8 +123,10 @@ pub fn cluster(data: &[u8]) {
     assert!(Msg::decode(&again).is_ok_and(|x| x.encode() == again), "a decoded message re-encodes to itself");
     if let Msg::Done { film, .. } = m {
         let r = film.region;
-        if r.pixels() <= 1 << 16 {
-            let mut acc = lucent_render::FilmAccumulator::new(r.x1.min(4096), r.y1.min(4096));
+        // (An image that holds the region, when it is small: a large one would measure the
+        // allocator, not the merge.)
+        if u64::from(r.x1) * u64::from(r.y1) <= 1 << 16 {
+            let mut acc = lucent_render::FilmAccumulator::new(r.x1, r.y1);
             let _ = acc.merge(film);
             let _ = acc.resolve(lucent_accel::glam::Vec3::ZERO);
         }
