@@ -120,48 +120,7 @@ enum Cmd {
     /// denoiser on/off (path and VPL: denoised while moving, fading out as a still image
     /// gathers samples); P or F12: screenshot PNG; Space: pause a REND3R program; Esc: quit. Needs an X11 display
     /// (DISPLAY); without one it says so and exits.
-    View {
-        /// Scene (.obj, .obj.gz, .ply, .gltf, .glb) or REND3R program (.rdr, .mem, .bin).
-        /// Without it: the built-in demo scene.
-        input: Option<PathBuf>,
-        #[command(flatten)]
-        demo: render_cmd::DemoArg,
-        /// Start camera as EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV (default: the scene's).
-        #[arg(long, value_delimiter = ',', allow_hyphen_values = true, num_args = 1)]
-        camera: Option<Vec<f32>>,
-        /// Window size.
-        #[arg(long, default_value = "1024x768", value_parser = render_cmd::parse_size)]
-        size: (u32, u32),
-        /// Frame rate to hold while moving (the moving resolution adapts to it).
-        #[arg(long, default_value_t = 30.0)]
-        target_fps: f64,
-        /// Samples per pixel of a converged still image.
-        #[arg(long, default_value_t = 64)]
-        samples: u32,
-        /// Linear resolution scale when movement starts (0.5 = a quarter of the pixels).
-        #[arg(long, default_value_t = 0.5)]
-        moving_scale: f64,
-        /// REND3R programs: raytrace or raster.
-        #[arg(long, default_value = "raytrace", value_parser = ["raytrace", "raster"])]
-        mode: String,
-        /// Folder for screenshots (lucent-view-0001.png, ...).
-        #[arg(long, default_value = ".")]
-        screenshots: PathBuf,
-        /// Print frame rates once a second, and the time to converge when still.
-        #[arg(long)]
-        report: bool,
-        /// Close after this many seconds.
-        #[arg(long)]
-        quit_after: Option<f64>,
-        /// The integrator shown first (key 4 cycles them).
-        #[arg(long, default_value = "whitted", value_parser = render_cmd::INTEGRATORS)]
-        integrator: String,
-        /// Worker threads (per rank with --mpi; default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        #[command(flatten)]
-        mpi: mpi_cmd::MpiArgs,
-    },
+    View(view_cmd::ViewArgs),
     /// Serve REND3R as a networked device: clients stream programs over TCP (or UDP, or the
     /// page's WebSocket) and get one frame back per `nf`; a page at --http shows them live.
     ///
@@ -515,37 +474,7 @@ fn run() -> Result<()> {
         Cmd::Render(args) => render_cmd::run(args),
         Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo),
         Cmd::Animate(args) => animate_cmd::run(args),
-        Cmd::View {
-            input,
-            demo,
-            camera,
-            size,
-            target_fps,
-            samples,
-            moving_scale,
-            mode,
-            screenshots,
-            report,
-            quit_after,
-            integrator,
-            threads,
-            mpi,
-        } => view_cmd::run(view_cmd::ViewArgs {
-            input,
-            demo,
-            camera,
-            size,
-            target_fps,
-            samples,
-            moving_scale,
-            mode: if mode == "raster" { lucent_device::Mode::Raster } else { lucent_device::Mode::Raytrace },
-            screenshots,
-            report,
-            quit_after,
-            integrator,
-            threads,
-            mpi,
-        }),
+        Cmd::View(args) => view_cmd::run(args),
         Cmd::Asm { program, output, format, camera_table } => isa_cmd::asm(&program, output, format, isa_cmd::table(camera_table == "old")),
         Cmd::Run { program, mode, sets, size, frames, seconds, painter, spp, camera_table, output, compat, switches } => {
             run_cmd::run(run_cmd::RunArgs {

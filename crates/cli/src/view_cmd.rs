@@ -7,20 +7,48 @@ use lucent_render::World;
 use lucent_viewer::{Content, ViewOptions};
 use std::path::{Path, PathBuf};
 
+/// Options of `lucent view`.
+#[derive(clap::Args, Debug)]
 pub struct ViewArgs {
+    /// Scene (.obj, .obj.gz, .ply, .gltf, .glb) or REND3R program (.rdr, .mem, .bin).
+    /// Without it: the built-in demo scene.
     pub input: Option<PathBuf>,
+    #[command(flatten)]
     pub demo: crate::render_cmd::DemoArg,
+    /// Start camera as EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV (default: the scene's).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, num_args = 1)]
     pub camera: Option<Vec<f32>>,
+    /// Window size.
+    #[arg(long, default_value = "1024x768", value_parser = crate::render_cmd::parse_size)]
     pub size: (u32, u32),
+    /// Frame rate to hold while moving (the moving resolution adapts to it).
+    #[arg(long, default_value_t = 30.0)]
     pub target_fps: f64,
+    /// Samples per pixel of a converged still image.
+    #[arg(long, default_value_t = 64)]
     pub samples: u32,
+    /// Linear resolution scale when movement starts (0.5 = a quarter of the pixels).
+    #[arg(long, default_value_t = 0.5)]
     pub moving_scale: f64,
-    pub mode: Mode,
+    /// REND3R programs: raytrace or raster.
+    #[arg(long, default_value = "raytrace", value_parser = ["raytrace", "raster"])]
+    pub mode: String,
+    /// Folder for screenshots (lucent-view-0001.png, ...).
+    #[arg(long, default_value = ".")]
     pub screenshots: PathBuf,
+    /// Print frame rates once a second, and the time to converge when still.
+    #[arg(long)]
     pub report: bool,
+    /// Close after this many seconds.
+    #[arg(long)]
     pub quit_after: Option<f64>,
+    /// The integrator shown first (key 4 cycles them).
+    #[arg(long, default_value = "whitted", value_parser = crate::render_cmd::INTEGRATORS)]
     pub integrator: String,
+    /// Worker threads (per rank with --mpi; default: all cores).
+    #[arg(long)]
     pub threads: Option<usize>,
+    #[command(flatten)]
     pub mpi: crate::mpi_cmd::MpiArgs,
 }
 
@@ -56,8 +84,9 @@ pub fn run(a: ViewArgs) -> Result<()> {
         Some(p) if is_program(p) => {
             let (words, sets) = crate::run_cmd::load_program(p, lucent_isa::CameraTable::Final)?;
             let processor = Processor::new(words, lucent_isa::CameraTable::Final).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
-            let sets = sets.unwrap_or(SetKind::for_mode(a.mode));
-            let settings = FrameSettings { width: a.size.0, height: a.size.1, mode: a.mode, sets, painter: false, spp: 1 };
+            let mode = if a.mode == "raster" { Mode::Raster } else { Mode::Raytrace };
+            let sets = sets.unwrap_or(SetKind::for_mode(mode));
+            let settings = FrameSettings { width: a.size.0, height: a.size.1, mode, sets, painter: false, spp: 1 };
             Content::Program { processor: Box::new(processor), settings, name: p.display().to_string() }
         }
         input => {
