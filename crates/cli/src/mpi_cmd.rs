@@ -223,9 +223,8 @@ mod imp {
             bar: &ProgressBar,
         ) -> Result<(FilmAccumulator, u64, u32, RunStats)> {
             let (w, h) = (settings.width, settings.height);
-            let fallback = CameraDesc::from_view(&[0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0, 60.0]);
             let tile = self.args.mpi_tile;
-            self.with_master(world, None, fallback, |m| {
+            self.with_master(world, None, never_used(), |m| {
                 let mut acc = FilmAccumulator::new(w, h);
                 let mut total = RunStats::default();
                 let mut frame = [Frame { id: 0, time: None, settings: *settings, camera: Some(*cam) }];
@@ -254,7 +253,7 @@ mod imp {
                             let t = Instant::now();
                             let work: Vec<(usize, Region)> = tiles(w, h, tile, s0, s1).into_iter().map(|r| (0, r)).collect();
                             let st = m.run(&mut frame, &work, &lucent_cluster::mpi::terminated, &mut |_, film, _| add(&mut acc, film))?;
-                            total = sum_stats(total, &st);
+                            total.add(&st);
                             s0 = s1;
                             if t.elapsed().as_secs_f64() < budget / 16.0 {
                                 chunk = chunk.saturating_mul(2);
@@ -331,27 +330,14 @@ mod imp {
                 }
                 Err(e) => self.fail(&e.into()),
             };
-            Ok(Box::new(ClusterPasses { master, tile: self.args.mpi_tile, opts, aborter: self.mpi.aborter(), stats: RunStats::default() }))
+            Ok(Box::new(ClusterPasses { master, tile: self.args.mpi_tile, opts, aborter: self.mpi.aborter() }))
         }
     }
 
-    fn sum_stats(a: RunStats, b: &RunStats) -> RunStats {
-        let mut per = a.jobs_per_rank.clone();
-        per.resize(per.len().max(b.jobs_per_rank.len()), 0);
-        for (x, y) in per.iter_mut().zip(&b.jobs_per_rank) {
-            *x += y;
-        }
-        RunStats {
-            jobs: a.jobs + b.jobs,
-            jobs_per_rank: per,
-            bytes_out: a.bytes_out + b.bytes_out,
-            bytes_in: a.bytes_in + b.bytes_in,
-            rays: a.rays + b.rays,
-            render_seconds: a.render_seconds + b.render_seconds,
-            turnaround_seconds: a.turnaround_seconds + b.turnaround_seconds,
-            merge_seconds: a.merge_seconds + b.merge_seconds,
-            seconds: a.seconds + b.seconds,
-        }
+    /// The camera of frames that carry their own (`render`, `view`): a placeholder for
+    /// [`SceneRenderer`]'s fallback, which such frames never reach.
+    fn never_used() -> CameraDesc {
+        CameraDesc::from_view(&[0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0, 60.0])
     }
 
     /// The viewer's passes over every rank: rank 0's share on a thread serving the viewer's
@@ -361,7 +347,6 @@ mod imp {
         tile: u32,
         opts: WorkerOptions,
         aborter: Aborter,
-        stats: RunStats,
     }
 
     impl Drop for ClusterPasses {
@@ -391,8 +376,7 @@ mod imp {
             let mut frame = [Frame { id: 0, time, settings: *settings, camera: Some(*camera) }];
             let r = std::thread::scope(|s| {
                 s.spawn(move || {
-                    let fallback = CameraDesc::from_view(&[0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0, 60.0]);
-                    let mut r = SceneRenderer::new(WorldRef::Shared(world), None, fallback);
+                    let mut r = SceneRenderer::new(WorldRef::Shared(world), None, never_used());
                     let _ = serve(&mut link, &mut r, &opts);
                 });
                 let width = (region.x1 - region.x0) as usize;
@@ -412,10 +396,7 @@ mod imp {
                 r
             });
             match r {
-                Ok(st) => {
-                    self.stats = sum_stats(std::mem::take(&mut self.stats), &st);
-                    (out, st.rays)
-                }
+                Ok(st) => (out, st.rays),
                 Err(e) => {
                     eprintln!("error: {e}");
                     self.aborter.abort(3)

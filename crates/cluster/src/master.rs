@@ -57,6 +57,26 @@ pub struct RunStats {
     pub seconds: f64,
 }
 
+impl RunStats {
+    /// Adds another run's costs (passes of one render).
+    pub fn add(&mut self, o: &RunStats) {
+        if self.jobs_per_rank.len() < o.jobs_per_rank.len() {
+            self.jobs_per_rank.resize(o.jobs_per_rank.len(), 0);
+        }
+        for (x, y) in self.jobs_per_rank.iter_mut().zip(&o.jobs_per_rank) {
+            *x += y;
+        }
+        self.jobs += o.jobs;
+        self.bytes_out += o.bytes_out;
+        self.bytes_in += o.bytes_in;
+        self.rays += o.rays;
+        self.render_seconds += o.render_seconds;
+        self.turnaround_seconds += o.turnaround_seconds;
+        self.merge_seconds += o.merge_seconds;
+        self.seconds += o.seconds;
+    }
+}
+
 /// Rank 0's side of a distributed render.
 pub struct Master {
     hub: Hub,
@@ -219,7 +239,7 @@ impl Master {
                     (changed, told) = (false, now);
                 }
                 if let Some(r) = (0..n).find(|&r| now.duration_since(heard[r]) > self.opts.timeout) {
-                    let regions = held[r].iter().map(|&(i, _)| work[i].1).collect();
+                    let regions = regions_of(&held[r], work);
                     return Err(ClusterError::Silent { rank: r, silent: now.duration_since(heard[r]), regions });
                 }
                 std::thread::sleep(Duration::from_micros(100));
@@ -302,8 +322,14 @@ impl Master {
     }
 }
 
+/// The regions one rank holds.
+fn regions_of(held: &VecDeque<Held>, work: &[(usize, Region)]) -> Vec<Region> {
+    held.iter().map(|&(i, _)| work[i].1).collect()
+}
+
+/// Per rank, the regions it holds.
 fn held_regions(held: &[VecDeque<Held>], work: &[(usize, Region)]) -> Vec<(usize, Vec<Region>)> {
-    held.iter().enumerate().map(|(r, h)| (r, h.iter().map(|&(i, _)| work[i].1).collect())).collect()
+    held.iter().enumerate().map(|(r, h)| (r, regions_of(h, work))).collect()
 }
 
 fn kind(m: &Msg) -> &'static str {

@@ -167,10 +167,6 @@ impl In<'_> {
             v => Err(WireError::Invalid { at, what: format!("{what} is {v}, not 0 or 1") }),
         }
     }
-    fn invalid(&self, at: usize, what: String) -> WireError {
-        let _ = self;
-        WireError::Invalid { at, what }
-    }
     fn region(&mut self) -> Result<Region, WireError> {
         let at = self.at;
         let mut v = [0u32; 6];
@@ -179,13 +175,17 @@ impl In<'_> {
         }
         let r = Region { x0: v[0], y0: v[1], x1: v[2], y1: v[3], s0: v[4], s1: v[5] };
         if r.x0 > r.x1 || r.y0 > r.y1 || r.s0 > r.s1 {
-            return Err(self.invalid(at, format!("region {r:?} ends before it starts")));
+            return Err(invalid(at, format!("region {r:?} ends before it starts")));
         }
         if r.pixels() as u64 > MAX_REGION_PIXELS {
-            return Err(self.invalid(at, format!("region {r:?} holds more than {MAX_REGION_PIXELS} pixels")));
+            return Err(invalid(at, format!("region {r:?} holds more than {MAX_REGION_PIXELS} pixels")));
         }
         Ok(r)
     }
+}
+
+fn invalid(at: usize, what: String) -> WireError {
+    WireError::Invalid { at, what }
 }
 
 fn put_settings(o: &mut Out, s: &RenderSettings) {
@@ -229,7 +229,7 @@ fn get_settings(i: &mut In) -> Result<RenderSettings, WireError> {
     let at = i.at;
     let (width, height, spp) = (i.u32("the width")?, i.u32("the height")?, i.u32("the samples per pixel")?);
     if width == 0 || height == 0 || width > 16384 || height > 16384 || spp == 0 {
-        return Err(i.invalid(at, format!("{width}x{height} at {spp} spp is not an image")));
+        return Err(invalid(at, format!("{width}x{height} at {spp} spp is not an image")));
     }
     let packets = i.flag("the packets flag")?;
     let at = i.at;
@@ -242,7 +242,7 @@ fn get_settings(i: &mut In) -> Result<RenderSettings, WireError> {
                 0 => LightSampling::Mis,
                 1 => LightSampling::Bsdf,
                 2 => LightSampling::Nee,
-                v => return Err(i.invalid(at, format!("light sampling {v} does not exist"))),
+                v => return Err(invalid(at, format!("light sampling {v} does not exist"))),
             };
             Integrator::Path(PathSettings { max_depth, rr_depth, hide_emitters, sampling, seed: i.u32("the seed")? })
         }
@@ -251,12 +251,12 @@ fn get_settings(i: &mut In) -> Result<RenderSettings, WireError> {
             let at = i.at;
             let clamp = i.f32("the VPL clamp")?;
             if !(clamp >= 0.0 && clamp.is_finite()) {
-                return Err(i.invalid(at, format!("VPL clamp {clamp} is not a fraction of the diagonal")));
+                return Err(invalid(at, format!("VPL clamp {clamp} is not a fraction of the diagonal")));
             }
             let at = i.at;
             let interleave = i.u32("the interleave")?;
             if !(1..=64).contains(&interleave) {
-                return Err(i.invalid(at, format!("interleave {interleave} is not 1..=64")));
+                return Err(invalid(at, format!("interleave {interleave} is not 1..=64")));
             }
             Integrator::Vpl(VplSettings {
                 count,
@@ -269,7 +269,7 @@ fn get_settings(i: &mut In) -> Result<RenderSettings, WireError> {
         }
         3 => Integrator::EyeLight,
         4 => Integrator::Normals,
-        v => return Err(i.invalid(at, format!("integrator {v} does not exist"))),
+        v => return Err(invalid(at, format!("integrator {v} does not exist"))),
     };
     Ok(RenderSettings { width, height, spp, integrator, traversal: Traversal { packets } })
 }
@@ -345,7 +345,7 @@ impl Msg {
                 let at = i.at;
                 let t = i.f32("the time")?;
                 if has_time && !t.is_finite() {
-                    return Err(i.invalid(at, format!("time {t} is not finite")));
+                    return Err(invalid(at, format!("time {t} is not finite")));
                 }
                 let settings = get_settings(&mut i)?;
                 let camera = if i.flag("the camera flag")? {
@@ -354,7 +354,7 @@ impl Msg {
                     for x in &mut w {
                         *x = i.u32("the camera")?;
                     }
-                    Some(Camera::from_bits(&w).ok_or_else(|| i.invalid(at, "the camera's words are no camera's".into()))?)
+                    Some(Camera::from_bits(&w).ok_or_else(|| invalid(at, "the camera's words are no camera's".into()))?)
                 } else {
                     None
                 };
@@ -368,9 +368,10 @@ impl Msg {
                 let at = i.at;
                 // (Checked before allocating: the region's size comes from the bytes.)
                 if bytes.len() - at != n * 16 {
-                    return Err(
-                        i.invalid(at, format!("region {region:?} needs {} bytes of sums, the message has {}", n * 16, bytes.len() - at))
-                    );
+                    return Err(invalid(
+                        at,
+                        format!("region {region:?} needs {} bytes of sums, the message has {}", n * 16, bytes.len() - at),
+                    ));
                 }
                 let mut film = RegionFilm::new(region);
                 for k in 0..n {
@@ -386,7 +387,7 @@ impl Msg {
                 let at = i.at;
                 let len = i.u32("the text length")? as usize;
                 if len > MAX_TEXT {
-                    return Err(i.invalid(at, format!("a text of {len} bytes (at most {MAX_TEXT})")));
+                    return Err(invalid(at, format!("a text of {len} bytes (at most {MAX_TEXT})")));
                 }
                 let text = i.take(len, "the text")?;
                 Msg::Failed { id: has_id.then_some(id), message: String::from_utf8_lossy(text).into_owned() }
