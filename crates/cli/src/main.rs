@@ -105,6 +105,13 @@ enum Cmd {
         /// With --compat board: the 16 board switches, shown as background (RGB565 bits).
         #[arg(long, default_value = "0", value_parser = parse_u16)]
         switches: u16,
+        /// Also print REND3R's cycle model for each frame (lucent_device::cycles): the
+        /// paper's worst case ((shapes + 205) x (lights + 1) a pixel ray traced; 63 + 4 +
+        /// width x height a triangle rasterized), the cycles the board really spends (light
+        /// rays only from pixels whose camera ray hit), both as seconds at 100 MHz, beside
+        /// lucent's measured time.
+        #[arg(long)]
+        cycles: bool,
     },
     /// Render a glTF animation (BART kitchen/museum, glTF samples) to numbered PNGs with the
     /// scene's animated camera, printing per-frame update and render times. Rigid motion
@@ -476,7 +483,7 @@ fn run() -> Result<()> {
         Cmd::Animate(args) => animate_cmd::run(args),
         Cmd::View(args) => view_cmd::run(args),
         Cmd::Asm { program, output, format, camera_table } => isa_cmd::asm(&program, output, format, isa_cmd::table(camera_table == "old")),
-        Cmd::Run { program, mode, sets, size, frames, seconds, painter, spp, camera_table, output, compat, switches } => {
+        Cmd::Run { program, mode, sets, size, frames, seconds, painter, spp, camera_table, output, compat, switches, cycles } => {
             run_cmd::run(run_cmd::RunArgs {
                 program,
                 mode: if mode == "raster" { lucent_device::Mode::Raster } else { lucent_device::Mode::Raytrace },
@@ -489,6 +496,7 @@ fn run() -> Result<()> {
                 camera_table: isa_cmd::table(camera_table == "old"),
                 output,
                 board: compat.map(|_| switches),
+                cycles,
             })
         }
         Cmd::Disasm { file, camera_table, triangles } => isa_cmd::disasm(&file, isa_cmd::table(camera_table == "old"), triangles),

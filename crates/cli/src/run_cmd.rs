@@ -19,6 +19,8 @@ pub struct RunArgs {
     pub output: PathBuf,
     /// Model the board (`--compat board`), with this switch setting as background.
     pub board: Option<u16>,
+    /// Print REND3R's cycle model for each frame.
+    pub cycles: bool,
 }
 
 /// Words of a program, and whether its source used `tr` (triangles) rather than `sp`.
@@ -63,6 +65,17 @@ pub fn run(a: RunArgs) -> Result<()> {
             info.lights,
             out.display()
         );
+        if a.cycles {
+            let (c, hits) = lucent_device::cycles::frame_cycles(&p.state, &fs)?;
+            let (ws, bs) = c.seconds();
+            println!(
+                "  REND3R cycles: worst case {} ({ws:.4} s at 100 MHz), board {} ({bs:.4} s; {hits} of {} pixels hit); lucent {ms:.1} ms = {:.0}x faster than the board",
+                c.worst,
+                c.board,
+                u64::from(fs.width) * u64::from(fs.height),
+                bs * 1e3 / ms.max(1e-6)
+            );
+        }
     }
     if p.ignored > 0 {
         println!("note: {} words were not instructions and were ignored", p.ignored);

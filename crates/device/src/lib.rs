@@ -8,6 +8,7 @@
 #![warn(missing_docs)]
 
 pub mod board;
+pub mod cycles;
 pub mod frame;
 mod processor;
 pub mod raster;
