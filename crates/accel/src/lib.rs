@@ -26,6 +26,7 @@
 
 pub mod build;
 pub mod closed;
+pub mod kd;
 mod geom;
 mod kernel;
 mod mesh;
@@ -46,4 +47,4 @@ pub use mesh::{BuildError, BvhStats, MeshBvh, MeshOptions, Quality, TriangleTest
 pub use packet::{prefetch_blocks, RayBlock, MAX_PACKET};
 pub use shape::{gamma, Shape, ShapeHit};
 pub use tlas::{Geometry, Instance, TopBuilder, TwoLevel};
-pub use traverse::TraversalStats;
+pub use traverse::{Counters, Level, TraversalStats};

@@ -797,10 +797,11 @@ impl<'a, K> UnitLeaves<'a, K> {
 
 impl<K: KernelSet> Leaves for UnitLeaves<'_, K> {
     #[inline(always)]
-    fn intersect(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit) {
+    fn intersect<C: Counters>(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit, c: &mut C) {
         for g in first..first + count {
             // SAFETY: leaf ranges are checked against `tris` by `validate` (tests) and built in range.
             let t4 = unsafe { self.tris.get_unchecked(g as usize) };
+            c.triangles(std::ptr::from_ref(t4) as usize, std::mem::size_of::<Tri4>(), 4);
             if K::SIMD {
                 if let Some((t, u, v, den, lane)) = simd_tri4_intersect_scaled(t4, r.org, r.dir, r.tmin, hit.t) {
                     hit.t = t;
@@ -818,12 +819,13 @@ impl<K: KernelSet> Leaves for UnitLeaves<'_, K> {
         }
     }
     #[inline(always)]
-    fn occluded(&self, first: u32, count: u32, r: &RayPre, tmax: f32) -> bool {
+    fn occluded<C: Counters>(&self, first: u32, count: u32, r: &RayPre, tmax: f32, c: &mut C) -> bool {
         // PERF: a plain loop; as `Iterator::any` with a closure it was left out of line
         // once the leaf test grew, a call per leaf (shadow rays 20% slower).
         for g in first..first + count {
             // SAFETY: as above.
             let t4 = unsafe { self.tris.get_unchecked(g as usize) };
+            c.triangles(std::ptr::from_ref(t4) as usize, std::mem::size_of::<Tri4>(), 4);
             let hit = if K::SIMD {
                 simd_tri4_occluded(t4, r.org, r.dir, r.tmin, tmax)
             } else {
@@ -861,18 +863,20 @@ impl WtLeaves<'_> {
 }
 
 impl Leaves for WtLeaves<'_> {
-    fn intersect(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit) {
+    fn intersect<C: Counters>(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit, k: &mut C) {
         let w = self.ray(r);
         for i in first as usize..(first + count) as usize {
+            k.triangles(std::ptr::from_ref(&self.verts[i]) as usize, std::mem::size_of::<[Vec3; 3]>(), 1);
             let [a, b, c] = self.verts[i];
             if let Some((t, u, v)) = w.hit(a, b, c, r.tmin, hit.t) {
                 *hit = Hit { t, u, v, prim: self.ids[i], inst: hit.inst };
             }
         }
     }
-    fn occluded(&self, first: u32, count: u32, r: &RayPre, tmax: f32) -> bool {
+    fn occluded<C: Counters>(&self, first: u32, count: u32, r: &RayPre, tmax: f32, k: &mut C) -> bool {
         let w = self.ray(r);
         (first as usize..(first + count) as usize).any(|i| {
+            k.triangles(std::ptr::from_ref(&self.verts[i]) as usize, std::mem::size_of::<[Vec3; 3]>(), 1);
             let [a, b, c] = self.verts[i];
             w.hit(a, b, c, r.tmin, tmax).is_some()
         })

@@ -1741,7 +1741,7 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
         let single = self.single();
         for_lanes(p.groups, m, |g, l| {
             let mut hit = h.get(g, l);
-            single.hit_instance(id, &RayPre::new(&p.ray(g, l, hit.t)), &mut hit);
+            single.hit_instance(id, &RayPre::new(&p.ray(g, l, hit.t)), &mut hit, &mut ());
             h.put(g, l, &hit);
         });
     }
@@ -1778,7 +1778,7 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
         let single = self.single();
         for_lanes(p.groups, m, |g, l| {
             let t = h.t[g].0[l];
-            if single.occludes(id, &RayPre::new(&p.ray(g, l, t)), t) {
+            if single.occludes(id, &RayPre::new(&p.ray(g, l, t)), t, &mut ()) {
                 h.t[g].0[l] = f32::NEG_INFINITY;
             }
         });

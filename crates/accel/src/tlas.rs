@@ -9,7 +9,7 @@ use crate::geom::{Aabb, Hit, Ray};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::mesh::{BuildError, BvhStats, MeshBvh};
 use crate::shape::Shape;
-use crate::traverse::{self, Leaves, RayPre};
+use crate::traverse::{self, Counters, Leaves, Level, RayPre};
 use crate::wide::{collapse_spread, WideNode};
 use glam::{Affine3A, Vec3};
 
@@ -365,29 +365,57 @@ impl TwoLevel {
 
     #[inline(always)]
     pub(crate) fn intersect_k<K: KernelSet>(&self, pre: &RayPre, hit: &mut Hit) {
+        self.intersect_kc::<K, ()>(pre, hit, &mut ());
+    }
+
+    #[inline(always)]
+    pub(crate) fn occluded_k<K: KernelSet>(&self, pre: &RayPre, tmax: f32) -> bool {
+        self.occluded_kc::<K, ()>(pre, tmax, &mut ())
+    }
+
+    #[inline(always)]
+    fn intersect_kc<K: KernelSet, C: Counters>(&self, pre: &RayPre, hit: &mut Hit, c: &mut C) {
         if let Some(mesh) = self.only_mesh() {
-            if mesh.intersect_k::<K, ()>(pre, hit, &mut ()) {
+            c.enter(Level::Bottom);
+            if mesh.intersect_k::<K, C>(pre, hit, c) {
                 hit.inst = 0;
             }
             return;
         }
         let leaves = InstLeaves::<K> { tl: self, k: std::marker::PhantomData };
+        c.enter(Level::Top);
         // SAFETY: the caller selected K for this CPU.
-        unsafe { traverse::intersect::<8, K::B8, _, _>(&self.nodes, &leaves, pre, hit, &mut ()) };
+        unsafe { traverse::intersect::<8, K::B8, _, _>(&self.nodes, &leaves, pre, hit, c) };
         for &i in &self.unbounded {
-            leaves.hit_instance(i, pre, hit);
+            leaves.hit_instance(i, pre, hit, c);
         }
     }
 
     #[inline(always)]
-    pub(crate) fn occluded_k<K: KernelSet>(&self, pre: &RayPre, tmax: f32) -> bool {
+    fn occluded_kc<K: KernelSet, C: Counters>(&self, pre: &RayPre, tmax: f32, c: &mut C) -> bool {
         if let Some(mesh) = self.only_mesh() {
-            return mesh.occluded_k::<K, ()>(pre, tmax, &mut ());
+            c.enter(Level::Bottom);
+            return mesh.occluded_k::<K, C>(pre, tmax, c);
         }
         let leaves = InstLeaves::<K> { tl: self, k: std::marker::PhantomData };
+        c.enter(Level::Top);
         // SAFETY: the caller selected K for this CPU.
-        self.unbounded.iter().any(|&i| leaves.occludes(i, pre, tmax))
-            || unsafe { traverse::occluded::<8, K::B8, _, _>(&self.nodes, &leaves, pre, tmax, &mut ()) }
+        self.unbounded.iter().any(|&i| leaves.occludes(i, pre, tmax, c))
+            || unsafe { traverse::occluded::<8, K::B8, _, _>(&self.nodes, &leaves, pre, tmax, c) }
+    }
+
+    /// Closest hit over all instances with the portable kernel, reporting every step to
+    /// `c` (the hardware study's seam): the same answers and the same visits as
+    /// [`TwoLevel::intersect`]'s single-ray kernels.
+    pub fn intersect_counted<C: Counters>(&self, ray: &Ray, c: &mut C) -> Option<Hit> {
+        let mut hit = Hit::none(ray.tmax);
+        self.intersect_kc::<ScalarSet, C>(&RayPre::new(ray), &mut hit, c);
+        hit.is_hit().then_some(hit)
+    }
+
+    /// [`TwoLevel::occluded`] with the portable kernel, reporting every step to `c`.
+    pub fn occluded_counted<C: Counters>(&self, ray: &Ray, c: &mut C) -> bool {
+        self.occluded_kc::<ScalarSet, C>(&RayPre::new(ray), ray.tmax, c)
     }
 }
 
@@ -435,16 +463,19 @@ impl<K: KernelSet> InstLeaves<'_, K> {
     }
 
     #[inline(always)]
-    pub(crate) fn hit_instance(&self, id: u32, pre: &RayPre, hit: &mut Hit) {
+    pub(crate) fn hit_instance<C: Counters>(&self, id: u32, pre: &RayPre, hit: &mut Hit, c: &mut C) {
         let inst = &self.tl.instances[id as usize];
-        let lp = self.local(inst, pre);
+        let lp = self.transform(inst, pre, c);
         match &self.tl.geometries[inst.geometry as usize] {
             Geometry::Mesh(m) => {
-                if m.intersect_k::<K, ()>(&lp, hit, &mut ()) {
+                c.enter(Level::Bottom);
+                if m.intersect_k::<K, C>(&lp, hit, c) {
                     hit.inst = id;
                 }
+                c.enter(Level::Top);
             }
             Geometry::Shape(s) => {
+                c.shape(std::ptr::from_ref(s) as usize, std::mem::size_of::<Shape>());
                 if let Some(h) = s.intersect_local(lp.org, lp.dir, lp.tmin, hit.t) {
                     *hit = Hit { t: h.t, u: 0.0, v: 0.0, prim: h.part, inst: id };
                 }
@@ -452,26 +483,49 @@ impl<K: KernelSet> InstLeaves<'_, K> {
         }
     }
 
+    /// The ray in `inst`'s object space, counted as a transformation when it is one.
     #[inline(always)]
-    pub(crate) fn occludes(&self, id: u32, pre: &RayPre, tmax: f32) -> bool {
+    fn transform<C: Counters>(&self, inst: &Instance, pre: &RayPre, c: &mut C) -> RayPre {
+        if !inst.is_identity() {
+            c.transform(std::ptr::from_ref(&inst.object_from_world) as usize, std::mem::size_of::<Affine3A>());
+        }
+        self.local(inst, pre)
+    }
+
+    #[inline(always)]
+    pub(crate) fn occludes<C: Counters>(&self, id: u32, pre: &RayPre, tmax: f32, c: &mut C) -> bool {
         let inst = &self.tl.instances[id as usize];
-        let lp = self.local(inst, pre);
+        let lp = self.transform(inst, pre, c);
         match &self.tl.geometries[inst.geometry as usize] {
-            Geometry::Mesh(m) => m.occluded_k::<K, ()>(&lp, tmax, &mut ()),
-            Geometry::Shape(s) => s.intersect_local(lp.org, lp.dir, lp.tmin, tmax).is_some(),
+            Geometry::Mesh(m) => {
+                c.enter(Level::Bottom);
+                let o = m.occluded_k::<K, C>(&lp, tmax, c);
+                c.enter(Level::Top);
+                o
+            }
+            Geometry::Shape(s) => {
+                c.shape(std::ptr::from_ref(s) as usize, std::mem::size_of::<Shape>());
+                s.intersect_local(lp.org, lp.dir, lp.tmin, tmax).is_some()
+            }
         }
     }
 }
 
 impl<K: KernelSet> Leaves for InstLeaves<'_, K> {
     #[inline(always)]
-    fn intersect(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit) {
+    fn intersect<C: Counters>(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit, c: &mut C) {
         for i in first..first + count {
-            self.hit_instance(self.tl.order[i as usize], r, hit);
+            let e = &self.tl.order[i as usize];
+            c.list_read(std::ptr::from_ref(e) as usize, 4);
+            self.hit_instance(*e, r, hit, c);
         }
     }
     #[inline(always)]
-    fn occluded(&self, first: u32, count: u32, r: &RayPre, tmax: f32) -> bool {
-        (first..first + count).any(|i| self.occludes(self.tl.order[i as usize], r, tmax))
+    fn occluded<C: Counters>(&self, first: u32, count: u32, r: &RayPre, tmax: f32, c: &mut C) -> bool {
+        (first..first + count).any(|i| {
+            let e = &self.tl.order[i as usize];
+            c.list_read(std::ptr::from_ref(e) as usize, 4);
+            self.occludes(*e, r, tmax, c)
+        })
     }
 }

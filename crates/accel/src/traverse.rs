@@ -377,14 +377,49 @@ mod simd {
     }
 }
 
-/// Counters of traversal work. Kernels are generic over this: the unit type `()` counts
-/// nothing and compiles away, [`TraversalStats`] counts (for tests, reports and the
-/// hardware study).
+/// Which level of a two-level index a traversal is in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Level {
+    /// The top level: the index over instances.
+    Top,
+    /// The bottom level: one object's index over its triangles.
+    Bottom,
+}
+
+/// Counters of traversal work: the seam every kernel takes. Kernels are generic over
+/// this: the unit type `()` counts nothing and compiles away (every method is an empty
+/// inline default), [`TraversalStats`] counts visits, and the hardware study
+/// (`lucent_study`) records what each ray reads and where, for its cache and unit models.
+///
+/// Addresses are the addresses of lucent's own data (`bytes` long), so a cache model sees
+/// the real layout: nodes, object-list entries, instance matrices, triangle maps.
 pub trait Counters {
     /// One inner node's children were box-tested.
     fn node(&mut self);
     /// `n` leaf items (triangle groups, instances) were tested.
     fn items(&mut self, n: u32);
+    /// The traversal moved to `level` (a two-level walk entering or leaving an object).
+    #[inline(always)]
+    fn enter(&mut self, _level: Level) {}
+    /// An inner node of `bytes` bytes at `addr` was read.
+    #[inline(always)]
+    fn node_read(&mut self, _addr: usize, _bytes: usize) {}
+    /// An entry of a leaf's object list (SaarCOR's list unit) at `addr` was read.
+    #[inline(always)]
+    fn list_read(&mut self, _addr: usize, _bytes: usize) {}
+    /// A list entry was skipped because the ray had already tested that object (mailbox).
+    #[inline(always)]
+    fn mailbox_hit(&mut self) {}
+    /// The ray was carried into an instance's object space by the matrix at `addr`.
+    #[inline(always)]
+    fn transform(&mut self, _addr: usize, _bytes: usize) {}
+    /// `n` triangles whose maps (`bytes` bytes at `addr`) were read were tested: the ray
+    /// carried into each one's unit-triangle space and intersected.
+    #[inline(always)]
+    fn triangles(&mut self, _addr: usize, _bytes: usize, _n: u32) {}
+    /// An analytic shape (`bytes` bytes at `addr`) was intersected.
+    #[inline(always)]
+    fn shape(&mut self, _addr: usize, _bytes: usize) {}
 }
 
 impl Counters for () {
@@ -417,9 +452,9 @@ impl Counters for TraversalStats {
 /// What sits in the leaves: triangles, shapes or instances.
 pub(crate) trait Leaves {
     /// Closest hit among items `first..first+count`; narrows `hit.t` when one is found.
-    fn intersect(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit);
+    fn intersect<C: Counters>(&self, first: u32, count: u32, r: &RayPre, hit: &mut Hit, c: &mut C);
     /// Any hit among the items within `[r.tmin, tmax)`.
-    fn occluded(&self, first: u32, count: u32, r: &RayPre, tmax: f32) -> bool;
+    fn occluded<C: Counters>(&self, first: u32, count: u32, r: &RayPre, tmax: f32, c: &mut C) -> bool;
 }
 
 /// Asks for the cache lines that hold `x` (a hint; no effect off x86-64).
@@ -567,6 +602,7 @@ pub(crate) unsafe fn intersect<const W: usize, B: BoxTest<W>, L: Leaves, C: Coun
             let node = unsafe { node_at(nodes, cur) };
             let hits = unsafe { B::test_hits(node, r, hit.t, &mut dist) };
             c.node();
+            c.node_read(std::ptr::from_ref(node) as usize, std::mem::size_of::<WideNode<W>>());
             if hits.mask != 0 {
                 cur = visit_children::<W, false>(nodes, node, &dist, &hits, &mut st_code, &mut st_t, &mut sp);
                 continue;
@@ -574,7 +610,7 @@ pub(crate) unsafe fn intersect<const W: usize, B: BoxTest<W>, L: Leaves, C: Coun
         } else if cur != EMPTY {
             let (first, count) = leaf_range(cur);
             c.items(count);
-            leaves.intersect(first, count, r, hit);
+            leaves.intersect(first, count, r, hit, c);
         }
         // Pop the nearest entry that can still hold a closer hit.
         loop {
@@ -619,6 +655,7 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves, C: Count
             let node = unsafe { node_at(nodes, cur) };
             let hits = unsafe { B::test_hits(node, r, tmax, &mut dist) };
             c.node();
+            c.node_read(std::ptr::from_ref(node) as usize, std::mem::size_of::<WideNode<W>>());
             if hits.mask != 0 {
                 // Nearest child first: an occluder near the ray's start ends the query soonest.
                 cur = visit_children::<W, true>(nodes, node, &dist, &hits, &mut st_code, &mut st_t, &mut sp);
@@ -627,7 +664,7 @@ pub(crate) unsafe fn occluded<const W: usize, B: BoxTest<W>, L: Leaves, C: Count
         } else if cur != EMPTY {
             let (first, count) = leaf_range(cur);
             c.items(count);
-            if leaves.occluded(first, count, r, tmax) {
+            if leaves.occluded(first, count, r, tmax, c) {
                 return true;
             }
         }

@@ -14,6 +14,7 @@ mod net_cmd;
 mod path_bench;
 mod rend3r_bench;
 mod render_cmd;
+mod report_cmd;
 mod run_cmd;
 mod stats;
 mod threads;
@@ -175,6 +176,16 @@ enum Cmd {
     /// Speed reports.
     #[command(subcommand)]
     Bench(BenchCmd),
+    /// The hardware study: SaarCOR's and REND3R's tables from instrumented runs.
+    ///
+    /// For a scene: a model of SaarCOR's DynRTP prototype (90 MHz, packets of 4, traversal,
+    /// list, transformation and intersection units, 4/2/6 KB direct-mapped caches, 1 GB/s)
+    /// fed with the primary rays lucent's kernels count, through lucent's BVH and SaarCOR's
+    /// kd-trees: Table 3 (fps at 512x384), Table 4 (fps, unit usage, cache hit rates, MB/s
+    /// at 1024x768), and traversal in 24-bit floats, half and fixed point against f32. For
+    /// a REND3R program: its cycle model per frame (worst case and what the board spends)
+    /// and Table IV. Try: `lucent report --demo sunflowers --html report.html`.
+    Report(report_cmd::ReportArgs),
 }
 
 #[derive(clap::Args)]
@@ -480,6 +491,7 @@ fn run() -> Result<()> {
     match cli.cmd {
         Cmd::Render(args) => render_cmd::run(args),
         Cmd::Info { scene, demo } => render_cmd::info(scene.as_deref(), demo),
+        Cmd::Report(args) => report_cmd::run(args),
         Cmd::Animate(args) => animate_cmd::run(args),
         Cmd::View(args) => view_cmd::run(args),
         Cmd::Asm { program, output, format, camera_table } => isa_cmd::asm(&program, output, format, isa_cmd::table(camera_table == "old")),
