@@ -34,12 +34,16 @@ use crate::mesh::BuildError;
 use crate::shape::Shape;
 use crate::tlas::Instance;
 use crate::traverse::{Counters, Level};
-use crate::triangle::{UnitTriangle, NEVER_HIT, ROTATION};
+use crate::triangle::{unit_triangle_hit, UnitTriangle, NEVER_HIT, ROTATION};
 use glam::{Affine3A, Vec3};
 
 /// Rounding applied after every arithmetic step of the kd kernels (the precision
 /// emulation of the hardware study). [`Exact`] leaves f32 as it is.
 pub trait Precision {
+    /// True for plain f32: the kernels then use the reference triangle test itself
+    /// ([`crate::triangle::unit_triangle_hit`], fused products), so their hits equal the
+    /// reference kernels' to the bit.
+    const EXACT: bool = false;
     /// `x` rounded to the emulated format.
     fn r(x: f32) -> f32;
 }
@@ -49,6 +53,7 @@ pub trait Precision {
 pub struct Exact;
 
 impl Precision for Exact {
+    const EXACT: bool = true;
     #[inline(always)]
     fn r(x: f32) -> f32 {
         x
@@ -740,7 +745,9 @@ impl KdItems for KdMesh {
     fn test<P: Precision, C: Counters>(&self, id: u32, r: &Ray, kr: &KdRay, hit: &mut Hit, c: &mut C) {
         let tri = &self.tris[id as usize];
         c.triangles(std::ptr::from_ref(tri) as usize, std::mem::size_of::<UnitTriangle>(), 1);
-        if let Some((t, u, v)) = unit_hit::<P>(tri, &kr.o, &kr.d, r.tmin, hit.t) {
+        let h =
+            if P::EXACT { unit_triangle_hit(tri, r.org, r.dir, r.tmin, hit.t) } else { unit_hit::<P>(tri, &kr.o, &kr.d, r.tmin, hit.t) };
+        if let Some((t, u, v)) = h {
             *hit = Hit { t, u, v, prim: id, inst: hit.inst };
         }
     }
@@ -924,8 +931,7 @@ mod tests {
                 let r = random_ray(&mut rng);
                 let mut best: Option<(f32, u32)> = None;
                 for (i, tri) in kd.tris.iter().enumerate() {
-                    let kr = KdRay::new::<Exact>(r.org, r.dir);
-                    if let Some((t, _, _)) = unit_hit::<Exact>(tri, &kr.o, &kr.d, r.tmin, best.map_or(r.tmax, |b| b.0)) {
+                    if let Some((t, _, _)) = unit_triangle_hit(tri, r.org, r.dir, r.tmin, best.map_or(r.tmax, |b| b.0)) {
                         best = Some((t, i as u32));
                     }
                 }
@@ -999,7 +1005,12 @@ mod tests {
         let mut c = Count::default();
         let h = m.intersect_with::<Exact, _>(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z), &mut c).unwrap();
         assert_eq!((h.t, c.stats.nodes, c.reads, c.lists, c.tris), (1.0, 1, 1, 1, 1));
-        let tl = KdTwoLevel::new(vec![KdGeometry::Mesh(m)], vec![Instance::new(0, Affine3A::from_translation(Vec3::new(5.0, 0.0, 0.0)))], KdOptions::default()).unwrap();
+        let tl = KdTwoLevel::new(
+            vec![KdGeometry::Mesh(m)],
+            vec![Instance::new(0, Affine3A::from_translation(Vec3::new(5.0, 0.0, 0.0)))],
+            KdOptions::default(),
+        )
+        .unwrap();
         let mut c = Count::default();
         let h = tl.intersect_with::<Exact, _>(&Ray::new(Vec3::new(5.2, 0.2, 1.0), -Vec3::Z), &mut c).unwrap();
         // Top: one leaf node and one list entry; bottom: one leaf node, one entry, one triangle.

@@ -26,8 +26,8 @@
 
 pub mod build;
 pub mod closed;
-pub mod kd;
 mod geom;
+pub mod kd;
 mod kernel;
 mod mesh;
 pub mod packet;

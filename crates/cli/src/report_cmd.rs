@@ -61,7 +61,10 @@ pub fn run(a: ReportArgs) -> Result<()> {
     let program = a.input.as_deref().is_some_and(is_program);
     match (a.machine.as_deref(), program) {
         (Some("rend3r"), false) => bail!("--machine rend3r models REND3R programs (.rdr, .mem, .bin); give one"),
-        (Some("saarcor"), true) => bail!("--machine saarcor models scenes; {} is a REND3R program", a.input.as_deref().map_or(String::new(), |p| p.display().to_string())),
+        (Some("saarcor"), true) => bail!(
+            "--machine saarcor models scenes; {} is a REND3R program",
+            a.input.as_deref().map_or(String::new(), |p| p.display().to_string())
+        ),
         _ => {}
     }
     if program {
@@ -75,7 +78,9 @@ fn formats(s: &str) -> Result<Vec<Format>> {
     if s == "none" {
         return Ok(Vec::new());
     }
-    s.split(',').map(|f| Format::parse(f.trim()).with_context(|| format!("--precision: unknown format '{f}' (f24, f16, fixed or none)"))).collect()
+    s.split(',')
+        .map(|f| Format::parse(f.trim()).with_context(|| format!("--precision: unknown format '{f}' (f24, f16, fixed or none)")))
+        .collect()
 }
 
 fn saarcor(a: &ReportArgs) -> Result<()> {
@@ -85,7 +90,12 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
     let formats = formats(&a.precision)?;
     let scene = load_scene(a.input.as_deref(), &a.demo)?;
     let name = a.input.as_deref().map_or_else(|| a.demo.label(), |p| p.display().to_string());
-    let desc = choose_camera(&scene, a.camera.as_deref(), false)?;
+    // The harness presets' cameras (shared/scenes/README.md) for their files.
+    let preset = a.input.as_deref().and_then(|p| crate::frame_bench::PRESETS.iter().find(|q| p.ends_with(q.file)));
+    let desc = match (preset, a.camera.as_deref()) {
+        (Some(q), None) => choose_camera(&scene, Some(&q.cam), false)?,
+        (_, cam) => choose_camera(&scene, cam, false)?,
+    };
     let triangles = scene.meshes.iter().map(|m| m.indices.len()).sum();
     let world = World::new(scene, MeshOptions::default())?;
     let t = Instant::now();
@@ -169,7 +179,12 @@ fn rend3r(a: &ReportArgs) -> Result<()> {
     let size = a.size.unwrap_or((512, 384));
     let fs = FrameSettings { width: size.0, height: size.1, mode, sets, painter: false, spp: 1 };
     let mut p = Processor::new(words, lucent_isa::CameraTable::Final).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    let mut rep = Rend3rReport { program: path.display().to_string(), mode: if mode == Mode::Raster { "raster" } else { "raytrace" }, size, ..Rend3rReport::default() };
+    let mut rep = Rend3rReport {
+        program: path.display().to_string(),
+        mode: if mode == Mode::Raster { "raster" } else { "raytrace" },
+        size,
+        ..Rend3rReport::default()
+    };
     for frame in 1..=a.frames {
         if p.run_to_frame(50_000_000) != Step::Frame {
             break;

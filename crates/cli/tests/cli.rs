@@ -498,3 +498,75 @@ fn the_server_soak_loses_no_frame() {
     assert!(text.contains("lost 0, wrong 0") && text.contains("panics: 0"), "{text}");
     assert!(text.contains("received 840"), "{text}");
 }
+
+/// `lucent report` on a REND3R program: its frames' cycles by the formula, and Table IV.
+#[test]
+fn report_on_a_rend3r_program() {
+    let o = lucent().arg("report").arg(rend3r("raytracing/sw/rt_spheres.rdr")).args(["--frames", "1"]).output().expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s = String::from_utf8_lossy(&o.stdout);
+    // 2 shapes, 1 light at 512x384: the worst case is the paper's 81,395,712 cycles.
+    assert!(s.contains("| 1 | 2 | 1 | 81395712 |"), "{s}");
+    assert!(s.contains("| 4096 | 1 | 16.912 | 16.9 s |"), "{s}");
+    assert!(s.contains("45766350 cycles on the board"), "{s}");
+    let o = lucent().arg("report").arg(rend3r("raytracing/sw/rt_spheres.rdr")).args(["--frames", "1", "--json"]).output().expect("run");
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.lines().any(|l| l.contains("\"table\":\"rend3r_frames\"") && l.contains("\"cycles_worst\":81395712")), "{s}");
+    // A program is not a scene.
+    let o = lucent().arg("report").arg(rend3r("raytracing/sw/rt_spheres.rdr")).args(["--machine", "saarcor"]).output().expect("run");
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("is a REND3R program"));
+}
+
+/// `lucent report` on a scene: both indices' Table 3 and 4 rows, the precision table and
+/// the HTML page with its images.
+#[test]
+fn report_on_a_scene() {
+    let dir = std::env::temp_dir().join(format!("lucent-report-{}", std::process::id()));
+    let html = dir.join("r.html");
+    let o = lucent()
+        .args(["report", "--demo", "sunflowers", "--size", "128x96", "--precision-size", "64x48", "--html"])
+        .arg(&html)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s = String::from_utf8_lossy(&o.stdout);
+    for want in [
+        "| bvh | 512x384 |",
+        "| kd | 512x384 |",
+        "| bvh | 128x96 |",
+        "| kd | 128x96 |",
+        "| f24 |",
+        "| f16 |",
+        "| fixed |",
+        "Modelling assumptions",
+    ] {
+        assert!(s.contains(want), "missing {want}: {s}");
+    }
+    let page = std::fs::read_to_string(&html).expect("html");
+    assert!(page.contains("<svg") && page.contains("Hit rate against cache size") && page.contains("r-kd-steps.png"));
+    assert!(dir.join("r-kd-misses.png").is_file() && dir.join("r-precision-f24-diff.png").is_file());
+    let o = lucent()
+        .args(["report", "--demo", "sunflowers", "--size", "64x48", "--precision", "none", "--index", "kd", "--json"])
+        .output()
+        .expect("run");
+    let s = String::from_utf8_lossy(&o.stdout);
+    let rows: Vec<&str> = s.lines().collect();
+    assert_eq!(rows.len(), 2, "{s}");
+    for key in [
+        "fps",
+        "usage_trav",
+        "usage_list",
+        "usage_transf",
+        "usage_int",
+        "hit_trav",
+        "hit_list",
+        "hit_transf",
+        "mb_s_core",
+        "mb_s_shading",
+        "mb_s_total",
+    ] {
+        assert!(rows.iter().all(|r| r.contains(&format!("\"{key}\":"))), "{key}: {s}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

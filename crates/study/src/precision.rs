@@ -142,7 +142,11 @@ pub struct PrecisionRow {
 
 /// Eye-light shading of the kd index's primary hits with precision `P`: 0.1 + 0.9 |n·d|,
 /// 0 for a miss; and the hit ids.
-fn eye_light<P: Precision + Sync>(world: &lucent_render::World, kd: &lucent_accel::kd::KdTwoLevel, cam: &lucent_render::Camera) -> (Vec<f32>, Vec<(u32, u32)>) {
+fn eye_light<P: Precision + Sync>(
+    world: &lucent_render::World,
+    kd: &lucent_accel::kd::KdTwoLevel,
+    cam: &lucent_render::Camera,
+) -> (Vec<f32>, Vec<(u32, u32)>) {
     use rayon::prelude::*;
     let (w, h) = cam.size();
     (0..w * h)
@@ -162,7 +166,12 @@ fn eye_light<P: Precision + Sync>(world: &lucent_render::World, kd: &lucent_acce
 
 /// The precision table of one view: f32 first, then each of `formats`.
 #[must_use]
-pub fn precision_study(world: &lucent_render::World, kd: &lucent_accel::kd::KdTwoLevel, cam: &lucent_render::Camera, formats: &[Format]) -> Vec<PrecisionRow> {
+pub fn precision_study(
+    world: &lucent_render::World,
+    kd: &lucent_accel::kd::KdTwoLevel,
+    cam: &lucent_render::Camera,
+    formats: &[Format],
+) -> Vec<PrecisionRow> {
     use lucent_accel::kd::Exact;
     let (ref_img, ref_ids) = eye_light::<Exact>(world, kd, cam);
     let mut rows = vec![PrecisionRow { format: Format::F32, changed_pct: 0.0, psnr: f64::INFINITY, image: ref_img.clone() }];
@@ -174,7 +183,12 @@ pub fn precision_study(world: &lucent_render::World, kd: &lucent_accel::kd::KdTw
             Format::F32 => eye_light::<Exact>(world, kd, cam),
         };
         let changed = ids.iter().zip(&ref_ids).filter(|(a, b)| a != b).count();
-        rows.push(PrecisionRow { format: f, changed_pct: 100.0 * changed as f64 / ids.len().max(1) as f64, psnr: psnr(&img, &ref_img), image: img });
+        rows.push(PrecisionRow {
+            format: f,
+            changed_pct: 100.0 * changed as f64 / ids.len().max(1) as f64,
+            psnr: psnr(&img, &ref_img),
+            image: img,
+        });
     }
     rows
 }

@@ -44,7 +44,14 @@ pub struct Machine {
 
 impl Default for Machine {
     fn default() -> Self {
-        Self { clock_hz: 90e6, memory_bytes_s: 1e9, cache_bytes: [4096, 2048, 6144], cache_items: [512; 3], shade_steps: 2, shade_bytes: 60 }
+        Self {
+            clock_hz: 90e6,
+            memory_bytes_s: 1e9,
+            cache_bytes: [4096, 2048, 6144],
+            cache_items: [512; 3],
+            shade_steps: 2,
+            shade_bytes: 60,
+        }
     }
 }
 
@@ -216,7 +223,8 @@ pub fn model_frame(index: &Traced<'_>, cam: &Camera, m: &Machine) -> FrameModel 
     let (w, h) = cam.size();
     let mut caches: Vec<DirectMapped> = (0..3).map(|i| DirectMapped::new(m.cache_bytes[i], m.cache_items[i])).collect();
     let item = [8u64, 4, 12];
-    let mut sweep: Vec<[DirectMapped; 3]> = SWEEP_KB.iter().map(|&kb| std::array::from_fn(|i| DirectMapped::new(kb * 1024, kb * 1024 / item[i]))).collect();
+    let mut sweep: Vec<[DirectMapped; 3]> =
+        SWEEP_KB.iter().map(|&kb| std::array::from_fn(|i| DirectMapped::new(kb * 1024, kb * 1024 / item[i]))).collect();
     let mut busy = [0u64; 4];
     let mut hit_rays = 0u64;
     let mut heat_steps = vec![0f32; (w * h) as usize];
