@@ -924,8 +924,8 @@ mod tests {
     fn kd_mesh_matches_brute_force() {
         for seed in 0..4 {
             let (p, idx) = soup(300 + 200 * seed as usize, seed);
-            let kd = KdMesh::build(&p, &idx, KdOptions::default()).unwrap();
-            kd.tree.validate(idx.len()).unwrap();
+            let kd = KdMesh::build(&p, &idx, KdOptions::default()).expect("test value");
+            kd.tree.validate(idx.len()).expect("test value");
             let mut rng = rand_pcg::Pcg64::seed_from_u64(100 + seed);
             for _ in 0..2000 {
                 let r = random_ray(&mut rng);
@@ -945,13 +945,14 @@ mod tests {
     #[test]
     fn kd_packets_match_single_rays() {
         let (p, idx) = soup(800, 9);
-        let g = vec![KdGeometry::Mesh(KdMesh::build(&p, &idx, KdOptions::default()).unwrap()), KdGeometry::Shape(Shape::Sphere)];
+        let g =
+            vec![KdGeometry::Mesh(KdMesh::build(&p, &idx, KdOptions::default()).expect("test value")), KdGeometry::Shape(Shape::Sphere)];
         let insts = vec![
             Instance::new(0, Affine3A::IDENTITY),
             Instance::new(0, Affine3A::from_rotation_translation(glam::Quat::from_rotation_y(0.7), Vec3::new(3.0, 1.0, 0.0))),
             Instance::new(1, Affine3A::from_scale_rotation_translation(Vec3::splat(2.0), glam::Quat::IDENTITY, Vec3::new(0.0, 6.0, 0.0))),
         ];
-        let tl = KdTwoLevel::new(g, insts, KdOptions::default()).unwrap();
+        let tl = KdTwoLevel::new(g, insts, KdOptions::default()).expect("test value");
         let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
         let mut packets = 0;
         for _ in 0..1500 {
@@ -1001,18 +1002,18 @@ mod tests {
             }
         }
         let p = [Vec3::ZERO, Vec3::X, Vec3::Y];
-        let m = KdMesh::build(&p, &[[0, 1, 2]], KdOptions::default()).unwrap();
+        let m = KdMesh::build(&p, &[[0, 1, 2]], KdOptions::default()).expect("test value");
         let mut c = Count::default();
-        let h = m.intersect_with::<Exact, _>(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z), &mut c).unwrap();
+        let h = m.intersect_with::<Exact, _>(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z), &mut c).expect("test value");
         assert_eq!((h.t, c.stats.nodes, c.reads, c.lists, c.tris), (1.0, 1, 1, 1, 1));
         let tl = KdTwoLevel::new(
             vec![KdGeometry::Mesh(m)],
             vec![Instance::new(0, Affine3A::from_translation(Vec3::new(5.0, 0.0, 0.0)))],
             KdOptions::default(),
         )
-        .unwrap();
+        .expect("test value");
         let mut c = Count::default();
-        let h = tl.intersect_with::<Exact, _>(&Ray::new(Vec3::new(5.2, 0.2, 1.0), -Vec3::Z), &mut c).unwrap();
+        let h = tl.intersect_with::<Exact, _>(&Ray::new(Vec3::new(5.2, 0.2, 1.0), -Vec3::Z), &mut c).expect("test value");
         // Top: one leaf node and one list entry; bottom: one leaf node, one entry, one triangle.
         assert_eq!((h.inst, c.stats.nodes, c.lists, c.tris, c.transforms), (0, 2, 2, 1, 1));
         let mut c = Count::default();

@@ -84,7 +84,7 @@ fn formats(s: &str) -> Result<Vec<Format>> {
 }
 
 fn saarcor(a: &ReportArgs) -> Result<()> {
-    if a.cache_bytes.len() != 3 || a.cache_bytes.iter().any(|&b| b == 0) || a.cache_items == 0 {
+    if a.cache_bytes.len() != 3 || a.cache_bytes.contains(&0) || a.cache_items == 0 {
         bail!("--cache-bytes needs three sizes above 0 (traversal, list, transformation) and --cache-items a count above 0");
     }
     let formats = formats(&a.precision)?;

@@ -68,6 +68,39 @@ pub fn rasterized(triangles: u64, pixels: u64) -> Cycles {
     Cycles { worst: c, board: c }
 }
 
+/// Cycles of one frame of `state` as REND3R would spend them: the set records and lights
+/// the program wrote, and, for the board, the pixels whose
+/// camera ray (through the pixel centre, lucent's camera) hits a shape. Returns the
+/// cycles and the number of pixels hit.
+///
+/// # Errors
+/// When the scene cannot be built (as [`crate::render_frame`]).
+pub fn frame_cycles(state: &crate::DeviceState, fs: &crate::FrameSettings) -> Result<(Cycles, u64), lucent_render::WorldError> {
+    let pixels = u64::from(fs.width) * u64::from(fs.height);
+    match fs.mode {
+        crate::Mode::Raster => Ok((rasterized(state.used_sets() as u64, pixels), 0)),
+        crate::Mode::Raytrace => {
+            let cam = crate::camera(state, fs.width, fs.height);
+            let (scene, _) = crate::scene(state, fs.sets);
+            // Every written record costs the shape unit a cycle, shape or triangle.
+            let shapes = state.used_sets() as u64;
+            let lights = state.used_lights() as u64;
+            let world = lucent_render::World::new(scene, lucent_accel::MeshOptions::default())?;
+            let hits = hit_pixels(&world, &cam, fs.width, fs.height);
+            Ok((ray_traced(shapes, lights, pixels, hits), hits))
+        }
+    }
+}
+
+/// Pixels whose centre ray hits something.
+fn hit_pixels(world: &lucent_render::World, cam: &lucent_render::Camera, w: u32, h: u32) -> u64 {
+    use rayon::prelude::*;
+    (0..h)
+        .into_par_iter()
+        .map(|y| (0..w).filter(|&x| world.intersect(&cam.ray(x as f32 + 0.5, y as f32 + 0.5)).is_some()).count() as u64)
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -103,37 +136,4 @@ mod tests {
         assert_eq!(rasterized(10, PX).board, 10 * 196_675);
         assert_eq!(rasterized(0, PX).worst, 0);
     }
-}
-
-/// Cycles of one frame of `state` as REND3R would spend them: the set records and lights
-/// the program wrote, and, for the board, the pixels whose
-/// camera ray (through the pixel centre, lucent's camera) hits a shape. Returns the
-/// cycles and the number of pixels hit.
-///
-/// # Errors
-/// When the scene cannot be built (as [`crate::render_frame`]).
-pub fn frame_cycles(state: &crate::DeviceState, fs: &crate::FrameSettings) -> Result<(Cycles, u64), lucent_render::WorldError> {
-    let pixels = u64::from(fs.width) * u64::from(fs.height);
-    match fs.mode {
-        crate::Mode::Raster => Ok((rasterized(state.used_sets() as u64, pixels), 0)),
-        crate::Mode::Raytrace => {
-            let cam = crate::camera(state, fs.width, fs.height);
-            let (scene, _) = crate::scene(state, fs.sets);
-            // Every written record costs the shape unit a cycle, shape or triangle.
-            let shapes = state.used_sets() as u64;
-            let lights = state.used_lights() as u64;
-            let world = lucent_render::World::new(scene, lucent_accel::MeshOptions::default())?;
-            let hits = hit_pixels(&world, &cam, fs.width, fs.height);
-            Ok((ray_traced(shapes, lights, pixels, hits), hits))
-        }
-    }
-}
-
-/// Pixels whose centre ray hits something.
-fn hit_pixels(world: &lucent_render::World, cam: &lucent_render::Camera, w: u32, h: u32) -> u64 {
-    use rayon::prelude::*;
-    (0..h)
-        .into_par_iter()
-        .map(|y| (0..w).filter(|&x| world.intersect(&cam.ray(x as f32 + 0.5, y as f32 + 0.5)).is_some()).count() as u64)
-        .sum()
 }

@@ -158,10 +158,12 @@ fn model_tables_on_every_shared_scene() {
 #[test]
 fn model_of_one_triangle() {
     let mut s = lucent_scene::Scene::default();
-    let mut mesh = lucent_scene::Mesh::default();
-    mesh.positions = vec![Vec3::new(-10.0, -10.0, 0.0), Vec3::new(10.0, -10.0, 0.0), Vec3::new(0.0, 10.0, 0.0)];
-    mesh.indices = vec![[0, 1, 2]];
-    mesh.material = vec![0];
+    let mesh = lucent_scene::Mesh {
+        positions: vec![Vec3::new(-10.0, -10.0, 0.0), Vec3::new(10.0, -10.0, 0.0), Vec3::new(0.0, 10.0, 0.0)],
+        indices: vec![[0, 1, 2]],
+        material: vec![0],
+        ..Default::default()
+    };
     s.materials.push(lucent_scene::Material::default());
     s.add_mesh(mesh);
     let world = World::new(s, MeshOptions::default()).expect("world");
