@@ -510,18 +510,14 @@ fn walk<P: Precision, C: Counters, I: KdItems>(tree: &KdTree, items: &I, r: &Ray
         if hit.prim != INVALID && hit.t <= tf {
             break;
         }
-        let Some((n, a, b)) = stack.pop() else { break };
-        (cur, tn, tf) = (n, a, b.min(hit.t));
-        if tn > tf {
-            // The rest of this stack entry lies beyond the hit found: look for one that does not.
-            loop {
-                let Some((n, a, b)) = stack.pop() else {
-                    return finish(hit, before);
-                };
-                (cur, tn, tf) = (n, a, b.min(hit.t));
-                if tn <= tf {
-                    break;
-                }
+        // The next stack entry whose segment still starts before the hit found.
+        loop {
+            let Some((n, a, b)) = stack.pop() else {
+                return finish(hit, before);
+            };
+            (cur, tn, tf) = (n, a, b.min(hit.t));
+            if tn <= tf {
+                break;
             }
         }
     }
@@ -595,18 +591,13 @@ fn walk4<P: Precision, C: Counters, I: KdItems>(tree: &KdTree, items: &I, rays: 
                 continue;
             }
             if go_far != 0 {
+                // Lanes going both ways: [t, tf] later on the far side, [tn, t] now.
                 let (mut ftn, ftf) = (tn, tf);
-                for l in 0..4 {
-                    if go_far & (1 << l) != 0 && go_near & (1 << l) != 0 {
-                        ftn[l] = tsplit[l];
-                    }
+                for l in (0..4).filter(|l| go_far & go_near & (1 << l) != 0) {
+                    ftn[l] = tsplit[l];
+                    tf[l] = tsplit[l];
                 }
                 stack.push((far, ftn, ftf, go_far));
-                for l in 0..4 {
-                    if go_far & (1 << l) != 0 && go_near & (1 << l) != 0 {
-                        tf[l] = tsplit[l];
-                    }
-                }
             }
             active = go_near;
             cur = near;
@@ -809,6 +800,16 @@ impl KdTwoLevel {
     #[must_use]
     pub fn geometries(&self) -> &[KdGeometry] {
         &self.geometries
+    }
+
+    /// Bytes of the index: both levels' nodes and lists, and the meshes' triangle maps.
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        let meshes = self.geometries.iter().map(|g| match g {
+            KdGeometry::Mesh(m) => m.tree.stats().bytes + std::mem::size_of_val(m.tris.as_slice()),
+            KdGeometry::Shape(_) => 0,
+        });
+        self.top.stats().bytes + meshes.sum::<usize>()
     }
 
     /// Closest hit of one ray with precision `P`, reporting to `c`.

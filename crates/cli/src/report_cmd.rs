@@ -5,7 +5,7 @@ use anyhow::{bail, Context, Result};
 use lucent_accel::MeshOptions;
 use lucent_render::{Camera, World};
 use lucent_study::precision::{precision_study, Format};
-use lucent_study::report::{Rend3rReport, SaarcorReport};
+use lucent_study::report::{Rend3rReport, SaarcorReport, Tables};
 use lucent_study::saarcor::{model_frame, Machine, Traced};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -119,7 +119,7 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
         scene: name,
         triangles,
         instances: world.accel().instances().len(),
-        index_bytes: vec![("bvh", top.bytes + bottom.bytes), ("kd", kd_bytes(&kd))],
+        index_bytes: vec![("bvh", top.bytes + bottom.bytes), ("kd", kd.bytes())],
         precision_size: a.precision_size,
         ..SaarcorReport::default()
     };
@@ -129,20 +129,14 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
     }
     // lucent's own time for the same rays (the fast single-ray kernels, this machine).
     let t = Instant::now();
-    let hits = primary_hits(&world, &cam4);
+    let hits = lucent_device::cycles::hit_pixels(&world, &cam4, size4.0, size4.1);
     rep.lucent_ms = Some(t.elapsed().as_secs_f64() * 1e3);
     tracing::debug!("{hits} primary hits");
     if !formats.is_empty() {
         let camp = Camera::new(&desc, a.precision_size.0, a.precision_size.1);
         rep.precision = precision_study(&world, &kd, &camp, &formats);
     }
-    if a.json {
-        for l in rep.json_lines() {
-            println!("{l}");
-        }
-    } else {
-        print!("{}", rep.markdown());
-    }
+    print_tables(a.json, &rep);
     if let Some(path) = &a.html {
         let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -154,20 +148,15 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
     Ok(())
 }
 
-fn kd_bytes(kd: &lucent_accel::kd::KdTwoLevel) -> usize {
-    let mut b = kd.top().stats().bytes;
-    for g in kd.geometries() {
-        if let lucent_accel::kd::KdGeometry::Mesh(m) = g {
-            b += m.tree().stats().bytes + m.triangles() * std::mem::size_of::<lucent_accel::triangle::UnitTriangle>();
+/// The tables on standard output: JSON lines with `--json`, else Markdown.
+fn print_tables(json: bool, rep: &impl Tables) {
+    if json {
+        for l in rep.json_lines() {
+            println!("{l}");
         }
+    } else {
+        print!("{}", rep.markdown());
     }
-    b
-}
-
-fn primary_hits(world: &World, cam: &Camera) -> usize {
-    use rayon::prelude::*;
-    let (w, h) = cam.size();
-    (0..h).into_par_iter().map(|y| (0..w).filter(|&x| world.intersect(&cam.ray(x as f32 + 0.5, y as f32 + 0.5)).is_some()).count()).sum()
 }
 
 fn rend3r(a: &ReportArgs) -> Result<()> {
@@ -195,13 +184,7 @@ fn rend3r(a: &ReportArgs) -> Result<()> {
         let (c, hits) = lucent_device::cycles::frame_cycles(&p.state, &fs)?;
         rep.frames.push((frame, p.state.used_sets() as u64, p.state.used_lights() as u64, c.worst, c.board, hits, ms));
     }
-    if a.json {
-        for l in rep.json_lines() {
-            println!("{l}");
-        }
-    } else {
-        print!("{}", rep.markdown());
-    }
+    print_tables(a.json, &rep);
     if let Some(path) = &a.html {
         std::fs::write(path, rep.html()).with_context(|| format!("cannot write {}", path.display()))?;
         eprintln!("wrote {}", path.display());

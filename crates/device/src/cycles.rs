@@ -92,8 +92,9 @@ pub fn frame_cycles(state: &crate::DeviceState, fs: &crate::FrameSettings) -> Re
     }
 }
 
-/// Pixels whose centre ray hits something.
-fn hit_pixels(world: &lucent_render::World, cam: &lucent_render::Camera, w: u32, h: u32) -> u64 {
+/// Pixels of a `w`×`h` frame whose centre ray hits something.
+#[must_use]
+pub fn hit_pixels(world: &lucent_render::World, cam: &lucent_render::Camera, w: u32, h: u32) -> u64 {
     use rayon::prelude::*;
     (0..h)
         .into_par_iter()

@@ -29,6 +29,14 @@ pub fn saarcor_paper_says(scene: &str) -> Option<&'static str> {
     }
 }
 
+/// A report's tables in the two forms `lucent report` prints.
+pub trait Tables {
+    /// The tables in Markdown.
+    fn markdown(&self) -> String;
+    /// One JSON line per table row.
+    fn json_lines(&self) -> Vec<String>;
+}
+
 /// A SaarCOR report of one scene.
 #[derive(Clone, Debug, Default)]
 pub struct SaarcorReport {
@@ -60,10 +68,8 @@ fn f1(x: f64) -> String {
     }
 }
 
-impl SaarcorReport {
-    /// The tables in Markdown.
-    #[must_use]
-    pub fn markdown(&self) -> String {
+impl Tables for SaarcorReport {
+    fn markdown(&self) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "## SaarCOR DynRTP model: {} ({} triangles, {} instances)\n", self.scene, self.triangles, self.instances);
         if let Some(p) = saarcor_paper_says(&self.scene) {
@@ -136,9 +142,7 @@ impl SaarcorReport {
         s
     }
 
-    /// One JSON line per table row.
-    #[must_use]
-    pub fn json_lines(&self) -> Vec<String> {
+    fn json_lines(&self) -> Vec<String> {
         let mut out = Vec::new();
         for (table, rows) in [("saarcor_table3", &self.table3), ("saarcor_table4", &self.table4)] {
             for r in rows {
@@ -176,7 +180,9 @@ impl SaarcorReport {
         }
         out
     }
+}
 
+impl SaarcorReport {
     /// The HTML page; images it refers to are written into `dir` under `stem`.
     ///
     /// # Errors
@@ -266,10 +272,8 @@ pub fn table_iv() -> Vec<(u64, u64, f64, Option<f64>)> {
     rows
 }
 
-impl Rend3rReport {
-    /// The tables in Markdown.
-    #[must_use]
-    pub fn markdown(&self) -> String {
+impl Tables for Rend3rReport {
+    fn markdown(&self) -> String {
         use lucent_device::cycles::PAPER_MEASURED;
         let mut s = String::new();
         let _ = writeln!(s, "## REND3R cycle model: {} ({}, {}x{})\n", self.program, self.mode, self.size.0, self.size.1);
@@ -299,9 +303,7 @@ impl Rend3rReport {
         s
     }
 
-    /// One JSON line per frame.
-    #[must_use]
-    pub fn json_lines(&self) -> Vec<String> {
+    fn json_lines(&self) -> Vec<String> {
         let mut out: Vec<String> = self
             .frames
             .iter()
@@ -324,7 +326,9 @@ impl Rend3rReport {
         }
         out
     }
+}
 
+impl Rend3rReport {
     /// The HTML page.
     #[must_use]
     pub fn html(&self) -> String {

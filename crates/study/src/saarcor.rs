@@ -90,7 +90,6 @@ enum Kind {
 /// under (a bottom-level node under two instances is two visits).
 #[derive(Default)]
 struct Recorder {
-    level: Option<Level>,
     context: usize,
     reads: Vec<(Kind, usize, u32, usize)>,
 }
@@ -99,7 +98,6 @@ impl Counters for Recorder {
     fn node(&mut self) {}
     fn items(&mut self, _: u32) {}
     fn enter(&mut self, level: Level) {
-        self.level = Some(level);
         if level == Level::Top {
             self.context = 0;
         }
