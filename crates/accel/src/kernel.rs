@@ -35,14 +35,7 @@ impl Kernel {
     /// True when the AVX-512VL build of the kernels can run here.
     #[must_use]
     pub fn avx512_available() -> bool {
-        #[cfg(target_arch = "x86_64")]
-        {
-            Self::simd_available() && std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512vl")
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            false
-        }
+        crate::simd::avx512()
     }
 
     /// Every kernel this CPU can run (for tests and benchmarks).
@@ -61,14 +54,7 @@ impl Kernel {
     /// True when the SIMD kernel can run here.
     #[must_use]
     pub fn simd_available() -> bool {
-        #[cfg(target_arch = "x86_64")]
-        {
-            std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            false
-        }
+        crate::simd::avx2_fma()
     }
 
     /// `self` if the CPU supports it, else the best lesser kernel.

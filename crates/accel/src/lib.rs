@@ -35,6 +35,7 @@ pub mod reference;
 pub mod reinsert;
 mod shadow_grid;
 mod shape;
+pub mod simd;
 mod tlas;
 pub mod traverse;
 pub mod triangle;

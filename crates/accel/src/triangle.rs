@@ -166,7 +166,7 @@ pub fn unit_map_possible(v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
 #[must_use]
 pub fn unit_maps4_soa(tris: &[[Vec3; 3]; 4]) -> ([[f32; 4]; 9], [u32; 4], [bool; 4]) {
     #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("avx") {
+    if crate::simd::avx() {
         // SAFETY: AVX was just detected.
         return unsafe { unit_maps4_soa_avx(tris) };
     }
@@ -562,7 +562,7 @@ pub(crate) mod sse {
 #[must_use]
 pub fn tri4_intersect(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<LaneHit> {
     #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+    if crate::simd::avx2_fma() {
         // SAFETY: AVX2 and FMA were just detected.
         return unsafe { sse::intersect(t4, o, d, tmin, tmax) };
     }
@@ -574,7 +574,7 @@ pub fn tri4_intersect(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Opti
 #[must_use]
 pub fn tri4_occluded(t4: &Tri4, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
     #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+    if crate::simd::avx2_fma() {
         // SAFETY: AVX2 and FMA were just detected.
         return unsafe { sse::occluded(t4, o, d, tmin, tmax) };
     }
@@ -672,7 +672,7 @@ mod tests {
     #[test]
     fn scaled_test_picks_the_scalar_lane() {
         use rand::{Rng, SeedableRng};
-        if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
+        if !(crate::simd::avx2_fma()) {
             return;
         }
         let mut rng = rand_pcg::Pcg64::seed_from_u64(11);

@@ -298,10 +298,7 @@ impl Prepared {
                 next[b] += 1;
             }
         }
-        #[cfg(target_arch = "x86_64")]
-        let simd = std::is_x86_feature_detected!("avx2");
-        #[cfg(not(target_arch = "x86_64"))]
-        let simd = false;
+        let simd = lucent_accel::simd::avx2();
         Some(Self { blocks_x, height, centres, simd, fills, start, list })
     }
 
@@ -956,7 +953,7 @@ mod tests {
     fn row_kernels_agree() {
         #[cfg(target_arch = "x86_64")]
         {
-            if !std::is_x86_feature_detected!("avx2") {
+            if !lucent_accel::simd::avx2() {
                 eprintln!("no AVX2 here: only the scalar kernel runs");
                 return;
             }
@@ -997,7 +994,7 @@ mod tests {
             let n = (bx * h.div_ceil(BLOCK_EDGE)) as usize;
             for centres in [false, true] {
                 let mut got = Vec::new();
-                for simd in [false, cfg!(target_arch = "x86_64") && std::is_x86_feature_detected!("avx2")] {
+                for simd in [false, lucent_accel::simd::avx2()] {
                     let mut c = Coverage { by0: 0, blocks_x: bx, masks: vec![0; n], cands: vec![Candidates::default(); n] };
                     e.fill(&mut c.all(), e.ya, e.yb, 3, centres, simd);
                     got.push(c);
@@ -1016,7 +1013,7 @@ mod tests {
             let bx = w.div_ceil(BLOCK_EDGE);
             let n = (bx * h.div_ceil(BLOCK_EDGE)) as usize;
             let mut c = Coverage { by0: 0, blocks_x: bx, masks: vec![0; n], cands: vec![Candidates::default(); n] };
-            let simd = simd && cfg!(target_arch = "x86_64") && std::is_x86_feature_detected!("avx2");
+            let simd = simd && lucent_accel::simd::avx2();
             e.fill(&mut c.all(), 0, h - 1, 1, true, simd);
             assert_eq!(c.count(), u64::from(w * h), "simd {simd}");
         }

@@ -119,54 +119,7 @@ impl Real for f32 {
     }
 }
 
-/// Eight floats, one per lane (operations are lane-wise loops; see the module notes).
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C, align(32))]
-pub(crate) struct F8(pub [f32; W]);
-
-/// Eight lane masks (all bits set = true).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(C, align(32))]
-pub(crate) struct M8(pub [i32; W]);
-
-/// A lane-wise binary operator `$op` on the eight-lane type `$ty` (of `$elem`s).
-macro_rules! lanewise {
-    ($ty:ident, $elem:ty, $tr:ident, $name:ident, $op:tt) => {
-        impl $tr for $ty {
-            type Output = $ty;
-            #[inline(always)]
-            fn $name(self, o: Self) -> Self {
-                let mut r = [<$elem>::default(); W];
-                for i in 0..W {
-                    r[i] = self.0[i] $op o.0[i];
-                }
-                $ty(r)
-            }
-        }
-    };
-}
-lanewise!(F8, f32, Add, add, +);
-lanewise!(F8, f32, Sub, sub, -);
-lanewise!(F8, f32, Mul, mul, *);
-lanewise!(F8, f32, Div, div, /);
-lanewise!(M8, i32, BitAnd, bitand, &);
-lanewise!(M8, i32, BitOr, bitor, |);
-
-impl Not for M8 {
-    type Output = M8;
-    #[inline(always)]
-    fn not(self) -> Self {
-        M8(self.0.map(|m| !m))
-    }
-}
-
-impl Neg for F8 {
-    type Output = F8;
-    #[inline(always)]
-    fn neg(self) -> Self {
-        F8(self.0.map(|x| f32::from_bits(x.to_bits() ^ 0x8000_0000)))
-    }
-}
+use lucent_accel::simd::{F8, M8};
 
 macro_rules! compare {
     ($name:ident, $op:tt) => {
@@ -226,19 +179,6 @@ impl Real for F8 {
     #[inline(always)]
     fn exp2i(self) -> Self {
         F8(self.0.map(|n| f32::from_bits((n + BIAS).to_bits() << 23)))
-    }
-}
-
-impl F8 {
-    #[inline(always)]
-    fn load(row: &[f32; N], j: usize) -> Self {
-        let mut r = [0f32; W];
-        r.copy_from_slice(&row[j..j + W]);
-        F8(r)
-    }
-    #[inline(always)]
-    fn store(self, row: &mut [f32; N], j: usize) {
-        row[j..j + W].copy_from_slice(&self.0);
     }
 }
 
@@ -615,7 +555,7 @@ fn bits8(m: M8) -> u64 {
 /// A mask from eight bits.
 #[inline(always)]
 fn mask8(b: u64) -> M8 {
-    M8(std::array::from_fn(|i| -(((b >> i) & 1) as i32)))
+    M8::from_bits((b & 0xff) as u32)
 }
 
 impl HitLanes {
@@ -691,7 +631,7 @@ impl HitLanes {
     /// the rays' origins).
     pub(crate) fn orient(&mut self) {
         #[cfg(target_arch = "x86_64")]
-        if avx2() {
+        if lucent_accel::simd::avx2_fma() {
             // SAFETY: AVX2 and FMA were detected on this CPU.
             unsafe { self.orient_avx2() };
             return;
@@ -727,7 +667,7 @@ impl HitLanes {
     pub(crate) fn light(&self, l: &Light, out: &mut LightLanes) -> usize {
         let lc = LightConst::new(l);
         #[cfg(target_arch = "x86_64")]
-        if avx2() {
+        if lucent_accel::simd::avx2_fma() {
             // SAFETY: AVX2 and FMA were detected on this CPU.
             unsafe {
                 match lc.kind {
@@ -809,13 +749,6 @@ pub(crate) fn with_scratch<R>(f: impl FnOnce(&mut Scratch) -> R) -> R {
     let r = f(&mut sc);
     LANE_POOL.with(|v| v.borrow_mut().push(sc));
     r
-}
-
-/// AVX2 and FMA are available (checked once by the standard library, then cached).
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn avx2() -> bool {
-    std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
 }
 
 /// The specular and diffuse part of a material at a hit (`kd` already textured).
