@@ -460,12 +460,33 @@ impl Mailbox {
 
 /// What a kd leaf's objects are.
 trait KdItems {
-    /// Tests object `id` against `r` within `[tmin, hit.t)`, narrowing `hit`.
-    fn test<P: Precision, C: Counters>(&self, id: u32, r: &Ray, kr: &KdRay, hit: &mut Hit, c: &mut C);
+    /// Tests object `id` against `r` within `[tmin, hit.t)`, narrowing `hit` (with `ANY`,
+    /// any hit will do: the caller only asks whether there is one).
+    fn test<P: Precision, C: Counters, const ANY: bool>(&self, id: u32, r: &Ray, kr: &KdRay, hit: &mut Hit, c: &mut C);
+    /// Tests object `id` against the rays of `lanes` of a packet. By default each ray on
+    /// its own; the top level of a two-level index overrides it to carry the packet into
+    /// the object and walk the object's tree with it.
+    #[inline(always)]
+    fn test4<P: Precision, C: Counters, const ANY: bool>(
+        &self,
+        id: u32,
+        rays: &[Ray; 4],
+        kr: &[KdRay; 4],
+        lanes: u8,
+        hits: &mut [Hit; 4],
+        c: &mut C,
+    ) {
+        for l in 0..4 {
+            if lanes & (1 << l) != 0 {
+                self.test::<P, C, ANY>(id, &rays[l], &kr[l], &mut hits[l], c);
+            }
+        }
+    }
 }
 
-/// Closest hit in `tree` over `items` (single ray); true when `hit` was narrowed.
-fn walk<P: Precision, C: Counters, I: KdItems>(tree: &KdTree, items: &I, r: &Ray, hit: &mut Hit, c: &mut C) -> bool {
+/// Closest hit in `tree` over `items` (single ray; with `ANY` the first hit found); true
+/// when `hit` was narrowed.
+fn walk<P: Precision, C: Counters, I: KdItems, const ANY: bool>(tree: &KdTree, items: &I, r: &Ray, hit: &mut Hit, c: &mut C) -> bool {
     let kr = KdRay::new::<P>(r.org, r.dir);
     let (mut tn, mut tf) = kr.clip::<P>(&tree.bounds, r.tmin, hit.t);
     if tree.nodes.is_empty() || tn > tf {
@@ -505,7 +526,10 @@ fn walk<P: Precision, C: Counters, I: KdItems>(tree: &KdTree, items: &I, r: &Ray
                 c.mailbox_hit();
                 continue;
             }
-            items.test::<P, C>(id, r, &kr, hit, c);
+            items.test::<P, C, ANY>(id, r, &kr, hit, c);
+            if ANY && hit.prim != INVALID {
+                return true;
+            }
         }
         if hit.prim != INVALID && hit.t <= tf {
             break;
@@ -533,10 +557,17 @@ fn finish(hit: &mut Hit, before: u32) -> bool {
     }
 }
 
-/// Closest hits of up to 4 rays in `tree` as one packet (rays whose direction signs all
-/// agree; the caller falls back to single rays otherwise). `live` marks the lanes to
-/// trace; returns the lanes whose hit was narrowed.
-fn walk4<P: Precision, C: Counters, I: KdItems>(tree: &KdTree, items: &I, rays: &[Ray; 4], live: u8, hits: &mut [Hit; 4], c: &mut C) -> u8 {
+/// Closest hits (with `ANY`, any hits) of up to 4 rays in `tree` as one packet (rays whose
+/// direction signs all agree; the caller falls back to single rays otherwise). `live`
+/// marks the lanes to trace; returns the lanes whose hit was narrowed.
+fn walk4<P: Precision, C: Counters, I: KdItems, const ANY: bool>(
+    tree: &KdTree,
+    items: &I,
+    rays: &[Ray; 4],
+    live: u8,
+    hits: &mut [Hit; 4],
+    c: &mut C,
+) -> u8 {
     let kr = rays.map(|r| KdRay::new::<P>(r.org, r.dir));
     let mut tn = [0f32; 4];
     let mut tf = [0f32; 4];
@@ -608,11 +639,27 @@ fn walk4<P: Precision, C: Counters, I: KdItems>(tree: &KdTree, items: &I, rays: 
         for e in first..first + count {
             c.list_read(std::ptr::from_ref(&tree.list[e as usize]) as usize, 4);
             let id = tree.list[e as usize];
+            let mut lanes = 0u8;
             for l in 0..4 {
-                if active & (1 << l) != 0 && !mb[l].seen(id) {
-                    items.test::<P, C>(id, &rays[l], &kr[l], &mut hits[l], c);
-                } else if active & (1 << l) != 0 {
-                    c.mailbox_hit();
+                if active & !done & (1 << l) != 0 {
+                    if mb[l].seen(id) {
+                        c.mailbox_hit();
+                    } else {
+                        lanes |= 1 << l;
+                    }
+                }
+            }
+            if lanes != 0 {
+                items.test4::<P, C, ANY>(id, rays, &kr, lanes, hits, c);
+            }
+            if ANY {
+                for l in 0..4 {
+                    if hits[l].prim != INVALID {
+                        done |= 1 << l;
+                    }
+                }
+                if active & !done == 0 {
+                    break;
                 }
             }
         }
@@ -718,10 +765,16 @@ impl KdMesh {
         self.tris.len()
     }
 
+    /// Bytes of the tree's nodes and lists and of the triangles' maps.
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        self.tree.stats().bytes + std::mem::size_of_val(self.tris.as_slice())
+    }
+
     /// Closest hit (single ray) with precision `P`, reporting to `c`.
     pub fn intersect_with<P: Precision, C: Counters>(&self, ray: &Ray, c: &mut C) -> Option<Hit> {
         let mut hit = Hit::none(ray.tmax);
-        walk::<P, C, _>(&self.tree, self, ray, &mut hit, c).then_some(hit)
+        walk::<P, C, _, false>(&self.tree, self, ray, &mut hit, c).then_some(hit)
     }
 
     /// Closest hit (single ray, f32).
@@ -729,11 +782,38 @@ impl KdMesh {
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         self.intersect_with::<Exact, ()>(ray, &mut ())
     }
+
+    /// Whether anything lies within `[ray.tmin, ray.tmax)` (single ray, any hit), with
+    /// precision `P`, reporting to `c`.
+    pub fn occluded_with<P: Precision, C: Counters>(&self, ray: &Ray, c: &mut C) -> bool {
+        walk::<P, C, _, true>(&self.tree, self, ray, &mut Hit::none(ray.tmax), c)
+    }
+
+    /// Closest hits of four rays as one SaarCOR packet (together when their direction
+    /// signs agree, else ray by ray): the same answers as [`Self::intersect_with`].
+    pub fn intersect4_with<P: Precision, C: Counters>(&self, rays: &[Ray; 4], c: &mut C) -> [Option<Hit>; 4] {
+        if !coherent(rays, 0xF) {
+            return rays.map(|r| self.intersect_with::<P, C>(&r, c));
+        }
+        let mut hits = rays.map(|r| Hit::none(r.tmax));
+        walk4::<P, C, _, false>(&self.tree, self, rays, 0xF, &mut hits, c);
+        hits.map(|h| h.is_hit().then_some(h))
+    }
+
+    /// Occlusion of four rays as one packet (as [`Self::intersect4_with`]).
+    pub fn occluded4_with<P: Precision, C: Counters>(&self, rays: &[Ray; 4], c: &mut C) -> [bool; 4] {
+        if !coherent(rays, 0xF) {
+            return rays.map(|r| self.occluded_with::<P, C>(&r, c));
+        }
+        let mut hits = rays.map(|r| Hit::none(r.tmax));
+        walk4::<P, C, _, true>(&self.tree, self, rays, 0xF, &mut hits, c);
+        hits.map(|h| h.is_hit())
+    }
 }
 
 impl KdItems for KdMesh {
     #[inline(always)]
-    fn test<P: Precision, C: Counters>(&self, id: u32, r: &Ray, kr: &KdRay, hit: &mut Hit, c: &mut C) {
+    fn test<P: Precision, C: Counters, const ANY: bool>(&self, id: u32, r: &Ray, kr: &KdRay, hit: &mut Hit, c: &mut C) {
         let tri = &self.tris[id as usize];
         c.triangles(std::ptr::from_ref(tri) as usize, std::mem::size_of::<UnitTriangle>(), 1);
         let h =
@@ -806,7 +886,7 @@ impl KdTwoLevel {
     #[must_use]
     pub fn bytes(&self) -> usize {
         let meshes = self.geometries.iter().map(|g| match g {
-            KdGeometry::Mesh(m) => m.tree.stats().bytes + std::mem::size_of_val(m.tris.as_slice()),
+            KdGeometry::Mesh(m) => m.bytes(),
             KdGeometry::Shape(_) => 0,
         });
         self.top.stats().bytes + meshes.sum::<usize>()
@@ -814,13 +894,7 @@ impl KdTwoLevel {
 
     /// Closest hit of one ray with precision `P`, reporting to `c`.
     pub fn intersect_with<P: Precision, C: Counters>(&self, ray: &Ray, c: &mut C) -> Option<Hit> {
-        let mut hit = Hit::none(ray.tmax);
-        c.enter(Level::Top);
-        let kr = KdRay::new::<P>(ray.org, ray.dir);
-        for &i in &self.unbounded {
-            self.test::<P, C>(i, ray, &kr, &mut hit, c);
-        }
-        walk::<P, C, _>(&self.top, self, ray, &mut hit, c);
+        let hit = self.single::<P, C, false>(ray, c);
         hit.is_hit().then_some(hit)
     }
 
@@ -830,42 +904,81 @@ impl KdTwoLevel {
         self.intersect_with::<Exact, ()>(ray, &mut ())
     }
 
+    /// Whether anything lies within `[ray.tmin, ray.tmax)` (any hit), with precision `P`,
+    /// reporting to `c`.
+    pub fn occluded_with<P: Precision, C: Counters>(&self, ray: &Ray, c: &mut C) -> bool {
+        self.single::<P, C, true>(ray, c).is_hit()
+    }
+
     /// Closest hits of four rays as one SaarCOR packet (`None` for a miss): together when
-    /// their direction signs agree, else ray by ray. The same answers as [`Self::intersect`].
+    /// their direction signs agree, else ray by ray; inside an instance the packet walks
+    /// the object's tree together again when the carried rays' signs agree. The same
+    /// answers as [`Self::intersect`].
     pub fn intersect4_with<P: Precision, C: Counters>(&self, rays: &[Ray; 4], c: &mut C) -> [Option<Hit>; 4] {
         if !coherent(rays, 0xF) {
             return rays.map(|r| self.intersect_with::<P, C>(&r, c));
         }
-        let mut hits = rays.map(|r| Hit::none(r.tmax));
+        self.packet::<P, C, false>(rays, c).map(|h| h.is_hit().then_some(h))
+    }
+
+    /// Occlusion of four rays as one packet (as [`Self::intersect4_with`]).
+    pub fn occluded4_with<P: Precision, C: Counters>(&self, rays: &[Ray; 4], c: &mut C) -> [bool; 4] {
+        if !coherent(rays, 0xF) {
+            return rays.map(|r| self.occluded_with::<P, C>(&r, c));
+        }
+        self.packet::<P, C, true>(rays, c).map(|h| h.is_hit())
+    }
+
+    fn single<P: Precision, C: Counters, const ANY: bool>(&self, ray: &Ray, c: &mut C) -> Hit {
+        let mut hit = Hit::none(ray.tmax);
         c.enter(Level::Top);
+        let kr = KdRay::new::<P>(ray.org, ray.dir);
         for &i in &self.unbounded {
-            for l in 0..4 {
-                let kr = KdRay::new::<P>(rays[l].org, rays[l].dir);
-                self.test::<P, C>(i, &rays[l], &kr, &mut hits[l], c);
+            self.test::<P, C, ANY>(i, ray, &kr, &mut hit, c);
+            if ANY && hit.is_hit() {
+                return hit;
             }
         }
-        walk4::<P, C, _>(&self.top, &Top4(self), rays, 0xF, &mut hits, c);
-        hits.map(|h| h.is_hit().then_some(h))
+        walk::<P, C, _, ANY>(&self.top, self, ray, &mut hit, c);
+        hit
+    }
+
+    fn packet<P: Precision, C: Counters, const ANY: bool>(&self, rays: &[Ray; 4], c: &mut C) -> [Hit; 4] {
+        let mut hits = rays.map(|r| Hit::none(r.tmax));
+        c.enter(Level::Top);
+        let kr = rays.map(|r| KdRay::new::<P>(r.org, r.dir));
+        for &i in &self.unbounded {
+            Top4(self).test4::<P, C, ANY>(i, rays, &kr, 0xF, &mut hits, c);
+        }
+        let live = (0..4).filter(|&l| !(ANY && hits[l].is_hit())).fold(0u8, |m, l| m | 1 << l);
+        walk4::<P, C, _, ANY>(&self.top, &Top4(self), rays, live, &mut hits, c);
+        hits
+    }
+
+    /// `r` in instance `inst`'s object space (each component rounded by `P`), counted as
+    /// a transformation when it is one.
+    #[inline(always)]
+    fn local<P: Precision, C: Counters>(inst: &Instance, r: &Ray, c: &mut C) -> Ray {
+        if inst.is_identity() {
+            return *r;
+        }
+        c.transform(std::ptr::from_ref(&inst.object_from_world) as usize, std::mem::size_of::<Affine3A>());
+        let m = &inst.object_from_world;
+        let round = |v: Vec3| Vec3::new(P::r(v.x), P::r(v.y), P::r(v.z));
+        Ray { org: round(m.transform_point3(r.org)), dir: round(m.transform_vector3(r.dir)), tmin: r.tmin, tmax: r.tmax }
     }
 }
 
 impl KdItems for KdTwoLevel {
     #[inline(always)]
-    fn test<P: Precision, C: Counters>(&self, id: u32, r: &Ray, _kr: &KdRay, hit: &mut Hit, c: &mut C) {
+    fn test<P: Precision, C: Counters, const ANY: bool>(&self, id: u32, r: &Ray, _kr: &KdRay, hit: &mut Hit, c: &mut C) {
         let inst = &self.instances[id as usize];
-        let local = if inst.is_identity() {
-            *r
-        } else {
-            c.transform(std::ptr::from_ref(&inst.object_from_world) as usize, std::mem::size_of::<Affine3A>());
-            let m = &inst.object_from_world;
-            let round = |v: Vec3| Vec3::new(P::r(v.x), P::r(v.y), P::r(v.z));
-            Ray { org: round(m.transform_point3(r.org)), dir: round(m.transform_vector3(r.dir)), tmin: r.tmin, tmax: r.tmax }
-        };
+        let local = Self::local::<P, C>(inst, r, c);
         match &self.geometries[inst.geometry as usize] {
             KdGeometry::Mesh(m) => {
                 c.enter(Level::Bottom);
                 let mut h = *hit;
-                if walk::<P, C, _>(&m.tree, m, &Ray { tmax: hit.t, ..local }, &mut h, c) {
+                if walk::<P, C, _, ANY>(&m.tree, m, &Ray { tmax: hit.t, ..local }, &mut h, c) {
                     *hit = Hit { inst: id, ..h };
                 }
                 c.enter(Level::Top);
@@ -880,15 +993,57 @@ impl KdItems for KdTwoLevel {
     }
 }
 
-/// The top level's items for a packet: each live lane's instance tested as a single ray
-/// (SaarCOR transforms a packet's rays into the object one by one and traverses the
-/// object's tree with the packet; lucent's model counts the bottom level per ray).
+/// The top level's items for a packet. As SaarCOR does, the packet's rays are carried
+/// into the instance one by one (n transformations, which its model counts as n+1 steps
+/// for rays sharing an origin) and the object's tree is walked by the packet together,
+/// when the carried rays still agree on their direction signs (a mirroring instance can
+/// break that; those rays go one by one).
 struct Top4<'a>(&'a KdTwoLevel);
 
 impl KdItems for Top4<'_> {
     #[inline(always)]
-    fn test<P: Precision, C: Counters>(&self, id: u32, r: &Ray, kr: &KdRay, hit: &mut Hit, c: &mut C) {
-        self.0.test::<P, C>(id, r, kr, hit, c);
+    fn test<P: Precision, C: Counters, const ANY: bool>(&self, id: u32, r: &Ray, kr: &KdRay, hit: &mut Hit, c: &mut C) {
+        self.0.test::<P, C, ANY>(id, r, kr, hit, c);
+    }
+
+    #[inline(always)]
+    fn test4<P: Precision, C: Counters, const ANY: bool>(
+        &self,
+        id: u32,
+        rays: &[Ray; 4],
+        kr: &[KdRay; 4],
+        lanes: u8,
+        hits: &mut [Hit; 4],
+        c: &mut C,
+    ) {
+        let tl = self.0;
+        let inst = &tl.instances[id as usize];
+        let KdGeometry::Mesh(m) = &tl.geometries[inst.geometry as usize] else {
+            for l in (0..4).filter(|l| lanes & (1 << l) != 0) {
+                tl.test::<P, C, ANY>(id, &rays[l], &kr[l], &mut hits[l], c);
+            }
+            return;
+        };
+        let mut local = *rays;
+        for l in (0..4).filter(|l| lanes & (1 << l) != 0) {
+            local[l] = Ray { tmax: hits[l].t, ..KdTwoLevel::local::<P, C>(inst, &rays[l], c) };
+        }
+        c.enter(Level::Bottom);
+        if coherent(&local, lanes) {
+            let mut h = *hits;
+            let got = walk4::<P, C, _, ANY>(&m.tree, m, &local, lanes, &mut h, c);
+            for l in (0..4).filter(|l| got & lanes & (1 << l) != 0) {
+                hits[l] = Hit { inst: id, ..h[l] };
+            }
+        } else {
+            for l in (0..4).filter(|l| lanes & (1 << l) != 0) {
+                let mut h = hits[l];
+                if walk::<P, C, _, ANY>(&m.tree, m, &local[l], &mut h, c) {
+                    hits[l] = Hit { inst: id, ..h };
+                }
+            }
+        }
+        c.enter(Level::Top);
     }
 }
 
@@ -938,6 +1093,11 @@ mod tests {
                 }
                 let got = kd.intersect(&r).map(|h| (h.t, h.prim));
                 assert_eq!(got.map(|g| g.0.to_bits()), best.map(|b| b.0.to_bits()), "seed {seed} ray {r:?}");
+                // Occlusion within a range that ends before, at or after the hit.
+                for tmax in [0.5, 3.0, 8.0, f32::INFINITY] {
+                    let want = best.is_some_and(|b| b.0 < tmax);
+                    assert_eq!(kd.occluded_with::<Exact, ()>(&Ray { tmax, ..r }, &mut ()), want, "seed {seed} tmax {tmax}");
+                }
             }
         }
     }
@@ -964,6 +1124,21 @@ mod tests {
             let got = tl.intersect4_with::<Exact, ()>(&rays, &mut ());
             for l in 0..4 {
                 assert_eq!(got[l], tl.intersect(&rays[l]), "lane {l}");
+            }
+            // Occlusion, two-level and in the mesh alone, packets and single rays, with
+            // ranges that end before and after the hits.
+            for tmax in [6.0, 14.0, f32::INFINITY] {
+                let short = rays.map(|r| Ray { tmax, ..r });
+                let occ = tl.occluded4_with::<Exact, ()>(&short, &mut ());
+                let KdGeometry::Mesh(m) = &tl.geometries[0] else { unreachable!("mesh first") };
+                let mocc = m.occluded4_with::<Exact, ()>(&short, &mut ());
+                let mhit = m.intersect4_with::<Exact, ()>(&short, &mut ());
+                for l in 0..4 {
+                    assert_eq!(occ[l], tl.intersect(&short[l]).is_some(), "lane {l} tmax {tmax}");
+                    assert_eq!(occ[l], tl.occluded_with::<Exact, ()>(&short[l], &mut ()), "lane {l} tmax {tmax}");
+                    assert_eq!(mocc[l], m.intersect(&short[l]).is_some(), "mesh lane {l} tmax {tmax}");
+                    assert_eq!(mhit[l], m.intersect(&short[l]), "mesh lane {l} tmax {tmax}");
+                }
             }
         }
         assert!(packets > 1000);
@@ -1020,6 +1195,13 @@ mod tests {
         let mut c = Count::default();
         assert!(tl.intersect_with::<Exact, _>(&Ray::new(Vec3::new(-5.0, 0.2, 1.0), -Vec3::Z), &mut c).is_none());
         assert_eq!((c.stats.nodes, c.lists, c.tris), (0, 0, 0));
+        // A packet of four into the instance: each level's node and list entry read once
+        // for the packet, four transformations (one per ray) and four triangle tests.
+        let rays: [Ray; 4] = std::array::from_fn(|l| Ray::new(Vec3::new(5.1 + 0.05 * l as f32, 0.2, 1.0), -Vec3::Z));
+        let mut c = Count::default();
+        let h = tl.intersect4_with::<Exact, _>(&rays, &mut c);
+        assert!(h.iter().all(Option::is_some));
+        assert_eq!((c.stats.nodes, c.lists, c.tris, c.transforms), (2, 2, 4, 4));
     }
 
     /// A mailbox skips the second reference of an object that straddles a split.

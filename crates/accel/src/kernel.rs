@@ -104,12 +104,12 @@ pub(crate) trait KernelSet {
     ///
     /// # Safety
     /// As [`Self::mesh_intersect`].
-    unsafe fn two_level_intersect(t: &TwoLevel, ray: &Ray, hit: &mut Hit);
+    unsafe fn two_level_intersect<C: Counters>(t: &TwoLevel, ray: &Ray, hit: &mut Hit, c: &mut C);
     /// One ray's occlusion in a two-level scene (as [`Self::mesh_occluded`]).
     ///
     /// # Safety
     /// As [`Self::mesh_intersect`].
-    unsafe fn two_level_occluded(t: &TwoLevel, ray: &Ray, tmax: f32) -> bool;
+    unsafe fn two_level_occluded<C: Counters>(t: &TwoLevel, ray: &Ray, tmax: f32, c: &mut C) -> bool;
 }
 
 /// The single-ray entry points of one kernel set, compiled with `$feat` (its
@@ -125,12 +125,12 @@ macro_rules! single_entries {
             m.occluded_k::<$set, C>(&RayPre::new(ray), tmax, c)
         }
         $(#[target_feature(enable = $feat)])?
-        unsafe fn two_level_intersect(t: &TwoLevel, ray: &Ray, hit: &mut Hit) {
-            t.intersect_k::<$set>(&RayPre::new(ray), hit)
+        unsafe fn two_level_intersect<C: Counters>(t: &TwoLevel, ray: &Ray, hit: &mut Hit, c: &mut C) {
+            t.intersect_kc::<$set, C>(&RayPre::new(ray), hit, c)
         }
         $(#[target_feature(enable = $feat)])?
-        unsafe fn two_level_occluded(t: &TwoLevel, ray: &Ray, tmax: f32) -> bool {
-            t.occluded_k::<$set>(&RayPre::new(ray), tmax)
+        unsafe fn two_level_occluded<C: Counters>(t: &TwoLevel, ray: &Ray, tmax: f32, c: &mut C) -> bool {
+            t.occluded_kc::<$set, C>(&RayPre::new(ray), tmax, c)
         }
     };
 }

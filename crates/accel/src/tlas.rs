@@ -374,7 +374,7 @@ impl TwoLevel {
     }
 
     #[inline(always)]
-    fn intersect_kc<K: KernelSet, C: Counters>(&self, pre: &RayPre, hit: &mut Hit, c: &mut C) {
+    pub(crate) fn intersect_kc<K: KernelSet, C: Counters>(&self, pre: &RayPre, hit: &mut Hit, c: &mut C) {
         if let Some(mesh) = self.only_mesh() {
             c.enter(Level::Bottom);
             if mesh.intersect_k::<K, C>(pre, hit, c) {
@@ -392,7 +392,7 @@ impl TwoLevel {
     }
 
     #[inline(always)]
-    fn occluded_kc<K: KernelSet, C: Counters>(&self, pre: &RayPre, tmax: f32, c: &mut C) -> bool {
+    pub(crate) fn occluded_kc<K: KernelSet, C: Counters>(&self, pre: &RayPre, tmax: f32, c: &mut C) -> bool {
         if let Some(mesh) = self.only_mesh() {
             c.enter(Level::Bottom);
             return mesh.occluded_k::<K, C>(pre, tmax, c);

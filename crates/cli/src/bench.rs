@@ -4,6 +4,7 @@
 
 use anyhow::{bail, Context, Result};
 use lucent_accel::glam::Vec3;
+use lucent_accel::kd::{Exact, KdMesh, KdOptions};
 use lucent_accel::{Kernel, MeshBvh, MeshOptions, Ray, TriangleTest, Width};
 use std::path::Path;
 use std::time::Instant;
@@ -117,6 +118,59 @@ pub struct RaysOptions {
     pub pin: bool,
     /// Write the per-pixel primary hit ids here (i32 little-endian, like `embree_bench --dump-ids`).
     pub dump_ids: Option<std::path::PathBuf>,
+    /// Trace SaarCOR's kd-tree (`lucent_accel::kd`) instead of the BVH.
+    pub kd: bool,
+}
+
+/// The index `bench rays` traces.
+enum Index {
+    Bvh(MeshBvh),
+    /// SaarCOR's kd-tree: single rays, and packets of 4 (each 8-ray block is two packets,
+    /// its rows of 4 pixels).
+    Kd(KdMesh),
+}
+
+impl Index {
+    /// One ray: the hit's triangle (-1 for none), or 1/0 for occluded/free.
+    #[inline]
+    fn single(&self, r: &Ray, shadow: bool) -> i32 {
+        match (self, shadow) {
+            (Self::Bvh(b), true) => i32::from(b.occluded(r)),
+            (Self::Bvh(b), false) => b.intersect(r).map_or(-1, |h| h.prim as i32),
+            (Self::Kd(k), true) => i32::from(k.occluded_with::<Exact, ()>(r, &mut ())),
+            (Self::Kd(k), false) => k.intersect(r).map_or(-1, |h| h.prim as i32),
+        }
+    }
+
+    /// The blocks' rays as packets, answers into `hits` or `occ` (8 per block).
+    #[inline]
+    fn packets(&self, blocks: &[lucent_accel::RayBlock], shadow: bool, hits: &mut [Option<lucent_accel::Hit>], occ: &mut [bool]) {
+        match self {
+            Self::Bvh(b) if shadow => b.occluded_blocks(blocks, occ),
+            Self::Bvh(b) => b.intersect_blocks(blocks, hits),
+            Self::Kd(k) => {
+                for (bi, b) in blocks.iter().enumerate() {
+                    for half in 0..2 {
+                        let rays: [Ray; 4] = std::array::from_fn(|i| {
+                            let l = 4 * half + i;
+                            Ray {
+                                org: Vec3::new(b.org[0][l], b.org[1][l], b.org[2][l]),
+                                dir: Vec3::new(b.dir[0][l], b.dir[1][l], b.dir[2][l]),
+                                tmin: b.tmin[l],
+                                tmax: b.tmax[l],
+                            }
+                        });
+                        let at = bi * 8 + 4 * half;
+                        if shadow {
+                            occ[at..at + 4].copy_from_slice(&k.occluded4_with::<Exact, ()>(&rays, &mut ()));
+                        } else {
+                            hits[at..at + 4].copy_from_slice(&k.intersect4_with::<Exact, ()>(&rays, &mut ()));
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 const CHUNK_BLOCKS: usize = 32;
@@ -154,47 +208,70 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
     let mesh = read_mesh(&dir.join("mesh.bin"))?;
     let tris = mesh.indices.len();
     let opts = MeshOptions { width: o.width, test: o.test, quality: o.quality, ..MeshOptions::default() };
-    let bvh_label = format!(
-        "{}{}",
-        if o.width == Width::W8 { "bvh8" } else { "bvh4" },
-        if o.test == TriangleTest::Watertight { "-watertight" } else { "" }
-    );
-    let mut bvh = None;
+    let bvh_label = if o.kd {
+        "kd".to_string()
+    } else {
+        format!(
+            "{}{}",
+            if o.width == Width::W8 { "bvh8" } else { "bvh4" },
+            if o.test == TriangleTest::Watertight { "-watertight" } else { "" }
+        )
+    };
+    let build = |p: &rayon::ThreadPool| -> Result<Index> {
+        Ok(if o.kd {
+            Index::Kd(p.install(|| KdMesh::build(&mesh.positions, &mesh.indices, KdOptions::default()))?)
+        } else {
+            Index::Bvh(p.install(|| MeshBvh::build(&mesh.positions, &mesh.indices, opts))?)
+        })
+    };
+    let mut index = None;
     for &threads in &o.threads {
         let p = crate::threads::pool(threads, o.pin)?;
         // One untimed warm-up build first, as the Embree harness does (on a fresh pool the
         // first builds of a small mesh read half again as slow: museum, 2 threads, median of
         // 9 builds without it 3.0 ms, with it 2.1 ms).
-        drop(p.install(|| MeshBvh::build(&mesh.positions, &mesh.indices, opts))?);
+        drop(build(&p)?);
         let mut times = Vec::new();
         for _ in 0..o.frames.max(1) {
             let t0 = Instant::now();
-            let b = p.install(|| MeshBvh::build(&mesh.positions, &mesh.indices, opts))?;
+            let b = build(&p)?;
             times.push(t0.elapsed().as_secs_f64());
-            bvh = Some(b);
+            index = Some(b);
         }
-        let st = bvh.as_ref().map(|b| b.stats()).unwrap_or_default();
+        let (nodes, sah, wide_sah, bytes) = match &index {
+            Some(Index::Bvh(b)) => {
+                let st = b.stats();
+                (st.nodes, st.sah, st.wide_sah, st.bytes)
+            }
+            Some(Index::Kd(k)) => {
+                let st = k.tree().stats();
+                (st.nodes, 0.0, 0.0, k.bytes())
+            }
+            None => (0, 0.0, 0.0, 0),
+        };
         println!(
-            "{{\"kind\":\"build\",\"tracer\":\"lucent\",\"scene\":\"{}\",\"tris\":{tris},\"quality\":\"{}\",\"bvh\":\"{bvh_label}\",\"threads\":{threads},\"median_ms\":{:.2},\"nodes\":{},\"sah\":{:.2},\"sah_embree_convention\":{:.2},\"bytes\":{},\"bytes_per_tri\":{:.1}}}",
+            "{{\"kind\":\"build\",\"tracer\":\"lucent\",\"scene\":\"{}\",\"tris\":{tris},\"quality\":\"{}\",\"bvh\":\"{bvh_label}\",\"threads\":{threads},\"median_ms\":{:.2},\"nodes\":{nodes},\"sah\":{sah:.2},\"sah_embree_convention\":{wide_sah:.2},\"bytes\":{bytes},\"bytes_per_tri\":{:.1}}}",
             o.name,
             match o.quality {
+                _ if o.kd => "kd-sah",
                 lucent_accel::Quality::Sah => "sah",
                 lucent_accel::Quality::Spatial => "spatial",
                 lucent_accel::Quality::High => "high",
             },
             1e3 * crate::stats::median(&mut times),
-            st.nodes,
-            st.sah,
-            st.wide_sah,
-            st.bytes,
-            st.bytes as f64 / tris.max(1) as f64
+            bytes as f64 / tris.max(1) as f64
         );
     }
-    let Some(mut bvh) = bvh else { bail!("no thread count given") };
-    bvh.set_kernel(o.kernel);
-    let kname = match bvh.kernel() {
-        Kernel::Scalar => "scalar",
-        k => k.name(),
+    let Some(mut index) = index else { bail!("no thread count given") };
+    let kname = match &mut index {
+        Index::Bvh(bvh) => {
+            bvh.set_kernel(o.kernel);
+            match bvh.kernel() {
+                Kernel::Scalar => "scalar",
+                k => k.name(),
+            }
+        }
+        Index::Kd(_) => "kd",
     };
     let ref_ids = std::fs::read(dir.join("ref_ids.bin"))
         .ok()
@@ -214,8 +291,14 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
                 tmax: std::array::from_fn(|l| if b.valid[l] != 0 { b.tfar[l] } else { f32::NEG_INFINITY }),
             })
             .collect();
-        for (api, per) in o.apis.iter().map(|&a| (a, a.rays())) {
-            let api = format!("{}-{kname}", api.name());
+        let mut apis: Vec<(&str, usize)> = o.apis.iter().map(|&a| (a.name(), a.rays())).collect();
+        if o.kd {
+            // The kd-tree's packets are SaarCOR's 4 rays, handed over in blocks of 8.
+            apis = apis.into_iter().map(|(n, per)| if per == 1 { (n, 1) } else { ("packet4", 8) }).collect();
+            apis.dedup();
+        }
+        for (api, per) in apis {
+            let api = format!("{api}-{kname}");
             for &threads in &o.threads {
                 let p = crate::threads::pool(threads, o.pin)?;
                 // Like the Embree harness: every worker pulls chunks of 32 blocks (4 tiles, 256
@@ -244,9 +327,7 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
                                         if b.valid[l] == 0 {
                                             continue;
                                         }
-                                        let r = b.ray(l);
-                                        let v =
-                                            if shadow { bvh.occluded(&r) as i32 } else { bvh.intersect(&r).map_or(-1, |h| h.prim as i32) };
+                                        let v = index.single(&b.ray(l), shadow);
                                         out_cells[bi * 8 + l].store(v, std::sync::atomic::Ordering::Relaxed);
                                     }
                                 }
@@ -266,11 +347,7 @@ pub fn rays(dir: &Path, o: &RaysOptions) -> Result<()> {
                                 // their first leaf spend a quarter of their time waiting on them).
                                 let ahead = if pe < b1 { pe } else { claimed.saturating_mul(CHUNK_BLOCKS) };
                                 lucent_accel::prefetch_blocks(soa.get(ahead..(ahead + bpp).min(soa.len())).unwrap_or(&[]));
-                                if shadow {
-                                    bvh.occluded_blocks(&soa[pb..pe], &mut occ[..n]);
-                                } else {
-                                    bvh.intersect_blocks(&soa[pb..pe], &mut hits[..n]);
-                                }
+                                index.packets(&soa[pb..pe], shadow, &mut hits[..n], &mut occ[..n]);
                                 for k in 0..n {
                                     let v = if shadow { occ[k] as i32 } else { hits[k].map_or(-1, |h| h.prim as i32) };
                                     out_cells[pb * 8 + k].store(v, std::sync::atomic::Ordering::Relaxed);

@@ -441,6 +441,11 @@ enum BenchCmd {
         /// default), `sah` (binned SAH only) or `spatial` (with spatial splits).
         #[arg(long, default_value = "high", value_parser = ["high", "sah", "spatial"])]
         quality: String,
+        /// Index to trace: `bvh` (lucent's, the default) or `kd` (SaarCOR's kd-tree,
+        /// `lucent_accel::kd`: single rays, and 4-ray packets for any packet API; the
+        /// width, watertight, scalar and quality options do not apply to it).
+        #[arg(long, default_value = "bvh", value_parser = ["bvh", "kd"])]
+        index: String,
         #[command(flatten)]
         pin: PinArgs,
     },
@@ -580,6 +585,7 @@ fn run() -> Result<()> {
             dump_ids,
             api,
             quality,
+            index,
             pin,
         }) => bench::rays(
             &dir,
@@ -596,6 +602,7 @@ fn run() -> Result<()> {
                 apis: api,
                 quality: quality_of(&quality),
                 pin: !pin.no_pin,
+                kd: index == "kd",
             },
         ),
     }

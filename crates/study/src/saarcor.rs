@@ -19,7 +19,7 @@ use std::collections::HashMap;
 /// What the model assumes, in the report's words.
 pub const ASSUMPTIONS: &[&str] = &[
     "Rays: one primary ray through each pixel centre; packets are the 2x2 pixel quads, traced in 8x8-pixel tiles in row order; the 64 threads hide every latency, so a frame takes as many cycles as its busiest unit or its memory traffic (whichever is larger).",
-    "Traversal unit: one cycle per node a packet visits (kd: the packet walk; bvh: the union of the four rays' nodes). List unit: one cycle per object-list entry a packet reads (bvh: the union over its rays).",
+    "Traversal unit: one cycle per node a packet visits (both indices walk the 4 rays as one packet: kd as SaarCOR does, the bvh with its interval test of a node's 8 children; packets whose rays disagree on direction signs go ray by ray, and each ray's nodes count). List unit: one cycle per object-list entry a packet reads.",
     "Transformation unit: n+1 steps (cycles) to carry n rays of a packet, which share an origin, into an instance's space or a triangle's unit-triangle space (bvh: each of a leaf's 4-triangle groups costs its 4 triangles), and 2 steps per shaded ray (normal and texture-coordinate interpolation). Intersection unit: one cycle per ray-triangle (or ray-shape) test.",
     "Caches: direct mapped; traversal items 8 B (a kd node), list items 4 B, transformation items 12 B (a 4-value matrix row of 24-bit floats); an access looks up every item of the bytes it reads, once per packet. Addresses are those of lucent's own data: kd nodes 8 B, list entries 4 B, unit-triangle maps 40 B (SaarCOR: 36 B), instance matrices 48 B (SaarCOR: 36 B); the bvh's 8-wide nodes are a few hundred bytes each (every child's box), its leaves 4-triangle groups of 160 B.",
     "Memory: misses cost their items' bytes from external memory at 1 GB/s to the core. Shading bandwidth (not cached): per hit ray three vertex normals and texture coordinates (3 x 20 B) and per pixel a 4-byte frame-buffer write.",
@@ -58,7 +58,7 @@ impl Default for Machine {
 /// Which index the rays traverse.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Index {
-    /// lucent's BVH (8-wide nodes over 4-triangle groups), rays traced one by one.
+    /// lucent's BVH (8-wide nodes over 4-triangle groups), packets of 4.
     Bvh,
     /// SaarCOR's kd-trees, packets of 4.
     Kd,
@@ -247,7 +247,9 @@ pub fn model_frame(index: &Traced<'_>, cam: &Camera, m: &Machine) -> FrameModel 
                                 r.iter().zip(&live).filter(|(h, &l)| l && h.is_some()).count() as u64
                             }
                             Traced::Bvh(b) => {
-                                rays.iter().zip(&live).filter(|(r, &l)| l && b.intersect_counted(r, &mut rec).is_some()).count() as u64
+                                let mut r = [None; 4];
+                                b.intersect_packet_counted(&rays, &mut r, &mut rec);
+                                r.iter().zip(&live).filter(|(h, &l)| l && h.is_some()).count() as u64
                             }
                         };
                         out.push(((px, py), packet_work(&rec.reads, hits, m)));

@@ -113,6 +113,17 @@ fn kd_matches_reference_on_every_shared_scene() {
             for l in 0..4 {
                 assert_eq!(got[l], kd.intersect(&p[l]), "{name}: packet lane {l}");
             }
+            // Shadow rays: occlusion up to half the way to each lane's hit (or its far
+            // end), and up to just beyond it, single rays and packets.
+            for scale in [0.5f32, 1.001] {
+                let s: [Ray; 4] = std::array::from_fn(|l| Ray { tmax: got[l].map_or(1e30, |h| h.t * scale), ..p[l] });
+                let occ = kd.occluded4_with::<lucent_accel::kd::Exact, _>(&s, &mut ());
+                for l in 0..4 {
+                    let want = kd.intersect(&s[l]).is_some();
+                    assert_eq!(occ[l], want, "{name}: shadow packet lane {l} x{scale}");
+                    assert_eq!(kd.occluded_with::<lucent_accel::kd::Exact, _>(&s[l], &mut ()), want, "{name}: shadow lane {l}");
+                }
+            }
         }
         kd.top().validate(world.accel().instances().len()).expect("top well formed");
     }

@@ -10,118 +10,123 @@ pub(super) struct InstPacketLeaves<'a, K> {
 }
 
 impl<K: KernelSet> InstPacketLeaves<'_, K> {
-    #[inline(always)]
-    pub(super) fn single(&self) -> InstLeaves<'_, K> {
-        InstLeaves { tl: self.tl, k: std::marker::PhantomData }
-    }
-
     /// The lanes `m` against instance `id`, closest hits into `h`.
     #[inline(always)]
-    pub(super) fn hit_instance(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    pub(super) fn hit_instance<C: Counters>(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
         #[cfg(target_arch = "x86_64")]
         if K::SIMD {
             // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
-            unsafe { avx2_hit_instance(self.tl, id, p, m, h) };
+            unsafe { avx2_hit_instance(self.tl, id, p, m, h, c) };
             return;
         }
-        self.hit_instance_here(id, p, m, h);
+        self.hit_instance_here(id, p, m, h, c);
     }
 
     /// The lanes `m` against instance `id`, occluded lanes to `-inf` in `h`.
     #[inline(always)]
-    pub(super) fn occludes(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    pub(super) fn occludes<C: Counters>(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
         #[cfg(target_arch = "x86_64")]
         if K::SIMD {
             // SAFETY: as above.
-            unsafe { avx2_occludes(self.tl, id, p, m, h) };
+            unsafe { avx2_occludes(self.tl, id, p, m, h, c) };
             return;
         }
-        self.occludes_here(id, p, m, h);
+        self.occludes_here(id, p, m, h, c);
+    }
+
+    /// Reports the lanes of `m` carried into `inst`'s object space (one report per ray,
+    /// as the single-ray kernels make) and, for a shape, intersected with it.
+    #[inline(always)]
+    fn count_lanes<C: Counters>(&self, inst: &crate::tlas::Instance, p: &Packet, m: &Masks, c: &mut C) {
+        let rays: u32 = m[..p.groups].iter().map(|x| x.bits().count_ones()).sum();
+        if !inst.is_identity() {
+            for _ in 0..rays {
+                c.transform(std::ptr::from_ref(&inst.object_from_world) as usize, std::mem::size_of::<Affine3A>());
+            }
+        }
+        if let Geometry::Shape(s) = &self.tl.geometries()[inst.geometry as usize] {
+            for _ in 0..rays {
+                c.shape(std::ptr::from_ref(s) as usize, std::mem::size_of::<Shape>());
+            }
+        }
     }
 
     #[inline(always)]
-    pub(super) fn hit_instance_here(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    pub(super) fn hit_instance_here<C: Counters>(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
         let inst = &self.tl.instances()[id as usize];
-        if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
-            // The rays carried into object space exactly as the single-ray path does.
-            mesh.packet_intersect_k::<K, _>(&p.in_object_space(inst, m), m, h, id, false, &mut ());
-            return;
-        }
-        if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
-            #[cfg(target_arch = "x86_64")]
-            if K::SIMD && *shape == Shape::Sphere {
-                for g in 0..p.groups {
-                    if m[g].bits() == 0 {
-                        continue;
-                    }
-                    // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
-                    let (hit, t) = unsafe { sphere_group(p, g, inst, m[g], &h.t[g]) };
-                    if hit.bits() != 0 {
-                        // A sphere has one part (0) and no surface parameters here.
-                        h.t[g] = h.t[g].blend(hit, t);
-                        h.u[g] = h.u[g].blend(hit, F8::splat(0.0));
-                        h.v[g] = h.v[g].blend(hit, F8::splat(0.0));
-                        h.prim[g] = M8::blend_u32(hit, h.prim[g], [0; LANES]);
-                        h.inst[g] = M8::blend_u32(hit, h.inst[g], [id; LANES]);
-                    }
-                }
-                return;
+        self.count_lanes(inst, p, m, c);
+        match &self.tl.geometries()[inst.geometry as usize] {
+            Geometry::Mesh(mesh) => {
+                // The rays carried into object space exactly as the single-ray path does.
+                c.enter(Level::Bottom);
+                mesh.packet_intersect_k::<K, C>(&p.in_object_space(inst, m), m, h, id, false, c);
+                c.enter(Level::Top);
             }
-            // The same object-space rays as the single-ray path, without its box-test
-            // constants (a shape needs none).
-            let lp = p.transformed(&inst.object_from_world, m);
-            for_lanes(p.groups, m, |g, l| {
-                let r = lp.ray(g, l, h.t[g].0[l]);
-                if let Some(s) = shape.intersect_local(r.org, r.dir, r.tmin, r.tmax) {
-                    h.put(g, l, &Hit { t: s.t, u: 0.0, v: 0.0, prim: s.part, inst: id });
+            Geometry::Shape(shape) => {
+                #[cfg(target_arch = "x86_64")]
+                if K::SIMD && *shape == Shape::Sphere {
+                    for g in 0..p.groups {
+                        if m[g].bits() == 0 {
+                            continue;
+                        }
+                        // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
+                        let (hit, t) = unsafe { sphere_group(p, g, inst, m[g], &h.t[g]) };
+                        if hit.bits() != 0 {
+                            // A sphere has one part (0) and no surface parameters here.
+                            h.t[g] = h.t[g].blend(hit, t);
+                            h.u[g] = h.u[g].blend(hit, F8::splat(0.0));
+                            h.v[g] = h.v[g].blend(hit, F8::splat(0.0));
+                            h.prim[g] = M8::blend_u32(hit, h.prim[g], [0; LANES]);
+                            h.inst[g] = M8::blend_u32(hit, h.inst[g], [id; LANES]);
+                        }
+                    }
+                    return;
                 }
-            });
-            return;
+                // The same object-space rays as the single-ray path, without its box-test
+                // constants (a shape needs none).
+                let lp = p.transformed(&inst.object_from_world, m);
+                for_lanes(p.groups, m, |g, l| {
+                    let r = lp.ray(g, l, h.t[g].0[l]);
+                    if let Some(s) = shape.intersect_local(r.org, r.dir, r.tmin, r.tmax) {
+                        h.put(g, l, &Hit { t: s.t, u: 0.0, v: 0.0, prim: s.part, inst: id });
+                    }
+                });
+            }
         }
-        let single = self.single();
-        for_lanes(p.groups, m, |g, l| {
-            let mut hit = h.get(g, l);
-            single.hit_instance(id, &RayPre::new(&p.ray(g, l, hit.t)), &mut hit, &mut ());
-            h.put(g, l, &hit);
-        });
     }
 
     #[inline(always)]
-    pub(super) fn occludes_here(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    pub(super) fn occludes_here<C: Counters>(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
         let inst = &self.tl.instances()[id as usize];
-        if let Geometry::Mesh(mesh) = &self.tl.geometries()[inst.geometry as usize] {
-            mesh.packet_occluded_k::<K, _>(&p.in_object_space(inst, m), m, h, false, &mut ());
-            return;
-        }
-        if let Geometry::Shape(shape) = &self.tl.geometries()[inst.geometry as usize] {
-            #[cfg(target_arch = "x86_64")]
-            if K::SIMD && *shape == Shape::Sphere {
-                for g in 0..p.groups {
-                    if m[g].bits() == 0 {
-                        continue;
+        self.count_lanes(inst, p, m, c);
+        match &self.tl.geometries()[inst.geometry as usize] {
+            Geometry::Mesh(mesh) => {
+                c.enter(Level::Bottom);
+                mesh.packet_occluded_k::<K, C>(&p.in_object_space(inst, m), m, h, false, c);
+                c.enter(Level::Top);
+            }
+            Geometry::Shape(shape) => {
+                #[cfg(target_arch = "x86_64")]
+                if K::SIMD && *shape == Shape::Sphere {
+                    for g in 0..p.groups {
+                        if m[g].bits() == 0 {
+                            continue;
+                        }
+                        // SAFETY: as above.
+                        let (hit, _) = unsafe { sphere_group(p, g, inst, m[g], &h.t[g]) };
+                        h.t[g] = h.t[g].blend(hit, F8::splat(f32::NEG_INFINITY));
                     }
-                    // SAFETY: as above.
-                    let (hit, _) = unsafe { sphere_group(p, g, inst, m[g], &h.t[g]) };
-                    h.t[g] = h.t[g].blend(hit, F8::splat(f32::NEG_INFINITY));
+                    return;
                 }
-                return;
+                let lp = p.transformed(&inst.object_from_world, m);
+                for_lanes(p.groups, m, |g, l| {
+                    let r = lp.ray(g, l, h.t[g].0[l]);
+                    if shape.intersect_local(r.org, r.dir, r.tmin, r.tmax).is_some() {
+                        h.t[g].0[l] = f32::NEG_INFINITY;
+                    }
+                });
             }
-            let lp = p.transformed(&inst.object_from_world, m);
-            for_lanes(p.groups, m, |g, l| {
-                let r = lp.ray(g, l, h.t[g].0[l]);
-                if shape.intersect_local(r.org, r.dir, r.tmin, r.tmax).is_some() {
-                    h.t[g].0[l] = f32::NEG_INFINITY;
-                }
-            });
-            return;
         }
-        let single = self.single();
-        for_lanes(p.groups, m, |g, l| {
-            let t = h.t[g].0[l];
-            if single.occludes(id, &RayPre::new(&p.ray(g, l, t)), t, &mut ()) {
-                h.t[g].0[l] = f32::NEG_INFINITY;
-            }
-        });
     }
 }
 
@@ -133,16 +138,16 @@ impl<K: KernelSet> InstPacketLeaves<'_, K> {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline(never)]
-pub(super) fn avx2_hit_instance(tl: &TwoLevel, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
-    InstPacketLeaves::<crate::kernel::SimdSet> { tl, k: std::marker::PhantomData }.hit_instance_here(id, p, m, h);
+pub(super) fn avx2_hit_instance<C: Counters>(tl: &TwoLevel, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
+    InstPacketLeaves::<crate::kernel::SimdSet> { tl, k: std::marker::PhantomData }.hit_instance_here(id, p, m, h, c);
 }
 
 /// [`InstPacketLeaves::occludes`] with AVX2, out of line (see [`avx2_hit_instance`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline(never)]
-pub(super) fn avx2_occludes(tl: &TwoLevel, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
-    InstPacketLeaves::<crate::kernel::SimdSet> { tl, k: std::marker::PhantomData }.occludes_here(id, p, m, h);
+pub(super) fn avx2_occludes<C: Counters>(tl: &TwoLevel, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
+    InstPacketLeaves::<crate::kernel::SimdSet> { tl, k: std::marker::PhantomData }.occludes_here(id, p, m, h, c);
 }
 
 /// The unit-sphere test of the lanes `m` of group `g` against instance `inst` within
@@ -173,32 +178,39 @@ pub(super) unsafe fn sphere_group(p: &Packet, g: usize, inst: &crate::tlas::Inst
 
 impl<K: KernelSet> PacketLeaves for InstPacketLeaves<'_, K> {
     #[inline(always)]
-    fn intersect(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    fn intersect<C: Counters>(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
         for i in first..first + count {
-            self.hit_instance(self.tl.order[i as usize], p, m, h);
+            // The list unit reads an entry once for the packet.
+            let e = &self.tl.order[i as usize];
+            c.list_read(std::ptr::from_ref(e) as usize, 4);
+            self.hit_instance(*e, p, m, h, c);
         }
     }
     #[inline(always)]
-    fn occluded(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    fn occluded<C: Counters>(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
         for i in first..first + count {
             // Only the lanes still unoccluded go on.
             let live: Masks = std::array::from_fn(|g| h.t[g].ge(F8::splat(f32::MIN)).and(m[g]));
             if live.iter().all(|x| x.bits() == 0) {
                 return;
             }
-            self.occludes(self.tl.order[i as usize], p, &live, h);
+            let e = &self.tl.order[i as usize];
+            c.list_read(std::ptr::from_ref(e) as usize, 4);
+            self.occludes(*e, p, &live, h, c);
         }
     }
 }
 
 impl TwoLevel {
     #[inline(always)]
-    pub(super) fn packet_intersect_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
+    pub(super) fn packet_intersect_k<K: KernelSet, C: Counters>(&self, p: &Packet, h: &mut PacketHits, c: &mut C) {
         let active = p.valid;
         if let Some(mesh) = self.only_mesh() {
-            mesh.packet_intersect_k::<K, _>(p, &active, h, 0, true, &mut ());
+            c.enter(Level::Bottom);
+            mesh.packet_intersect_k::<K, _>(p, &active, h, 0, true, c);
             return;
         }
+        c.enter(Level::Top);
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
         let ext = max_spread(&self.bounds());
         coherent_parts!(
@@ -209,15 +221,15 @@ impl TwoLevel {
             true,
             |m, _hh| p.interval(m),
             |iv, m, h| {
-                intersect::<K, _, _>(&self.nodes, &leaves, p, iv, m, h, &mut ());
+                intersect::<K, _, _>(&self.nodes, &leaves, p, iv, m, h, c);
                 for &i in &self.unbounded {
-                    leaves.hit_instance(i, p, m, h);
+                    leaves.hit_instance(i, p, m, h, c);
                 }
             },
             |g, l, h| {
                 let mut hit = h.get(g, l);
                 // SAFETY: the packet entry points run K only where its features were detected.
-                unsafe { K::two_level_intersect(self, &p.ray(g, l, hit.t), &mut hit) };
+                unsafe { K::two_level_intersect(self, &p.ray(g, l, hit.t), &mut hit, c) };
                 h.put(g, l, &hit);
             }
         );
@@ -228,24 +240,26 @@ impl TwoLevel {
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
         let n = self.instances().len();
         for &i in ids.iter().filter(|&&i| (i as usize) < n).chain(&self.unbounded) {
-            leaves.hit_instance(i, p, &p.valid, h);
+            leaves.hit_instance(i, p, &p.valid, h, &mut ());
         }
     }
 
     #[inline(always)]
-    pub(super) fn packet_occluded_k<K: KernelSet>(&self, p: &Packet, h: &mut PacketHits) {
+    pub(super) fn packet_occluded_k<K: KernelSet, C: Counters>(&self, p: &Packet, h: &mut PacketHits, c: &mut C) {
         let active = p.valid;
         if let Some(mesh) = self.only_mesh() {
-            mesh.packet_occluded_k::<K, _>(p, &active, h, true, &mut ());
+            c.enter(Level::Bottom);
+            mesh.packet_occluded_k::<K, _>(p, &active, h, true, c);
             return;
         }
+        c.enter(Level::Top);
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
         // Rays toward a directional light: the few instances near their origins, seen
         // from the light, without the walk.
         let mut ids = [0u32; crate::shadow_grid::MAX_CANDIDATES];
         if let Some(n) = self.shadow_candidates(p, &mut ids) {
             for &i in ids[..n].iter().chain(&self.unbounded) {
-                leaves.occluded_one(i, p, &active, h);
+                leaves.occluded_one(i, p, &active, h, c);
             }
             return;
         }
@@ -259,14 +273,14 @@ impl TwoLevel {
             |m, hh| p.occlusion_interval(m, hh),
             |iv, m, h| {
                 for &i in &self.unbounded {
-                    leaves.occluded_one(i, p, m, h);
+                    leaves.occluded_one(i, p, m, h, c);
                 }
-                occluded::<K, _, _>(&self.nodes, &leaves, p, iv, m, h, &mut ());
+                occluded::<K, _, _>(&self.nodes, &leaves, p, iv, m, h, c);
             },
             |g, l, h| {
                 let t = h.t[g].0[l];
                 // SAFETY: as above.
-                if unsafe { K::two_level_occluded(self, &p.ray(g, l, t), t) } {
+                if unsafe { K::two_level_occluded(self, &p.ray(g, l, t), t, c) } {
                     h.t[g].0[l] = f32::NEG_INFINITY;
                 }
             }
@@ -313,6 +327,27 @@ impl TwoLevel {
         self.trace_occluded(Rays::Aos(rays), out);
     }
 
+    /// [`TwoLevel::intersect_packet`] with the portable kernel, reporting every step to `c`
+    /// (the hardware study's seam): the same answers and visits as the fast packet
+    /// kernels, apart from the whole-packet triangle cull, which only they make. A packet's
+    /// inner node is read once for all its rays, as is an instance-list entry; a
+    /// transformation or a triangle test is reported once for each ray it serves.
+    pub fn intersect_packet_counted<C: Counters>(&self, rays: &[Ray], out: &mut [Option<Hit>], c: &mut C) {
+        Rays::Aos(rays).each(|base, p, h| {
+            self.packet_intersect_k::<ScalarSet, C>(p, h, c);
+            write_hits(base, p, h, out);
+        });
+    }
+
+    /// [`TwoLevel::occluded_packet`] with the portable kernel, reporting every step to `c`
+    /// (as [`TwoLevel::intersect_packet_counted`]).
+    pub fn occluded_packet_counted<C: Counters>(&self, rays: &[Ray], out: &mut [bool], c: &mut C) {
+        Rays::Aos(rays).each(|base, p, h| {
+            self.packet_occluded_k::<ScalarSet, C>(p, h, c);
+            write_occluded(base, p, h, out);
+        });
+    }
+
     /// [`TwoLevel::intersect_packet`] on rays in SoA blocks; `out` holds eight entries per block.
     pub fn intersect_blocks(&self, blocks: &[RayBlock], out: &mut [Option<Hit>]) {
         self.trace_intersect(Rays::Soa(blocks), out);
@@ -347,7 +382,7 @@ impl TwoLevel {
             #[cfg(target_arch = "x86_64")]
             Kernel::Simd | Kernel::Avx512 => unsafe { avx2_tl_intersect(self, rays, out) },
             _ => rays.each(|base, p, h| {
-                self.packet_intersect_k::<ScalarSet>(p, h);
+                self.packet_intersect_k::<ScalarSet, _>(p, h, &mut ());
                 write_hits(base, p, h, out);
             }),
         }
@@ -360,7 +395,7 @@ impl TwoLevel {
             #[cfg(target_arch = "x86_64")]
             Kernel::Simd | Kernel::Avx512 => unsafe { avx2_tl_occluded(self, rays, out) },
             _ => rays.each(|base, p, h| {
-                self.packet_occluded_k::<ScalarSet>(p, h);
+                self.packet_occluded_k::<ScalarSet, _>(p, h, &mut ());
                 write_occluded(base, p, h, out);
             }),
         }
@@ -369,9 +404,9 @@ impl TwoLevel {
 
 impl<K: KernelSet> InstPacketLeaves<'_, K> {
     #[inline(always)]
-    pub(super) fn occluded_one(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    pub(super) fn occluded_one<C: Counters>(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
         let live: Masks = std::array::from_fn(|g| h.t[g].ge(F8::splat(f32::MIN)).and(m[g]));
-        self.occludes(id, p, &live, h);
+        self.occludes(id, p, &live, h, c);
     }
 }
 
@@ -381,7 +416,7 @@ pub(super) fn avx2_tl_intersect(t: &TwoLevel, rays: Rays, out: &mut [Option<Hit>
     // SAFETY: this function is compiled with AVX2, which its callers checked.
     unsafe {
         rays.each_avx2(|base, p, h| {
-            t.packet_intersect_k::<crate::kernel::SimdSet>(p, h);
+            t.packet_intersect_k::<crate::kernel::SimdSet, _>(p, h, &mut ());
             write_hits(base, p, h, out);
         })
     };
@@ -405,7 +440,7 @@ pub(super) fn avx2_tl_occluded(t: &TwoLevel, rays: Rays, out: &mut [bool]) {
     // SAFETY: this function is compiled with AVX2, which its callers checked.
     unsafe {
         rays.each_avx2(|base, p, h| {
-            t.packet_occluded_k::<crate::kernel::SimdSet>(p, h);
+            t.packet_occluded_k::<crate::kernel::SimdSet, _>(p, h, &mut ());
             write_occluded(base, p, h, out);
         })
     };

@@ -58,7 +58,7 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
     }
 
     #[inline(always)]
-    fn intersect(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    fn intersect<C: Counters>(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
         // PERF: the whole-packet culling of triangles only where several groups would test
         // them (one group's test costs about what the culling does), and only while it drops
         // at least two fifths of the triangles it is tried on. It drops 83% of those tried in
@@ -95,10 +95,17 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
             if keep == 0 {
                 continue;
             }
+            // Triangles each ray of a tested group is tested against (as the single-ray
+            // kernel counts, a group's four unless the whole-packet cull dropped some).
+            #[cfg(target_arch = "x86_64")]
+            let tested = keep.count_ones();
+            #[cfg(not(target_arch = "x86_64"))]
+            let tested = 4;
             for g in 0..p.groups {
                 if m[g].bits() == 0 {
                     continue;
                 }
+                count_rays(c, m[g], t4, tested);
                 #[cfg(target_arch = "x86_64")]
                 if K::SIMD {
                     // SAFETY: as above.
@@ -144,7 +151,7 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
     }
 
     #[inline(always)]
-    fn occluded(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits) {
+    fn occluded<C: Counters>(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
         let mut m = *m;
         for gi in first..first + count {
             // SAFETY: as above.
@@ -154,6 +161,7 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
                 if m[g].bits() == 0 {
                     continue;
                 }
+                count_rays(c, m[g], t4, 4);
                 let limit = h.t[g];
                 let mut hit = M8::NONE;
                 #[cfg(target_arch = "x86_64")]
@@ -178,6 +186,15 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
                 return;
             }
         }
+    }
+}
+
+/// Reports to `c` that each ray of `m` tested `n` triangles of `t4` (one report per ray,
+/// as the single-ray kernels make; nothing is left of this with `()` counters).
+#[inline(always)]
+fn count_rays<C: Counters>(c: &mut C, m: M8, t4: &Tri4, n: u32) {
+    for _ in 0..m.bits().count_ones() {
+        c.triangles(std::ptr::from_ref(t4) as usize, std::mem::size_of::<Tri4>(), n);
     }
 }
 

@@ -33,15 +33,14 @@
 use crate::geom::{Hit, Ray, INVALID};
 use crate::kernel::{Kernel, KernelSet, ScalarSet};
 use crate::simd::{F8, LANES, M8};
-use crate::traverse::{Counters, TraversalStats, STACK};
+use crate::traverse::{Counters, Level, TraversalStats, STACK};
 use crate::triangle::Tri4;
 use crate::wide::{leaf_range, node_at, WideNode, EMPTY, LEAF};
 use glam::{Affine3A, Vec3};
 // Lane arithmetic in method form (`a.add(b)`), as the AVX module mirrors it.
 use crate::mesh::{MeshBvh, Nodes, TriangleTest};
 use crate::shape::Shape;
-use crate::tlas::{Geometry, InstLeaves, TwoLevel};
-use crate::traverse::RayPre;
+use crate::tlas::{Geometry, TwoLevel};
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 mod leaves;

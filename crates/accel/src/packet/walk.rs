@@ -54,10 +54,11 @@ pub(super) fn group_box(rows: &[f32; 6], p: &Packet, iv: &Interval, g: usize, t:
 
 /// What sits in the leaves, for packets.
 pub(crate) trait PacketLeaves {
-    /// Closest hits of the lanes in `m` among items `first..first+count`.
-    fn intersect(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits);
+    /// Closest hits of the lanes in `m` among items `first..first+count`, reporting the
+    /// items read and tested to `c`.
+    fn intersect<C: Counters>(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C);
     /// Occlusion of the lanes in `m`: an occluded lane gets `t = -inf`.
-    fn occluded(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits);
+    fn occluded<C: Counters>(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C);
     /// Asks for the cache lines of item `first` (a hint).
     #[inline(always)]
     fn prefetch(&self, _first: u32) {}
@@ -169,6 +170,7 @@ pub(super) fn traverse<const ANY: bool, K: KernelSet, L: PacketLeaves, C: Counte
             let node = unsafe { node_at(nodes, cur.code) };
             let mut mask = node_test::<K>(node, iv, tmax, &mut dist);
             c.node();
+            c.node_read(std::ptr::from_ref(node) as usize, std::mem::size_of::<WideNode<8>>());
             // An inner code is a multiple of 32: the slot fits in its low bits.
             let (base, at0) = (sp, cur.code);
             while mask != 0 {
@@ -198,9 +200,9 @@ pub(super) fn traverse<const ANY: bool, K: KernelSet, L: PacketLeaves, C: Counte
                 let (first, count) = leaf_range(cur.code);
                 c.items(count);
                 if ANY {
-                    leaves.occluded(first, count, p, &m, h);
+                    leaves.occluded(first, count, p, &m, h, c);
                 } else {
-                    leaves.intersect(first, count, p, &m, h);
+                    leaves.intersect(first, count, p, &m, h, c);
                 }
                 tmax = h.max_t::<K>(p.groups, active);
                 if ANY && tmax == f32::NEG_INFINITY {
