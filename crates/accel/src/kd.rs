@@ -162,7 +162,7 @@ impl KdTree {
         let ids: Vec<u32> = (0..boxes.len() as u32).filter(|&i| !boxes[i as usize].is_empty() && boxes[i as usize].is_finite()).collect();
         let bounds = ids.iter().fold(Aabb::EMPTY, |b, &i| b.union(boxes[i as usize]));
         let n = ids.len().max(1) as f32;
-        let depth = if opts.max_depth == 0 { (8.0 + 1.3 * n.log2()).round() as u32 } else { opts.max_depth }.min(60);
+        let depth = if opts.max_depth == 0 { (8.0 + 1.3 * n.log2()).round() as u32 } else { opts.max_depth }.min(MAX_DEPTH);
         let tree = if ids.is_empty() { Tree::Leaf(Vec::new()) } else { build_node(boxes, ids, bounds, depth, &opts) };
         let mut out = Self { nodes: Vec::new(), list: Vec::new(), bounds };
         out.flatten(&tree)?;
@@ -435,6 +435,11 @@ fn unit_hit<P: Precision>(tri: &UnitTriangle, o: &[f32; 3], d: &[f32; 3], tmin: 
     (u >= 0.0 && v >= 0.0 && add(u, v) <= 1.0).then_some((t, u, v))
 }
 
+/// Deepest tree the build makes: a walk's stack holds at most one entry per level.
+const MAX_DEPTH: u32 = 60;
+/// Entries of a walk's stack (PERF: a fixed array; a `Vec` per ray cost an allocation).
+const KD_STACK: usize = MAX_DEPTH as usize + 4;
+
 /// A mailbox of the last objects tested by one ray (SaarCOR's list unit): direct mapped,
 /// 16 entries, keyed by object id.
 #[derive(Clone, Copy)]
@@ -495,7 +500,8 @@ fn walk<P: Precision, C: Counters, I: KdItems, const ANY: bool>(tree: &KdTree, i
     let before = hit.prim;
     hit.prim = INVALID;
     let mut mb = Mailbox::new();
-    let mut stack: Vec<(u32, f32, f32)> = Vec::new();
+    let mut stack = [(0u32, 0f32, 0f32); KD_STACK];
+    let mut sp = 0usize;
     let mut cur = 0u32;
     loop {
         let node = tree.nodes[cur as usize];
@@ -511,7 +517,8 @@ fn walk<P: Precision, C: Counters, I: KdItems, const ANY: bool>(tree: &KdTree, i
             } else if t < tn {
                 cur = far;
             } else {
-                stack.push((far, t, tf));
+                stack[sp] = (far, t, tf);
+                sp += 1;
                 cur = near;
                 tf = t;
             }
@@ -536,9 +543,11 @@ fn walk<P: Precision, C: Counters, I: KdItems, const ANY: bool>(tree: &KdTree, i
         }
         // The next stack entry whose segment still starts before the hit found.
         loop {
-            let Some((n, a, b)) = stack.pop() else {
+            if sp == 0 {
                 return finish(hit, before);
-            };
+            }
+            sp -= 1;
+            let (n, a, b) = stack[sp];
             (cur, tn, tf) = (n, a, b.min(hit.t));
             if tn <= tf {
                 break;
@@ -589,7 +598,8 @@ fn walk4<P: Precision, C: Counters, I: KdItems, const ANY: bool>(
     }
     let mut done = 0u8;
     let mut mb = [Mailbox::new(); 4];
-    let mut stack: Vec<(u32, [f32; 4], [f32; 4], u8)> = Vec::new();
+    let mut stack = [(0u32, [0f32; 4], [0f32; 4], 0u8); KD_STACK];
+    let mut sp = 0usize;
     let mut cur = 0u32;
     loop {
         let node = tree.nodes[cur as usize];
@@ -628,7 +638,8 @@ fn walk4<P: Precision, C: Counters, I: KdItems, const ANY: bool>(
                     ftn[l] = tsplit[l];
                     tf[l] = tsplit[l];
                 }
-                stack.push((far, ftn, ftf, go_far));
+                stack[sp] = (far, ftn, ftf, go_far);
+                sp += 1;
             }
             active = go_near;
             cur = near;
@@ -640,9 +651,9 @@ fn walk4<P: Precision, C: Counters, I: KdItems, const ANY: bool>(
             c.list_read(std::ptr::from_ref(&tree.list[e as usize]) as usize, 4);
             let id = tree.list[e as usize];
             let mut lanes = 0u8;
-            for l in 0..4 {
+            for (l, m) in mb.iter_mut().enumerate() {
                 if active & !done & (1 << l) != 0 {
-                    if mb[l].seen(id) {
+                    if m.seen(id) {
                         c.mailbox_hit();
                     } else {
                         lanes |= 1 << l;
@@ -653,8 +664,8 @@ fn walk4<P: Precision, C: Counters, I: KdItems, const ANY: bool>(
                 items.test4::<P, C, ANY>(id, rays, &kr, lanes, hits, c);
             }
             if ANY {
-                for l in 0..4 {
-                    if hits[l].prim != INVALID {
+                for (l, h) in hits.iter().enumerate() {
+                    if h.prim != INVALID {
                         done |= 1 << l;
                     }
                 }
@@ -670,9 +681,11 @@ fn walk4<P: Precision, C: Counters, I: KdItems, const ANY: bool>(
         }
         // Next stack entry with a lane still searching within its segment.
         loop {
-            let Some((n, a, b, m)) = stack.pop() else {
+            if sp == 0 {
                 return finish4(hits, before);
-            };
+            }
+            sp -= 1;
+            let (n, a, b, m) = stack[sp];
             let mut m = m & !done;
             let mut bb = b;
             for l in 0..4 {

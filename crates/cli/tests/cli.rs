@@ -257,6 +257,23 @@ fn bench_rays_reads_the_harness_format() {
     for l in shadow {
         assert!(l.contains("\"occluded\":10"), "{l}");
     }
+    // SaarCOR's kd-tree on the same rays: single rays and 4-ray packets, the same answers.
+    let o = lucent()
+        .args(["bench", "rays"])
+        .arg(d.path())
+        .args(["--name", "t", "--threads", "1", "--frames", "1", "--warmup", "0", "--index", "kd"])
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let t = String::from_utf8_lossy(&o.stdout);
+    let kd: Vec<&str> = t.lines().filter(|l| l.starts_with('{')).collect();
+    assert!(kd[0].contains("\"kind\":\"build\"") && kd[0].contains("\"bvh\":\"kd\""), "{t}");
+    for api in ["single-kd", "packet4-kd"] {
+        let l: Vec<&&str> = kd.iter().filter(|l| l.contains(&format!("\"api\":\"{api}\""))).collect();
+        assert_eq!(l.len(), 3, "{api}: one line per kind: {t}");
+        assert!(l[0].contains("\"hits\":10") && l[0].contains("\"diff_px_vs_ref\":0"), "{}", l[0]);
+        assert!(l[1].contains("\"occluded\":10"), "{}", l[1]);
+    }
     // Bad input: a truncated file gives a clear error.
     std::fs::write(d.path().join("mesh.bin"), b"RTBMESH1\x05\0\0\0").expect("cut");
     let o = lucent().args(["bench", "rays"]).arg(d.path()).output().expect("run");
