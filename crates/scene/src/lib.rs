@@ -25,11 +25,12 @@ pub use error::ImportError;
 pub use gltf::{load_gltf, load_gltf_with, parse_gltf, parse_gltf_with};
 pub use mitsuba::{load_hdr, load_mitsuba, load_mitsuba_with, parse_mitsuba, parse_mitsuba_with};
 pub use model::*;
-pub use obj::{load_obj, parse_obj};
+pub use obj::{load_obj, parse_obj, parse_obj_with};
 pub use ply::{load_ply, parse_ply};
 pub use sunflowers::{sunflower_mesh, sunflower_scene, FLOWERS};
 pub use texture::{
-    decode_image, open_image, srgb_to_linear, texture_from_image, FREE_TEXEL_BYTES, MAX_EXPANSION, MAX_TEXTURE_BYTES, MAX_TEXTURE_SIDE,
+    decode_image, decoder_panic, open_image, srgb_to_linear, texture_from_image, FREE_TEXEL_BYTES, MAX_EXPANSION, MAX_TEXTURE_BYTES,
+    MAX_TEXTURE_SIDE,
 };
 
 use std::path::Path;

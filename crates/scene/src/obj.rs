@@ -65,6 +65,19 @@ pub fn load_obj(path: &Path) -> Result<Scene, ImportError> {
 
 /// Parses OBJ text; `dir` is where `mtllib` and textures are looked up.
 pub fn parse_obj(path: &Path, dir: &Path, text: &str) -> Result<Scene, ImportError> {
+    parse_obj_with(path, dir, text, &mut |p| std::fs::read_to_string(p))
+}
+
+/// [`parse_obj`] with the material libraries it names read by `read_mtl` (given each one's
+/// path under `dir`): for OBJ files held in memory, an archive or a network message. A
+/// library `read_mtl` cannot give is a warning, and its materials get defaults; textures
+/// are still looked up under `dir`.
+pub fn parse_obj_with(
+    path: &Path,
+    dir: &Path,
+    text: &str,
+    read_mtl: &mut dyn FnMut(&Path) -> std::io::Result<String>,
+) -> Result<Scene, ImportError> {
     let lx = Lines { path };
     let mut scene = Scene { materials: vec![Material::default()], ambient: crate::model::DEFAULT_AMBIENT, ..Scene::default() };
     let mut textures = TextureCache::default();
@@ -157,7 +170,7 @@ pub fn parse_obj(path: &Path, dir: &Path, text: &str) -> Result<Scene, ImportErr
             "mtllib" => {
                 for file in it {
                     let mpath = dir.join(file);
-                    match std::fs::read_to_string(&mpath) {
+                    match read_mtl(&mpath) {
                         Ok(t) => parse_mtl(&mpath, &t, dir, &mut scene, &mut mat_ids, &mut textures)?,
                         Err(e) => tracing::warn!(
                             "{}:{line}: cannot read material library {}: {e}; using defaults",

@@ -51,7 +51,26 @@ pub fn decode_image(bytes: &[u8]) -> image::ImageResult<image::DynamicImage> {
     }
     let mut r = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format()?;
     r.limits(limits());
-    r.decode()
+    // The decoders are third-party code that untrusted bytes reach, and one of them panics
+    // on some malformed JPEGs (zune-jpeg 0.5.15, the newest release: an assertion in its
+    // AVX2 upsampler, found by `scripts/fuzz`; the same class is open upstream as
+    // etemesi254/zune-image#281). Such a panic is caught here and becomes this image's
+    // error, so a bad texture is a warning and never takes the process down.
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| r.decode())).unwrap_or_else(|p| {
+        let why = p.downcast_ref::<&str>().map(|s| (*s).to_string()).or_else(|| p.downcast_ref::<String>().cloned()).unwrap_or_default();
+        Err(image::ImageError::Decoding(image::error::DecodingError::new(
+            image::error::ImageFormatHint::Unknown,
+            format!("the image decoder failed on this data ({why})"),
+        )))
+    })
+}
+
+/// Whether a panic at `file` is one [`decode_image`] contains: inside an image decoder it
+/// calls. (For harnesses whose panic hook aborts, such as libFuzzer's: they let these
+/// unwind to `decode_image`.)
+#[must_use]
+pub fn decoder_panic(file: &str) -> bool {
+    ["/zune-jpeg-0.", "/zune-core-0.", "/png-0.", "/image-0."].iter().any(|c| file.contains(c))
 }
 
 /// Opens and decodes an image file within the texture limits (see [`decode_image`]).
