@@ -461,6 +461,9 @@ fn quality_of(name: &str) -> lucent_accel::Quality {
 }
 
 fn main() -> std::process::ExitCode {
+    // A panic inside an image decoder is contained by `lucent_scene::decode_image` (the
+    // image is skipped with a warning that gives the decoder's message): not a crash report.
+    lucent_scene::contain_decoder_panics();
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

@@ -587,3 +587,15 @@ fn report_on_a_scene() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A texture that makes the JPEG decoder panic (zune-jpeg 0.5.15, a fuzz finding) is a
+/// warning naming the image, not a crash report: `info` succeeds.
+#[test]
+fn a_decoder_panic_is_a_warning() {
+    let f = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/regressions/glb/zune_jpeg_avx2_upsampler.glb");
+    let o = lucent().arg("info").arg(&f).output().expect("run");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains("/images/1: not loaded") && err.contains("the image decoder failed"), "{err}");
+}

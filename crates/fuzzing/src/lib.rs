@@ -47,22 +47,6 @@ pub fn harness(name: &str) -> Option<Harness> {
     TARGETS.iter().find(|t| t.0 == name).map(|t| t.1)
 }
 
-/// Lets a panic inside an image decoder unwind to [`lucent_scene::decode_image`], which
-/// turns it into that image's error, instead of reaching the panic hook of libFuzzer, which
-/// aborts on every panic (a panic anywhere else still goes to it: a finding). Installed
-/// once, around whatever hook is there.
-fn contain_decoder_panics() {
-    static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| {
-        let prev = std::panic::take_hook();
-        std::panic::set_hook(Box::new(move |info| {
-            if !info.location().is_some_and(|l| lucent_scene::decoder_panic(l.file())) {
-                prev(info);
-            }
-        }));
-    });
-}
-
 /// Builds every mesh `scene` gave with the default build, so what a loader lets through
 /// also meets the builder.
 fn build_all(scene: &lucent_scene::Scene) {
@@ -143,7 +127,9 @@ pub fn ply(data: &[u8]) {
 /// Read strictly (every rule of the specification, and the data checks) and as by
 /// default (warnings, reading what can be read).
 pub fn gltf(data: &[u8]) {
-    contain_decoder_panics();
+    // Decoder panics unwind to `decode_image`, which contains them (any other panic still
+    // reaches libFuzzer's hook: a finding).
+    lucent_scene::contain_decoder_panics();
     let strict = lucent_scene::LoadOptions { strict: true };
     let _ = lucent_scene::parse_gltf_with(Path::new("fuzz.gltf"), Path::new(NOWHERE), data, &strict);
     if let Ok(scene) = lucent_scene::parse_gltf(Path::new("fuzz.gltf"), Path::new(NOWHERE), data) {
@@ -161,7 +147,9 @@ pub fn glb(data: &[u8]) {
 /// ([`lucent_scene::decode_image`], PNG or JPEG, within the texture limits), then turned into
 /// a texture.
 pub fn image(data: &[u8]) {
-    contain_decoder_panics();
+    // Decoder panics unwind to `decode_image`, which contains them (any other panic still
+    // reaches libFuzzer's hook: a finding).
+    lucent_scene::contain_decoder_panics();
     if let Ok(img) = lucent_scene::decode_image(data) {
         let t = lucent_scene::texture_from_image("fuzz".into(), img, lucent_scene::Wrap::Repeat, lucent_scene::Wrap::Repeat, true);
         let _ = t.texel_at(0, 0);

@@ -29,8 +29,8 @@ pub use obj::{load_obj, parse_obj, parse_obj_with};
 pub use ply::{load_ply, parse_ply};
 pub use sunflowers::{sunflower_mesh, sunflower_scene, FLOWERS};
 pub use texture::{
-    decode_image, decoder_panic, open_image, srgb_to_linear, texture_from_image, FREE_TEXEL_BYTES, MAX_EXPANSION, MAX_TEXTURE_BYTES,
-    MAX_TEXTURE_SIDE,
+    contain_decoder_panics, decode_image, decoder_panic, open_image, srgb_to_linear, texture_from_image, FREE_TEXEL_BYTES, MAX_EXPANSION,
+    MAX_TEXTURE_BYTES, MAX_TEXTURE_SIDE,
 };
 
 use std::path::Path;

@@ -66,11 +66,27 @@ pub fn decode_image(bytes: &[u8]) -> image::ImageResult<image::DynamicImage> {
 }
 
 /// Whether a panic at `file` is one [`decode_image`] contains: inside an image decoder it
-/// calls. (For harnesses whose panic hook aborts, such as libFuzzer's: they let these
-/// unwind to `decode_image`.)
+/// calls.
 #[must_use]
 pub fn decoder_panic(file: &str) -> bool {
     ["/zune-jpeg-0.", "/zune-core-0.", "/png-0.", "/image-0."].iter().any(|c| file.contains(c))
+}
+
+/// Wraps the process's panic hook (once) so that panics [`decode_image`] contains
+/// ([`decoder_panic`]) are not reported as crashes: the image's warning already gives the
+/// decoder's message. Every other panic goes to the hook that was there. For binaries and
+/// for harnesses whose hook aborts on any panic (libFuzzer's), which would otherwise stop
+/// at a contained one.
+pub fn contain_decoder_panics() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let prev = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !info.location().is_some_and(|l| decoder_panic(l.file())) {
+                prev(info);
+            }
+        }));
+    });
 }
 
 /// Opens and decodes an image file within the texture limits (see [`decode_image`]).
