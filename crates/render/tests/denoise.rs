@@ -129,3 +129,85 @@ fn background_and_emitters_pass_through() {
     assert_eq!(den.pixels[5], noisy.pixels[5]);
     assert_eq!(den.pixels[40], noisy.pixels[40]);
 }
+
+/// A flat surface (albedo 0.5, light 1, ±10% noise) beside a farther one: one firefly
+/// (100 times its value) on the near surface.
+fn firefly_picture() -> (Film, Aovs, usize) {
+    let (w, h) = (48u32, 32u32);
+    let n = (w * h) as usize;
+    let mut state = 0x9e37_79b9u32;
+    let mut rnd = || {
+        state = lucent_render::pcg_hash(state);
+        (state >> 8) as f32 / (1u32 << 24) as f32
+    };
+    let mut noisy: Vec<Vec3> = (0..n).map(|_| Vec3::splat(0.5 * (0.9 + 0.2 * rnd()))).collect();
+    let depth = (0..n).map(|i| if (i as u32 % w) >= 32 { 5.0 } else { 2.0 }).collect();
+    let firefly = (16 * w + 24) as usize;
+    noisy[firefly] *= 100.0;
+    let film = |pixels| Film { width: w, height: h, pixels };
+    let aovs = Aovs { albedo: film(vec![Vec3::splat(0.5); n]), normal: film(vec![Vec3::Z; n]), depth, emission: film(vec![Vec3::ZERO; n]) };
+    (film(noisy), aovs, firefly)
+}
+
+/// A firefly's light is spread over its surface, not dropped: the image's sum is kept,
+/// the firefly is gone (no pixel above twice the surface's value), and the farther
+/// surface beyond the depth edge receives none of it.
+#[test]
+fn a_firefly_is_spread_over_its_surface_and_its_light_kept() {
+    let (noisy, aovs, firefly) = firefly_picture();
+    let den = denoise(&noisy, &aovs, &DenoiseSettings::default());
+    let sum = |f: &Film| f.pixels.iter().map(|p| f64::from(p.x)).sum::<f64>();
+    assert!((sum(&den) / sum(&noisy) - 1.0).abs() < 1e-4, "sum {} against {}", sum(&den), sum(&noisy));
+    let top = den.pixels.iter().map(|p| p.x).fold(0.0f32, f32::max);
+    assert!(top < 1.0, "brightest pixel {top} (the firefly was {})", noisy.pixels[firefly].x);
+    for y in 0..32 {
+        for x in 32..48 {
+            let (d, o) = (den.get(x, y).x, noisy.get(x, y).x);
+            assert!(d < 0.56, "({x}, {y}) beyond the edge took the firefly's light: {d} (was {o})");
+        }
+    }
+    // Off, the firefly stays.
+    let off = denoise(&noisy, &aovs, &DenoiseSettings { outlier_sigmas: 0.0, ..DenoiseSettings::default() });
+    assert!(off.pixels[firefly].x > 5.0, "without outlier spreading: {}", off.pixels[firefly].x);
+}
+
+/// Dark surfaces (albedo below the filter's floor: black glossy plastic) are filtered in
+/// radiance, among themselves: their noise falls, and the bright surface beside them
+/// (same normal and depth) neither gives them light nor takes theirs.
+#[test]
+fn dark_surfaces_are_filtered_among_themselves() {
+    let (w, h) = (32u32, 24u32);
+    let n = (w * h) as usize;
+    let mut state = 0x0bad_cafeu32;
+    let mut rnd = || {
+        state = lucent_render::pcg_hash(state);
+        (state >> 8) as f32 / (1u32 << 24) as f32
+    };
+    // Left half: albedo 0.005 but reflecting 0.3 (a glossy highlight); right: albedo 0.8, light 0.8.
+    let dark = |i: usize| (i as u32 % w) < 16;
+    let clean: Vec<Vec3> = (0..n).map(|i| Vec3::splat(if dark(i) { 0.3 } else { 0.8 })).collect();
+    let noisy: Vec<Vec3> = clean.iter().map(|c| *c * (0.5 + rnd())).collect();
+    let film = |pixels| Film { width: w, height: h, pixels };
+    let aovs = Aovs {
+        albedo: film((0..n).map(|i| Vec3::splat(if dark(i) { 0.005 } else { 0.8 })).collect()),
+        normal: film(vec![Vec3::Z; n]),
+        depth: vec![2.0; n],
+        emission: film(vec![Vec3::ZERO; n]),
+    };
+    let den = denoise(&film(noisy.clone()), &aovs, &DenoiseSettings::default());
+    let err = |f: &[Vec3], side: bool| {
+        (0..n).filter(|&i| dark(i) == side).map(|i| f64::from(((f[i] - clean[i]) / clean[i]).x.abs())).sum::<f64>()
+    };
+    assert!(
+        err(&den.pixels, true) * 3.0 < err(&noisy, true),
+        "dark side: {} denoised, {} noisy",
+        err(&den.pixels, true),
+        err(&noisy, true)
+    );
+    // Nothing crosses: each side's mean stays within its noise (±5%) of its true value.
+    for side in [true, false] {
+        let (s, k) = (0..n).filter(|&i| dark(i) == side).fold((0.0, 0), |(s, k), i| (s + f64::from(den.pixels[i].x), k + 1));
+        let truth = if side { 0.3 } else { 0.8 };
+        assert!((s / f64::from(k) / truth - 1.0).abs() < 0.05, "side {side}: mean {} against {truth}", s / f64::from(k));
+    }
+}

@@ -103,14 +103,20 @@ pub fn load_mitsuba(path: &Path) -> R<Scene> {
 }
 
 /// Loads a Mitsuba 3 XML scene with parameters set from outside (Mitsuba's `-D name=value`:
-/// they take the place of the file's `<default>`s).
+/// they take the place of the file's `<default>`s), ready to render: meshes one shape each
+/// draws are merged in world space ([`Scene::merge_single_use_meshes`]), where
+/// [`parse_mitsuba_with`] keeps each shape its own mesh and instance.
 pub fn load_mitsuba_with(path: &Path, defines: &[(String, String)]) -> R<Scene> {
     let bytes = std::fs::read(path).map_err(|source| ImportError::Io { path: path.to_path_buf(), source })?;
     let text = std::str::from_utf8(&bytes).map_err(|e| {
         let line = bytes[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count() + 1;
         ImportError::Parse { path: path.to_path_buf(), line, msg: "not UTF-8 text".into() }
     })?;
-    parse_mitsuba_with(path, path.parent().unwrap_or(Path::new(".")), text, defines)
+    let mut scene = parse_mitsuba_with(path, path.parent().unwrap_or(Path::new(".")), text, defines)?;
+    // (Ready to render, as Mitsuba gives Embree its shapes in world space; `parse_mitsuba`
+    // keeps the file's shapes apart.)
+    scene.merge_single_use_meshes();
+    Ok(scene)
 }
 
 /// Reads Mitsuba XML `text`; `path` names it in messages, files it names are read from

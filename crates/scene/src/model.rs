@@ -534,4 +534,108 @@ impl Scene {
         self.instances.push(Instance { geom: Geom::Mesh(id), world_from_object: Affine3A::IDENTITY });
         id
     }
+
+    /// Bakes the meshes that one instance each draws into world space and merges them into
+    /// one mesh per kind of attributes (with or without normals, with or without texture
+    /// coordinates), drawn by one identity instance each, as Mitsuba gives Embree its
+    /// shapes: a ray then walks one tree instead of entering an instance per object (the
+    /// Cornell box's eight walls and boxes enclose every ray). A scene that animates, and
+    /// meshes drawn by several instances, are left as they are; meshes no instance draws
+    /// stay too. Normals follow the inverse transpose; a mirroring transform swaps two
+    /// corners of each triangle, so faces keep their side. Returns how many instances were
+    /// merged away.
+    pub fn merge_single_use_meshes(&mut self) -> usize {
+        if self.animation.is_some() {
+            return 0;
+        }
+        let mut uses = vec![0u32; self.meshes.len()];
+        for i in &self.instances {
+            if let Geom::Mesh(m) = i.geom {
+                if let Some(u) = uses.get_mut(m as usize) {
+                    *u += 1;
+                }
+            }
+        }
+        // Instances to merge, by (normals, uvs).
+        let mut groups: [Vec<usize>; 4] = Default::default();
+        for (k, i) in self.instances.iter().enumerate() {
+            if let Geom::Mesh(m) = i.geom {
+                if uses.get(m as usize) == Some(&1) && i.world_from_object.is_finite() {
+                    let mesh = &self.meshes[m as usize];
+                    let key = usize::from(!mesh.normals.values.is_empty()) * 2 + usize::from(!mesh.uvs.values.is_empty());
+                    groups[key].push(k);
+                }
+            }
+        }
+        let mut removed = vec![false; self.instances.len()];
+        let mut taken = vec![false; self.meshes.len()];
+        let mut merged = 0;
+        for group in groups.iter().filter(|g| g.len() > 1) {
+            let mut out = Mesh { name: format!("{} merged meshes", group.len()), ..Mesh::default() };
+            let (mut n_idx, mut uv_idx) = (Vec::new(), Vec::new());
+            for &k in group {
+                let inst = &self.instances[k];
+                let Geom::Mesh(m) = inst.geom else { continue };
+                let mesh = std::mem::take(&mut self.meshes[m as usize]);
+                taken[m as usize] = true;
+                let t = inst.world_from_object;
+                let normal_m = glam::Mat3::from(t.matrix3).inverse().transpose();
+                let mirror = t.matrix3.determinant() < 0.0;
+                let order = |c: [u32; 3]| if mirror { [c[0], c[2], c[1]] } else { c };
+                let (p0, n0, u0) = (out.positions.len() as u32, out.normals.values.len() as u32, out.uvs.values.len() as u32);
+                out.positions.extend(mesh.positions.iter().map(|&p| t.transform_point3(p)));
+                out.normals.values.extend(mesh.normals.values.iter().map(|&n| (normal_m * n).normalize_or_zero()));
+                out.uvs.values.extend(&mesh.uvs.values);
+                for (tri, c) in mesh.indices.iter().enumerate() {
+                    out.indices.push(order(c.map(|i| i + p0)));
+                    if !mesh.normals.values.is_empty() {
+                        let ni = mesh.normals.indices.as_ref().and_then(|v| v.get(tri)).unwrap_or(c);
+                        n_idx.push(order(ni.map(|i| i + n0)));
+                    }
+                    if !mesh.uvs.values.is_empty() {
+                        let ui = mesh.uvs.indices.as_ref().and_then(|v| v.get(tri)).unwrap_or(c);
+                        uv_idx.push(order(ui.map(|i| i + u0)));
+                    }
+                    out.material.push(mesh.material.get(tri).copied().unwrap_or(0));
+                }
+                removed[k] = true;
+                merged += 1;
+            }
+            if !out.normals.values.is_empty() {
+                out.normals.indices = Some(n_idx);
+            }
+            if !out.uvs.values.is_empty() {
+                out.uvs.indices = Some(uv_idx);
+            }
+            merged -= 1;
+            let id = self.meshes.len() as u32;
+            self.meshes.push(out);
+            self.instances.push(Instance { geom: Geom::Mesh(id), world_from_object: Affine3A::IDENTITY });
+            removed.push(false);
+        }
+        let mut k = 0;
+        self.instances.retain(|_| {
+            k += 1;
+            !removed[k - 1]
+        });
+        // The merged meshes' old slots go; the others move up.
+        taken.resize(self.meshes.len(), false);
+        let mut new_index = Vec::with_capacity(self.meshes.len());
+        let mut next = 0u32;
+        for &t in &taken {
+            new_index.push(next);
+            next += u32::from(!t);
+        }
+        let mut k = 0;
+        self.meshes.retain(|_| {
+            k += 1;
+            !taken[k - 1]
+        });
+        for i in &mut self.instances {
+            if let Geom::Mesh(m) = &mut i.geom {
+                *m = new_index[*m as usize];
+            }
+        }
+        merged
+    }
 }

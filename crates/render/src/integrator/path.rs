@@ -311,15 +311,6 @@ pub(crate) fn aovs(w: &World, ray: &Ray) -> (Vec3, Vec3, f32, Vec3) {
     (albedo, ns, depth, emission_at(w, &r, &surf))
 }
 
-/// The radiance the first surface a camera ray meets emits toward it (zero where it
-/// meets nothing).
-pub(crate) fn emission_seen(w: &World, ray: &Ray) -> Vec3 {
-    match w.intersect_solid(ray) {
-        Some((r, hit)) => emission_at(w, &r, &w.surface(&r, &hit)),
-        None => Vec3::ZERO,
-    }
-}
-
 /// What `surf`, met by `r`, emits back along it.
 fn emission_at(w: &World, r: &Ray, surf: &Surface) -> Vec3 {
     let mat = material(w, surf.material);
