@@ -31,7 +31,9 @@
 //! with holes: pass `i` takes every `2^i`-th pixel, so five passes reach 62 pixels out.
 
 use crate::film::{Aovs, Film};
-use crate::integrator::vpl::{ALBEDO_MIN, FILTER_ALBEDO_MIN};
+#[cfg(doc)]
+use crate::integrator::vpl::FILTER_ALBEDO_MIN;
+use crate::integrator::vpl::{dark as is_dark, demodulating};
 use crate::world::luminance as lum;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -207,6 +209,28 @@ fn spread_outliers(c: &mut [Vec3], albedo: &[Vec3], guide: &[Guide], w: usize, h
     }
 }
 
+/// [`spread_outliers`] on a VPL image's layers (`w` × `h`, row-major): their reflected
+/// light, demodulated, before the discontinuity buffer averages it.
+pub(crate) fn spread_outliers_of_layers(layers: &mut [crate::integrator::vpl::Layers], w: usize, h: usize, sigmas: f32, radius: u32) {
+    let guide: Vec<Guide> = layers
+        .iter()
+        .map(|l| Guide {
+            valid: l.depth.is_finite() && l.depth > 0.0 && l.normal != Vec3::ZERO && l.lit.is_finite(),
+            n: l.normal,
+            z: l.depth,
+            dz: (0.0, 0.0),
+            dark: is_dark(l.albedo),
+        })
+        .collect();
+    let albedo: Vec<Vec3> = layers.iter().map(|l| demodulating(l.albedo)).collect();
+    let mut c: Vec<Vec3> = layers.iter().map(|l| l.lit).collect();
+    let s = DenoiseSettings { outlier_sigmas: sigmas, outlier_radius: radius, ..DenoiseSettings::default() };
+    spread_outliers(&mut c, &albedo, &guide, w, h, &s);
+    for (l, c) in layers.iter_mut().zip(c) {
+        l.lit = c;
+    }
+}
+
 /// Denoises `color` guided by `aovs` (the same size). Energy is kept: each pass moves
 /// light between pairs of pixels by an amount that is the same both ways (a conservative
 /// diffusion step), so the image's sum does not change, where a normalised weighted mean
@@ -221,19 +245,14 @@ pub fn denoise(color: &Film, aovs: &Aovs, s: &DenoiseSettings) -> Film {
     {
         return color.clone();
     }
-    let albedo: Vec<Vec3> = aovs
-        .albedo
-        .pixels
-        .iter()
-        .map(|a| if a.max_element() < FILTER_ALBEDO_MIN { Vec3::ONE } else { a.max(Vec3::splat(ALBEDO_MIN)) })
-        .collect();
+    let albedo: Vec<Vec3> = aovs.albedo.pixels.iter().map(|&a| demodulating(a)).collect();
     let mut guide: Vec<Guide> = (0..n)
         .map(|i| {
             let (nn, z) = (aovs.normal.pixels[i], aovs.depth[i]);
             // (Emitters pass through: their light is not the albedo's to scale.)
             let emits = aovs.emission.pixels[i].max_element() > 0.0;
-            // (Nor dark surfaces: see `FILTER_ALBEDO_MIN`.)
-            let dark = aovs.albedo.pixels[i].max_element() < FILTER_ALBEDO_MIN;
+            // (Dark surfaces are filtered among themselves: see `FILTER_ALBEDO_MIN`.)
+            let dark = is_dark(aovs.albedo.pixels[i]);
             Guide {
                 valid: z.is_finite() && z > 0.0 && nn != Vec3::ZERO && !emits && color.pixels[i].is_finite(),
                 n: nn,

@@ -177,6 +177,35 @@ fn discontinuity_buffer_keeps_edges() {
     }
 }
 
+/// Dark surfaces (albedo below the filter's floor) are averaged too, in radiance, among
+/// themselves: beside a bright surface of the same depth and normal, each side's
+/// interleaving pattern is removed and neither side takes the other's light.
+#[test]
+fn discontinuity_buffer_filters_dark_surfaces_among_themselves() {
+    let (wd, ht) = (16u32, 8u32);
+    let r = Region::full(wd, ht, 0, 1);
+    let layers: Vec<Layers> = (0..wd * ht)
+        .map(|i| {
+            let left = i % wd < 8;
+            // Left: a black glossy surface (albedo 0.005) reflecting 0.3 on average; right:
+            // albedo 0.8, demodulated light 2. Both alternate as interleaved sets do.
+            let (albedo, mean) = if left { (0.005, 0.3) } else { (0.8, 2.0) };
+            let lit = glam::Vec3::splat(mean * if i % 2 == 0 { 0.5 } else { 1.5 });
+            Layers { lit, albedo: glam::Vec3::splat(albedo), normal: glam::Vec3::Z, depth: 2.0, ..Layers::default() }
+        })
+        .collect();
+    for y in 2..6 {
+        for x in 2..14 {
+            if (6..10).contains(&x) {
+                continue;
+            }
+            let v = discontinuity(&layers, r, 4, x, y);
+            let want = if x < 8 { 0.3 } else { 2.0 };
+            assert!((v.x - want).abs() < 1e-5, "({x}, {y}): {v} against {want}");
+        }
+    }
+}
+
 /// The tiled renderer (camera packets, shadow-ray packets from each VPL) gives the
 /// ray-by-ray reference's pixels ([`render_pixel`], which makes the frame's VPLs and
 /// traces every ray alone), with the discontinuity buffer off.

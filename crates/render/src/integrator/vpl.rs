@@ -442,7 +442,7 @@ pub fn li_layers(w: &World, ray: &Ray, set: &VplSet, pixel: (u32, u32)) -> Layer
 
 #[inline]
 fn demodulate(ind: Vec3, albedo: Vec3) -> Vec3 {
-    let v = ind / albedo.max(Vec3::splat(ALBEDO_MIN));
+    let v = ind / demodulating(albedo);
     if v.is_finite() {
         v
     } else {
@@ -450,21 +450,33 @@ fn demodulate(ind: Vec3, albedo: Vec3) -> Vec3 {
     }
 }
 
-/// The least albedo (largest channel) of a pixel the discontinuity buffer averages: the
-/// light a darker surface reflects is not proportional to its albedo (a black plastic's
-/// coating, a dark metal), and divided by it, it would flood its neighbours (measured on
-/// the kitchen: relMSE 2.6 against path tracing, 0.15 unfiltered).
+/// The least albedo (largest channel) of a pixel whose light the discontinuity buffer and
+/// the denoiser demodulate: the light a darker surface reflects is not proportional to its
+/// albedo (a black plastic's coating, a dark metal), and divided by it, it would flood its
+/// neighbours (measured on the kitchen: relMSE 2.6 against path tracing, 0.15
+/// unfiltered). Such surfaces are filtered in radiance (albedo 1), among their own kind.
 pub const FILTER_ALBEDO_MIN: f32 = 0.02;
 
+/// Whether a surface of this albedo is dark (see [`FILTER_ALBEDO_MIN`]).
 #[inline]
-fn filterable(l: &Layers) -> bool {
-    l.albedo.max_element() >= FILTER_ALBEDO_MIN
+pub(crate) fn dark(albedo: Vec3) -> bool {
+    albedo.max_element() < FILTER_ALBEDO_MIN
+}
+
+/// The albedo demodulation divides by: the albedo, or 1 for a dark surface.
+#[inline]
+pub(crate) fn demodulating(albedo: Vec3) -> Vec3 {
+    if dark(albedo) {
+        Vec3::ONE
+    } else {
+        albedo.max(Vec3::splat(ALBEDO_MIN))
+    }
 }
 
 /// A VPL image sample's albedo as demodulation uses it.
 #[inline]
 fn modulate(l: &Layers) -> Vec3 {
-    l.albedo.max(Vec3::splat(ALBEDO_MIN))
+    demodulating(l.albedo)
 }
 
 /// The layers of every pixel of `r` (row-major) for the sample `set` belongs to, tile by
@@ -605,19 +617,27 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
         .sum()
 }
 
+/// With the discontinuity buffer, outliers of the reflected light (a VPL too near a glossy
+/// surface, a rare specular path of the direct light) first give their excess to their
+/// surface, as the denoiser's do ([`crate::DenoiseSettings::outlier_sigmas`]): a pixel
+/// brighter than its 5 × 5 neighbours' mean by this many standard deviations.
+pub const OUTLIER_SIGMAS: f32 = 2.0;
+/// How far outliers' excess light goes, in pixels.
+pub const OUTLIER_RADIUS: u32 = 6;
+
 /// The discontinuity buffer at pixel (x, y) of `layers` (region `r`, row-major): the
 /// demodulated reflected light averaged over the `m` × `m` neighbourhood (for even `m`,
 /// the (m + 1)-wide window with half weights on its outer rows and columns, so that each
 /// set counts once), over the neighbours whose surface lies within 5% of the pixel's
-/// distance and whose normal is within 25° of its normal, and whose albedo reaches
-/// [`FILTER_ALBEDO_MIN`]. Pixels that see no surface, or a darker one, keep their own
-/// value.
+/// distance, whose normal is within 25° of its normal, and which are dark (see
+/// [`FILTER_ALBEDO_MIN`]: their light is kept in radiance) when it is. Pixels that see no
+/// surface keep their own value.
 #[must_use]
 pub fn discontinuity(layers: &[Layers], r: Region, m: u32, x: u32, y: u32) -> Vec3 {
     let width = r.x1 - r.x0;
     let at = |x: u32, y: u32| &layers[((y - r.y0) * width + (x - r.x0)) as usize];
     let c = at(x, y);
-    if m <= 1 || !c.depth.is_finite() || c.normal == Vec3::ZERO || !filterable(c) {
+    if m <= 1 || !c.depth.is_finite() || c.normal == Vec3::ZERO {
         return c.lit;
     }
     let h = (m / 2) as i64;
@@ -636,7 +656,11 @@ pub fn discontinuity(layers: &[Layers], r: Region, m: u32, x: u32, y: u32) -> Ve
             }
             let wx = if even && dx.abs() == h { 0.5 } else { 1.0 };
             let q = at(xx as u32, yy as u32);
-            if !q.depth.is_finite() || (q.depth - c.depth).abs() > 0.05 * c.depth || q.normal.dot(c.normal) < 0.906 || !filterable(q) {
+            if !q.depth.is_finite()
+                || (q.depth - c.depth).abs() > 0.05 * c.depth
+                || q.normal.dot(c.normal) < 0.906
+                || dark(q.albedo) != dark(c.albedo)
+            {
                 continue;
             }
             sum += q.lit * (wx * wy);
@@ -671,7 +695,10 @@ pub fn render_region(
         return (film, 0);
     }
     let m = s.interleave.clamp(1, 64);
-    let margin = if s.discontinuity && m > 1 { m / 2 } else { 0 };
+    // (Outliers spread first: a pixel's value depends on outliers up to OUTLIER_RADIUS
+    // away, and theirs on pixels up to OUTLIER_RADIUS + 2 away.)
+    let spread = s.discontinuity && m > 1;
+    let margin = if spread { m / 2 + 2 * OUTLIER_RADIUS + 2 } else { 0 };
     let ext = Region {
         x0: r.x0.saturating_sub(margin),
         y0: r.y0.saturating_sub(margin),
@@ -685,6 +712,9 @@ pub fn render_region(
         let set = VplSet::generate(w, s, k);
         rays += trace_layers(w, cam, rs, &set, ext, &mut layers);
         let ew = ext.x1 - ext.x0;
+        if spread {
+            crate::denoise::spread_outliers_of_layers(&mut layers, ew as usize, (ext.y1 - ext.y0) as usize, OUTLIER_SIGMAS, OUTLIER_RADIUS);
+        }
         for y in r.y0..r.y1 {
             for x in r.x0..r.x1 {
                 let l = &layers[((y - ext.y0) * ew + (x - ext.x0)) as usize];
