@@ -326,6 +326,8 @@ pub fn denoise(color: &Film, aovs: &Aovs, s: &DenoiseSettings) -> Film {
     // PERF: plain loops over rows, the luminance and noise level of each pixel computed
     // once per pass, and the buffers kept across passes (the iterator-and-closure version
     // took 1.2-1.9 s at 512 × 384 on 2 threads).
+    // The least cosine between normals whose weight reaches e^-30.
+    let cos_min = if s.sigma_normal > 0.0 { (-30.0 / s.sigma_normal).exp() } else { -1.0 };
     let mut weights = vec![[0.0f32; 25]; n];
     let mut sums = vec![0.0f32; n];
     let mut next = vec![(Vec3::ZERO, 0.0f32); n];
@@ -374,10 +376,10 @@ pub fn denoise(color: &Film, aovs: &Aovs, s: &DenoiseSettings) -> Film {
                         if !q.valid || q.dark != g.dark {
                             continue;
                         }
-                        let cos = g.n.dot(q.n).max(0.0);
-                        // PERF: an integer exponent by multiplications (powf was most of a pass).
-                        let wn = if normal_exp >= 0 { pow_u(cos, normal_exp as u32) } else { cos.powf(s.sigma_normal) };
-                        if wn <= 0.0 {
+                        let cos = g.n.dot(q.n);
+                        // (Weights below e^-30 count for nothing: normals apart by more
+                        // than that, first, as it is the cheapest test.)
+                        if cos < cos_min {
                             continue;
                         }
                         let ax = (kx.abs_diff(2) * step) as f32;
@@ -385,10 +387,13 @@ pub fn denoise(color: &Film, aovs: &Aovs, s: &DenoiseSettings) -> Film {
                         let ez = (g.z - q.z).abs() / (s.sigma_depth * expect + 1e-3 * g.z.max(q.z));
                         let sl = s.sigma_luminance * sd[i].max(sd[j]) + 1e-6;
                         let e = ez + (l[i] - l[j]).abs() / sl;
-                        // (Weights below e^-30 count for nothing.)
-                        if e <= 30.0 {
-                            ws[ky * 5 + kx] = B3[kx] * B3[ky] * wn * (-e).exp();
+                        if e > 30.0 {
+                            continue;
                         }
+                        // PERF: an integer exponent by multiplications (powf was most of a pass).
+                        let cos = cos.max(0.0);
+                        let wn = if normal_exp >= 0 { pow_u(cos, normal_exp as u32) } else { cos.powf(s.sigma_normal) };
+                        ws[ky * 5 + kx] = B3[kx] * B3[ky] * wn * (-e).exp();
                     }
                 }
                 srow[x] = ws.iter().sum();
