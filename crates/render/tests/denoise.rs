@@ -14,6 +14,14 @@ fn data(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mitsuba").join(rel)
 }
 
+/// Uniform numbers in [0, 1) from a seed (a hash chain).
+fn uniform(mut state: u32) -> impl FnMut() -> f32 {
+    move || {
+        state = lucent_render::pcg_hash(state);
+        (state >> 8) as f32 / (1u32 << 24) as f32
+    }
+}
+
 fn mean(f: &Film) -> f64 {
     f.pixels.iter().map(|p| f64::from(p.x + p.y + p.z)).sum::<f64>() / (3 * f.pixels.len()) as f64
 }
@@ -56,11 +64,7 @@ fn synthetic(case: u32) -> (Film, Aovs, Film) {
     let mut depth = Vec::with_capacity(n);
     let mut clean = Vec::with_capacity(n);
     let mut noisy = Vec::with_capacity(n);
-    let mut state = 0x1234_5678u32;
-    let mut rnd = || {
-        state = lucent_render::pcg_hash(state);
-        (state >> 8) as f32 / (1u32 << 24) as f32
-    };
+    let mut rnd = uniform(0x1234_5678u32);
     for y in 0..h {
         for x in 0..w {
             let right = x >= 20;
@@ -135,11 +139,7 @@ fn background_and_emitters_pass_through() {
 fn firefly_picture() -> (Film, Aovs, usize) {
     let (w, h) = (48u32, 32u32);
     let n = (w * h) as usize;
-    let mut state = 0x9e37_79b9u32;
-    let mut rnd = || {
-        state = lucent_render::pcg_hash(state);
-        (state >> 8) as f32 / (1u32 << 24) as f32
-    };
+    let mut rnd = uniform(0x9e37_79b9u32);
     let mut noisy: Vec<Vec3> = (0..n).map(|_| Vec3::splat(0.5 * (0.9 + 0.2 * rnd()))).collect();
     let depth = (0..n).map(|i| if (i as u32 % w) >= 32 { 5.0 } else { 2.0 }).collect();
     let firefly = (16 * w + 24) as usize;
@@ -178,11 +178,7 @@ fn a_firefly_is_spread_over_its_surface_and_its_light_kept() {
 fn dark_surfaces_are_filtered_among_themselves() {
     let (w, h) = (32u32, 24u32);
     let n = (w * h) as usize;
-    let mut state = 0x0bad_cafeu32;
-    let mut rnd = || {
-        state = lucent_render::pcg_hash(state);
-        (state >> 8) as f32 / (1u32 << 24) as f32
-    };
+    let mut rnd = uniform(0x0bad_cafeu32);
     // Left half: albedo 0.005 but reflecting 0.3 (a glossy highlight); right: albedo 0.8, light 0.8.
     let dark = |i: usize| (i as u32 % w) < 16;
     let clean: Vec<Vec3> = (0..n).map(|i| Vec3::splat(if dark(i) { 0.3 } else { 0.8 })).collect();

@@ -18,7 +18,10 @@ fn triangle(material: u32, normals: bool) -> Mesh {
 
 /// The world-space corners and face normal of every triangle an instance
 /// draws, with its material and shading normals, in a canonical order.
-fn world_triangles(s: &Scene) -> Vec<(Vec<[i64; 3]>, [i64; 3], u32, Option<[i64; 3]>)> {
+/// A triangle as drawn: sorted corners, face normal, material, shading normal (rounded).
+type Drawn = (Vec<[i64; 3]>, [i64; 3], u32, Option<[i64; 3]>);
+
+fn world_triangles(s: &Scene) -> Vec<Drawn> {
     let q = |v: Vec3| [(v.x * 1e4).round() as i64, (v.y * 1e4).round() as i64, (v.z * 1e4).round() as i64];
     let mut out = Vec::new();
     for i in &s.instances {
