@@ -620,9 +620,11 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
 /// With the discontinuity buffer, outliers of the reflected light (a VPL too near a glossy
 /// surface, a rare specular path of the direct light) first give their excess to their
 /// surface, as the denoiser's do ([`crate::DenoiseSettings::outlier_sigmas`]): a pixel
-/// brighter than its 5 × 5 neighbours' mean by this many standard deviations.
+/// brighter than its 5 × 5 neighbours' mean by this many standard deviations. (Kitchen
+/// relMSE at 512 × 384, radius 6: 3: 0.0541, 2: 0.0530, 1: 0.0511, 0.5: 0.0504, where it
+/// smooths more than it rejects; without: 0.0606.)
 pub const OUTLIER_SIGMAS: f32 = 2.0;
-/// How far outliers' excess light goes, in pixels.
+/// How far outliers' excess light goes, in pixels (12: kitchen 0.0546).
 pub const OUTLIER_RADIUS: u32 = 6;
 
 /// The discontinuity buffer at pixel (x, y) of `layers` (region `r`, row-major): the
