@@ -83,17 +83,15 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> crate::f
         .map(|y| {
             (0..width)
                 .map(|x| {
-                    let r = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
-                    let mut a = crate::integrator::path::aovs(w, &r);
+                    use crate::integrator::path::{albedo_and_emission, centre_guides};
+                    let (normal, depth, mut emission) = centre_guides(w, &cam.ray(x as f32 + 0.5, y as f32 + 0.5));
                     let mut albedo = Vec3::ZERO;
                     for (dx, dy) in [(0.25, 0.25), (0.75, 0.25), (0.75, 0.75), (0.25, 0.75)] {
-                        let q = crate::integrator::path::aovs(w, &cam.ray(x as f32 + dx, y as f32 + dy));
-                        albedo += q.0;
-                        a.3 += q.3;
+                        let (a, e) = albedo_and_emission(w, &cam.ray(x as f32 + dx, y as f32 + dy));
+                        albedo += a;
+                        emission += e;
                     }
-                    a.0 = albedo / 4.0;
-                    a.3 /= 5.0;
-                    a
+                    (albedo / 4.0, normal, depth, emission / 5.0)
                 })
                 .collect()
         })

@@ -297,18 +297,28 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
     }
 }
 
-/// What a denoiser's guide layers hold for a camera ray: the albedo, the shading normal,
-/// the distance and the emitted radiance of its first visible surface (the background's
-/// colour, zero, infinity and zero where it meets nothing).
-pub(crate) fn aovs(w: &World, ray: &Ray) -> (Vec3, Vec3, f32, Vec3) {
+/// A denoiser's guides from the ray through a pixel's centre: the shading normal, the
+/// distance and the emitted radiance of its first visible surface (zero, infinity and zero
+/// where it meets nothing).
+pub(crate) fn centre_guides(w: &World, ray: &Ray) -> (Vec3, f32, Vec3) {
     let Some((r, hit)) = w.intersect_solid(ray) else {
-        return (w.scene.background, Vec3::ZERO, f32::INFINITY, Vec3::ZERO);
+        return (Vec3::ZERO, f32::INFINITY, Vec3::ZERO);
     };
     let surf = w.surface(&r, &hit);
     let ns = shading_normal(w, &r, &hit, &surf);
-    let albedo = w.prepared(surf.material).albedo(&w.scene.textures, surf.uv);
     let depth = (surf.p - ray.org).length();
-    (albedo, ns, depth, emission_at(w, &r, &surf))
+    (ns, depth, emission_at(w, &r, &surf))
+}
+
+/// What a denoiser's guides average over a pixel: the albedo and the emitted radiance of
+/// the first surface a ray meets (the background's colour and zero where it meets
+/// nothing).
+pub(crate) fn albedo_and_emission(w: &World, ray: &Ray) -> (Vec3, Vec3) {
+    let Some((r, hit)) = w.intersect_solid(ray) else {
+        return (w.scene.background, Vec3::ZERO);
+    };
+    let surf = w.surface(&r, &hit);
+    (w.prepared(surf.material).albedo(&w.scene.textures, surf.uv), emission_at(w, &r, &surf))
 }
 
 /// What `surf`, met by `r`, emits back along it.
