@@ -77,26 +77,65 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
 /// emission seen, as the mean over the centre and those four points, so that pixels an
 /// emitter covers even in part are known (see [`crate::film::Aovs`]).
 #[must_use]
+///
+/// Each 8 × 8 block's five sets of rays (centres, then each quarter point) are traced as
+/// packets when they are coherent and no surface has an alpha mask (the same hits as
+/// single rays, bit for bit); on Sponza at 512 × 384 on 2 threads, 224 ms one ray at a
+/// time.
 pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> crate::film::Aovs {
-    let rows: Vec<Vec<(Vec3, Vec3, f32, Vec3)>> = (0..height)
-        .into_par_iter()
-        .map(|y| {
-            (0..width)
-                .map(|x| {
-                    use crate::integrator::path::{albedo_and_emission, centre_guides};
-                    let (normal, depth, mut emission) = centre_guides(w, &cam.ray(x as f32 + 0.5, y as f32 + 0.5));
-                    let mut albedo = Vec3::ZERO;
-                    for (dx, dy) in [(0.25, 0.25), (0.75, 0.25), (0.75, 0.75), (0.25, 0.75)] {
-                        let (a, e) = albedo_and_emission(w, &cam.ray(x as f32 + dx, y as f32 + dy));
-                        albedo += a;
-                        emission += e;
+    use crate::integrator::path::{albedo_and_emission, centre_guides};
+    type Guide = (Vec3, Vec3, f32, Vec3);
+    let n = width as usize * height as usize;
+    let mut flat: Vec<Guide> = vec![(Vec3::ZERO, Vec3::ZERO, 0.0, Vec3::ZERO); n];
+    if n == 0 {
+        let empty = || Film { width, height, pixels: Vec::new() };
+        return crate::film::Aovs { albedo: empty(), normal: empty(), depth: Vec::new(), emission: empty() };
+    }
+    // Bands of 8 rows, blocks of 8 × 8 pixels.
+    flat.par_chunks_mut(width as usize * 8).enumerate().for_each(|(band, rows)| {
+        let y0 = band as u32 * 8;
+        let y1 = (y0 + 8).min(height);
+        for x0 in (0..width).step_by(8) {
+            let x1 = (x0 + 8).min(width);
+            let mut at = [(0u32, 0u32); 64];
+            let mut m = 0;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    at[m] = (x, y);
+                    m += 1;
+                }
+            }
+            for (k, (dx, dy)) in [(0.5, 0.5), (0.25, 0.25), (0.75, 0.25), (0.75, 0.75), (0.25, 0.75)].into_iter().enumerate() {
+                let mut pts = [(0f32, 0f32); 64];
+                for (p, &(x, y)) in pts.iter_mut().zip(&at[..m]) {
+                    *p = (x as f32 + dx, y as f32 + dy);
+                }
+                let mut rays = NO_RAYS;
+                cam.rays_at(&pts[..m], &mut rays[..m]);
+                let mut hits = [None; 64];
+                let packet = !w.has_alpha() && crate::integrator::coherent(&rays[..m]);
+                if packet {
+                    w.intersect_packet(&rays[..m], &mut hits[..m]);
+                }
+                for j in 0..m {
+                    let first = if packet { hits[j].map(|h| (rays[j], h)) } else { w.intersect_solid(&rays[j]) };
+                    let (x, y) = at[j];
+                    let g = &mut rows[((y - y0) * width + x) as usize];
+                    if k == 0 {
+                        (g.1, g.2, g.3) = centre_guides(w, &rays[j], first);
+                    } else {
+                        let (a, e) = albedo_and_emission(w, first);
+                        g.0 += a;
+                        g.3 += e;
                     }
-                    (albedo / 4.0, normal, depth, emission / 5.0)
-                })
-                .collect()
-        })
-        .collect();
-    let flat: Vec<(Vec3, Vec3, f32, Vec3)> = rows.into_iter().flatten().collect();
+                }
+            }
+        }
+    });
+    for g in &mut flat {
+        g.0 /= 4.0;
+        g.3 /= 5.0;
+    }
     crate::film::Aovs {
         albedo: Film { width, height, pixels: flat.iter().map(|a| a.0).collect() },
         normal: Film { width, height, pixels: flat.iter().map(|a| a.1).collect() },
@@ -421,3 +460,39 @@ struct WeightPtr(*mut f32);
 unsafe impl Send for WeightPtr {}
 // SAFETY: as above.
 unsafe impl Sync for WeightPtr {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::path::{albedo_and_emission, centre_guides};
+
+    /// The guides traced in packets are those of single rays, pixel by pixel, bit for bit
+    /// (the Cornell box, large enough for its blocks to be coherent, at a size whose blocks
+    /// are not all whole).
+    #[test]
+    fn packet_guides_are_single_ray_guides() {
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mitsuba/cornell_box/scene.xml");
+        let scene = lucent_scene::load_mitsuba_with(&dir, &[]).expect("scene");
+        let (wd, ht) = (403, 301);
+        let cam = Camera::new(&scene.camera.expect("camera"), wd, ht);
+        let w = World::new(scene, lucent_accel::MeshOptions::default()).expect("world");
+        let a = render_aovs(&w, &cam, wd, ht);
+        for y in 0..ht {
+            for x in 0..wd {
+                let i = (y * wd + x) as usize;
+                let r = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+                let (normal, depth, mut emission) = centre_guides(&w, &r, w.intersect_solid(&r));
+                let mut albedo = Vec3::ZERO;
+                for (dx, dy) in [(0.25, 0.25), (0.75, 0.25), (0.75, 0.75), (0.25, 0.75)] {
+                    let (al, e) = albedo_and_emission(&w, w.intersect_solid(&cam.ray(x as f32 + dx, y as f32 + dy)));
+                    albedo += al;
+                    emission += e;
+                }
+                assert_eq!(a.normal.pixels[i], normal, "normal at ({x}, {y})");
+                assert_eq!(a.depth[i].to_bits(), depth.to_bits(), "depth at ({x}, {y})");
+                assert_eq!(a.albedo.pixels[i], albedo / 4.0, "albedo at ({x}, {y})");
+                assert_eq!(a.emission.pixels[i], emission / 5.0, "emission at ({x}, {y})");
+            }
+        }
+    }
+}

@@ -300,8 +300,9 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
 /// A denoiser's guides from the ray through a pixel's centre: the shading normal, the
 /// distance and the emitted radiance of its first visible surface (zero, infinity and zero
 /// where it meets nothing).
-pub(crate) fn centre_guides(w: &World, ray: &Ray) -> (Vec3, f32, Vec3) {
-    let Some((r, hit)) = w.intersect_solid(ray) else {
+/// `first`: what the ray meets first (as [`World::intersect_solid`] finds it).
+pub(crate) fn centre_guides(w: &World, ray: &Ray, first: Option<(Ray, Hit)>) -> (Vec3, f32, Vec3) {
+    let Some((r, hit)) = first else {
         return (Vec3::ZERO, f32::INFINITY, Vec3::ZERO);
     };
     let surf = w.surface(&r, &hit);
@@ -312,9 +313,9 @@ pub(crate) fn centre_guides(w: &World, ray: &Ray) -> (Vec3, f32, Vec3) {
 
 /// What a denoiser's guides average over a pixel: the albedo and the emitted radiance of
 /// the first surface a ray meets (the background's colour and zero where it meets
-/// nothing).
-pub(crate) fn albedo_and_emission(w: &World, ray: &Ray) -> (Vec3, Vec3) {
-    let Some((r, hit)) = w.intersect_solid(ray) else {
+/// nothing); `first`: what the ray meets first (as [`World::intersect_solid`] finds it).
+pub(crate) fn albedo_and_emission(w: &World, first: Option<(Ray, Hit)>) -> (Vec3, Vec3) {
+    let Some((r, hit)) = first else {
         return (w.scene.background, Vec3::ZERO);
     };
     let surf = w.surface(&r, &hit);
