@@ -69,8 +69,17 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
     c / spp as f32
 }
 
-/// The guide layers of a denoiser for every pixel: the shading normal and distance of the
-/// first surface the ray through its centre sees; the albedo, as the mean over four points
+/// Weight of each quarter point's shading normal in a pixel's guide normal, the centre's
+/// being 1 (so the centre counts half): the normal of a pixel that straddles an edge
+/// leans as its samples do. At 4 samples denoised, relMSE Cornell / Sponza / kitchen
+/// 0.0015 / 0.0081 / 0.0315 with the centre's normal alone; 0.0014 / 0.0073 / 0.0313 at
+/// 0.25; 0.0014 / 0.0073 / 0.0314 at 0.5; 0.0014 / 0.0074 / 0.0314 at 1; the quarters
+/// alone 0.0014 / 0.0074 / 0.0319.
+const QUARTER_NORMAL: f32 = 0.25;
+
+/// The guide layers of a denoiser for every pixel: the shading normal (the centre's and
+/// the quarter points' blended, see [`QUARTER_NORMAL`]) and the distance of the first
+/// surface the ray through its centre sees; the albedo, as the mean over four points
 /// of the pixel's quarters (a pixel's colour mixes what its samples see, so a texture's
 /// edges demodulate and remodulate with the pixel's mean albedo: on Sponza at 4 samples,
 /// the denoised relMSE fell from 0.0114 to 0.0091 against the centre's albedo); and the
@@ -124,9 +133,13 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> crate::f
                     if k == 0 {
                         (g.1, g.2, g.3) = centre_guides(w, &rays[j], first);
                     } else {
-                        let (a, e) = albedo_and_emission(w, first);
+                        let (a, e, n) = albedo_and_emission(w, first);
                         g.0 += a;
                         g.3 += e;
+                        // (Where the centre sees a surface too.)
+                        if let Some(n) = n.filter(|_| g.2.is_finite()) {
+                            g.1 += n * QUARTER_NORMAL;
+                        }
                     }
                 }
             }
@@ -135,6 +148,7 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> crate::f
     for g in &mut flat {
         g.0 /= 4.0;
         g.3 /= 5.0;
+        g.1 = g.1.normalize_or_zero();
     }
     crate::film::Aovs {
         albedo: Film { width, height, pixels: flat.iter().map(|a| a.0).collect() },
@@ -483,12 +497,16 @@ mod tests {
                 let r = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
                 let (normal, depth, mut emission) = centre_guides(&w, &r, w.intersect_solid(&r));
                 let mut albedo = Vec3::ZERO;
+                let mut normal = normal;
                 for (dx, dy) in [(0.25, 0.25), (0.75, 0.25), (0.75, 0.75), (0.25, 0.75)] {
-                    let (al, e) = albedo_and_emission(&w, w.intersect_solid(&cam.ray(x as f32 + dx, y as f32 + dy)));
+                    let (al, e, n) = albedo_and_emission(&w, w.intersect_solid(&cam.ray(x as f32 + dx, y as f32 + dy)));
                     albedo += al;
                     emission += e;
+                    if let Some(n) = n.filter(|_| depth.is_finite()) {
+                        normal += n * QUARTER_NORMAL;
+                    }
                 }
-                assert_eq!(a.normal.pixels[i], normal, "normal at ({x}, {y})");
+                assert_eq!(a.normal.pixels[i], normal.normalize_or_zero(), "normal at ({x}, {y})");
                 assert_eq!(a.depth[i].to_bits(), depth.to_bits(), "depth at ({x}, {y})");
                 assert_eq!(a.albedo.pixels[i], albedo / 4.0, "albedo at ({x}, {y})");
                 assert_eq!(a.emission.pixels[i], emission / 5.0, "emission at ({x}, {y})");

@@ -311,15 +311,17 @@ pub(crate) fn centre_guides(w: &World, ray: &Ray, first: Option<(Ray, Hit)>) -> 
     (ns, depth, emission_at(w, &r, &surf))
 }
 
-/// What a denoiser's guides average over a pixel: the albedo and the emitted radiance of
-/// the first surface a ray meets (the background's colour and zero where it meets
-/// nothing); `first`: what the ray meets first (as [`World::intersect_solid`] finds it).
-pub(crate) fn albedo_and_emission(w: &World, first: Option<(Ray, Hit)>) -> (Vec3, Vec3) {
+/// What a denoiser's guides average over a pixel: the albedo, the emitted radiance and the
+/// shading normal of the first surface a ray meets (the background's colour, zero and
+/// `None` where it meets nothing); `first`: what the ray meets first (as
+/// [`World::intersect_solid`] finds it).
+pub(crate) fn albedo_and_emission(w: &World, first: Option<(Ray, Hit)>) -> (Vec3, Vec3, Option<Vec3>) {
     let Some((r, hit)) = first else {
-        return (w.scene.background, Vec3::ZERO);
+        return (w.scene.background, Vec3::ZERO, None);
     };
     let surf = w.surface(&r, &hit);
-    (w.prepared(surf.material).albedo(&w.scene.textures, surf.uv), emission_at(w, &r, &surf))
+    let ns = shading_normal(w, &r, &hit, &surf);
+    (w.prepared(surf.material).albedo(&w.scene.textures, surf.uv), emission_at(w, &r, &surf), Some(ns))
 }
 
 /// What `surf`, met by `r`, emits back along it.
