@@ -49,6 +49,7 @@ use crate::film::{Aovs, Film};
 #[cfg(doc)]
 use crate::integrator::vpl::FILTER_ALBEDO_MIN;
 use crate::integrator::vpl::{dark as is_dark, demodulating};
+use crate::shading::{Real, ROUND};
 use glam::Vec3;
 use lucent_accel::simd::{F8, LANES, M8};
 use rayon::prelude::*;
@@ -183,26 +184,23 @@ fn mask_to(m: M8, v: F8) -> F8 {
 /// `e^-x` for `x` in [0, 30] (other lanes: clamped to it), within 2e-6 of the library's
 /// (relative; most of it the rounding of `x log2 e` in `f32`, up to 43 · 2^-24):
 /// `2^y` with `y = -x log2 e` split as `n + f`, `n` the nearest integer (rounded by
-/// adding 1.5 · 2^23, whose low mantissa bits then hold it) and `|f| <= 1/2`, the power of
-/// two built in the exponent bits and `2^f` by its Taylor polynomial of degree 6
-/// (remainder below (ln 2 / 2)^7 / 7! ≈ 1.2e-7). Only float and integer lane operations:
-/// no conversion, so it vectorizes.
+/// adding and taking away 1.5 · 2^23, as the Phong power does) and `|f| <= 1/2`, `2^n`
+/// built in the exponent bits ([`Real::exp2i`]) and `2^f` by its Taylor polynomial of
+/// degree 6 (remainder below (ln 2 / 2)^7 / 7! ≈ 1.2e-7; the Phong power's degree 5 would
+/// be 2.5e-6). Only float and integer lane operations: no conversion, so it vectorizes.
 #[inline(always)]
 fn exp_neg(x: F8) -> F8 {
     const C: [f32; 7] = [1.0, std::f32::consts::LN_2, 0.240_226_5, 0.055_504_11, 0.009_618_129, 0.001_333_355_8, 0.000_154_035_3];
-    const MAGIC: f32 = 12_582_912.0;
     let mut r = [0.0; LANES];
     for k in 0..LANES {
         let v = x.0[k];
         let v = if v > 0.0 { v } else { 0.0 };
         let v = if v < 30.0 { v } else { 30.0 };
         let y = -v * std::f32::consts::LOG2_E;
-        let t = y + MAGIC;
-        let n = t - MAGIC;
+        let n = (y + ROUND) - ROUND;
         let f = y - n;
         let p = C[0] + f * (C[1] + f * (C[2] + f * (C[3] + f * (C[4] + f * (C[5] + f * C[6])))));
-        let scale = t.to_bits().wrapping_sub(MAGIC.to_bits()).wrapping_add(127) << 23;
-        r[k] = p * f32::from_bits(scale);
+        r[k] = p * Real::exp2i(n);
     }
     F8(r)
 }
@@ -405,7 +403,7 @@ fn spread_outliers(c: &mut [Vec<f32>; 3], albedo: &[Vec<f32>; 3], g: &Guides, s:
         return;
     }
     let (w, h) = (g.w, g.h);
-    let l: Vec<f32> = (0..w * h).map(|i| LUM[0] * c[0][i] + LUM[1] * c[1][i] + LUM[2] * c[2][i]).collect();
+    let l = luminance(c);
     // Each pixel's bound (or infinity: not an outlier), by rows.
     let mut bound = vec![f32::INFINITY; w * h];
     bound.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
@@ -608,6 +606,11 @@ pub(crate) fn spread_outliers_of_layers(layers: &mut [crate::integrator::vpl::La
     for (i, l) in layers.iter_mut().enumerate() {
         l.lit = Vec3::new(c[0][i], c[1][i], c[2][i]);
     }
+}
+
+/// The luminance of red, green and blue planes (as [`crate::world::luminance`]).
+fn luminance(c: &[Vec<f32>; 3]) -> Vec<f32> {
+    (0..c[0].len()).into_par_iter().map(|i| LUM[0] * c[0][i] + LUM[1] * c[1][i] + LUM[2] * c[2][i]).collect()
 }
 
 /// Red, green and blue planes of `v`.
@@ -972,11 +975,7 @@ pub(crate) fn denoise_with(color: &Film, aovs: &Aovs, s: &DenoiseSettings, simd:
     // Demodulated colour.
     let mut c = planes(&(0..n).map(|i| if g.kind[i] != 0.0 { color.pixels[i] / alb[i] } else { Vec3::ZERO }).collect::<Vec<_>>());
     spread_outliers(&mut c, &albedo, &g, s, simd);
-    let lum_of = |c: &[Vec<f32>; 3], l: &mut [f32]| {
-        l.par_iter_mut().enumerate().for_each(|(i, l)| *l = LUM[0] * c[0][i] + LUM[1] * c[1][i] + LUM[2] * c[2][i]);
-    };
-    let mut l = vec![0.0f32; n];
-    lum_of(&c, &mut l);
+    let mut l = luminance(&c);
     // The noise's variance (of luminance): over each pixel's 5 × 5 neighbourhood on its
     // surface.
     let mut var = vec![0.0f32; n];

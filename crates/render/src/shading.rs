@@ -61,7 +61,7 @@ fn finite<T: Real>(a: T) -> T::Mask {
 }
 
 /// `1.5·2^23`: adding and taking it away rounds to an integer; `2^23 + 127` biases one.
-const ROUND: f32 = 12_582_912.0;
+pub(crate) const ROUND: f32 = 12_582_912.0;
 const BIAS: f32 = 8_388_735.0;
 
 impl Real for f32 {
