@@ -98,7 +98,7 @@ mod imp {
     use super::{AnimateMode, MpiArgs};
     use anyhow::{bail, Context, Result};
     use indicatif::ProgressBar;
-    use lucent_cluster::mpi::{Aborter, Mpi};
+    use lucent_cluster::mpi::{end_run, Mpi};
     use lucent_cluster::{
         scene_digest, serve, tiles, ClusterError, Fault, Frame, Hub, Master, MasterOptions, RunStats, SceneRenderer, WorkerOptions,
         WorldRef,
@@ -155,8 +155,7 @@ mod imp {
 
         /// Ends the run on every rank after a fatal error on this one.
         fn fail(&self, e: &anyhow::Error) -> ! {
-            eprintln!("error: {e:#}");
-            self.mpi.abort(3)
+            end_run(&format!("error: {e:#}"), 3)
         }
 
         /// A worker rank: renders what rank 0 hands out until it says stop. Frames without a
@@ -330,7 +329,7 @@ mod imp {
                 }
                 Err(e) => self.fail(&e.into()),
             };
-            Ok(Box::new(ClusterPasses { master, tile: self.args.mpi_tile, opts, aborter: self.mpi.aborter() }))
+            Ok(Box::new(ClusterPasses { master, tile: self.args.mpi_tile, opts }))
         }
     }
 
@@ -346,7 +345,6 @@ mod imp {
         master: Master,
         tile: u32,
         opts: WorkerOptions,
-        aborter: Aborter,
     }
 
     impl Drop for ClusterPasses {
@@ -397,10 +395,7 @@ mod imp {
             });
             match r {
                 Ok(st) => (out, st.rays),
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    self.aborter.abort(3)
-                }
+                Err(e) => end_run(&format!("error: {e}"), 3),
             }
         }
     }
