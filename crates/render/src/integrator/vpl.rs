@@ -504,6 +504,8 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
             let mut shades: Vec<Option<Shade>> = vec![None; N];
             let mut layers = vec![Layers::default(); N];
             let mut coords = vec![(0u32, 0u32); N];
+            // Each pixel's VPL set (computed once: `set_of` divides).
+            let mut set_ids = vec![0u32; N];
             // Light reflected at each pixel's shading point: direct, then the VPLs'.
             let mut ind = vec![Vec3::ZERO; N];
             let mut who = vec![0usize; N];
@@ -520,6 +522,7 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
                         for y in by..(by + 8).min(y1) {
                             for x in bx..(bx + 8).min(x1) {
                                 coords[n] = (x, y);
+                                set_ids[n] = s.set_of(x, y);
                                 n += 1;
                             }
                         }
@@ -557,7 +560,7 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
                 for si in 0..s.sets() {
                     let mut m = 0;
                     for (j, sh) in shades[..n].iter().enumerate() {
-                        if sh.is_some() && s.set_of(coords[j].0, coords[j].1) == si {
+                        if sh.is_some() && set_ids[j] == si {
                             who[m] = j;
                             m += 1;
                         }
