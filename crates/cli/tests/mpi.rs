@@ -30,7 +30,6 @@ fn mpirun(n: u32, args: &[&str], env: &[(&str, &str)]) -> Output {
 /// run for good. So mpirun runs in a process group of its own under a watchdog, and an
 /// attempt that ends in either of mpirun's own failures is repeated (at most three).
 fn run_mpirun(mut c: Command) -> Output {
-    use std::io::Read;
     use std::os::unix::process::{CommandExt, ExitStatusExt};
     use std::process::Stdio;
     c.process_group(0).stdout(Stdio::piped()).stderr(Stdio::piped());
@@ -38,17 +37,7 @@ fn run_mpirun(mut c: Command) -> Output {
     for attempt in 1..=3 {
         let mut child = c.spawn().expect("mpirun (Debian package openmpi-bin) must be installed");
         let pid = child.id();
-        let (mut out, mut err) = (child.stdout.take().expect("piped"), child.stderr.take().expect("piped"));
-        let readers = (
-            std::thread::spawn(move || {
-                let mut v = Vec::new();
-                out.read_to_end(&mut v).map(|_| v)
-            }),
-            std::thread::spawn(move || {
-                let mut v = Vec::new();
-                err.read_to_end(&mut v).map(|_| v)
-            }),
-        );
+        let readers = (drain(child.stdout.take().expect("piped")), drain(child.stderr.take().expect("piped")));
         let t = Instant::now();
         let status = loop {
             if let Some(s) = child.try_wait().expect("wait for mpirun") {
@@ -79,6 +68,15 @@ fn run_mpirun(mut c: Command) -> Output {
         last = e;
     }
     panic!("mpirun failed three times in its own teardown or hung; last output:\n{last}");
+}
+
+/// Reads `r` to its end on a thread of its own (so that neither of a child's pipes fills
+/// while the other is read).
+fn drain(mut r: impl std::io::Read + Send + 'static) -> std::thread::JoinHandle<std::io::Result<Vec<u8>>> {
+    std::thread::spawn(move || {
+        let mut v = Vec::new();
+        r.read_to_end(&mut v).map(|_| v)
+    })
 }
 
 fn lucent(args: &[&str]) -> Output {

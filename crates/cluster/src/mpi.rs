@@ -70,10 +70,7 @@ impl Mpi {
 pub fn end_run(message: &str, code: i32) -> ! {
     use std::io::Write;
     let _ = std::io::stdout().flush();
-    let mut text = String::with_capacity(message.len() + 1);
-    text.push_str(message);
-    text.push('\n');
-    let _ = std::io::stderr().lock().write_all(text.as_bytes());
+    let _ = std::io::stderr().lock().write_all(format!("{message}\n").as_bytes());
     // SAFETY: `_exit` ends the process at once; nothing after it runs, and no Rust value is
     // observed half-dropped (the other threads simply stop). MPI is deliberately not
     // finalised (see above).

@@ -92,7 +92,7 @@ const QUARTER_NORMAL: f32 = 0.25;
 /// single rays, bit for bit); on Sponza at 512 × 384 on 2 threads, 224 ms one ray at a
 /// time.
 pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> crate::film::Aovs {
-    use crate::integrator::path::{albedo_and_emission, centre_guides};
+    use crate::integrator::path::{centre_guides, quarter_guides};
     type Guide = (Vec3, Vec3, f32, Vec3);
     let n = width as usize * height as usize;
     let mut flat: Vec<Guide> = vec![(Vec3::ZERO, Vec3::ZERO, 0.0, Vec3::ZERO); n];
@@ -133,7 +133,7 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> crate::f
                     if k == 0 {
                         (g.1, g.2, g.3) = centre_guides(w, &rays[j], first);
                     } else {
-                        let (a, e, n) = albedo_and_emission(w, first);
+                        let (a, e, n) = quarter_guides(w, first);
                         g.0 += a;
                         g.3 += e;
                         // (Where the centre sees a surface too.)
@@ -478,7 +478,7 @@ unsafe impl Sync for WeightPtr {}
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::integrator::path::{albedo_and_emission, centre_guides};
+    use crate::integrator::path::{centre_guides, quarter_guides};
 
     /// The guides traced in packets are those of single rays, pixel by pixel, bit for bit
     /// (the Cornell box, large enough for its blocks to be coherent, at a size whose blocks
@@ -495,11 +495,10 @@ mod tests {
             for x in 0..wd {
                 let i = (y * wd + x) as usize;
                 let r = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
-                let (normal, depth, mut emission) = centre_guides(&w, &r, w.intersect_solid(&r));
+                let (mut normal, depth, mut emission) = centre_guides(&w, &r, w.intersect_solid(&r));
                 let mut albedo = Vec3::ZERO;
-                let mut normal = normal;
                 for (dx, dy) in [(0.25, 0.25), (0.75, 0.25), (0.75, 0.75), (0.25, 0.75)] {
-                    let (al, e, n) = albedo_and_emission(&w, w.intersect_solid(&cam.ray(x as f32 + dx, y as f32 + dy)));
+                    let (al, e, n) = quarter_guides(&w, w.intersect_solid(&cam.ray(x as f32 + dx, y as f32 + dy)));
                     albedo += al;
                     emission += e;
                     if let Some(n) = n.filter(|_| depth.is_finite()) {

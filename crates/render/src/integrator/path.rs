@@ -311,11 +311,12 @@ pub(crate) fn centre_guides(w: &World, ray: &Ray, first: Option<(Ray, Hit)>) -> 
     (ns, depth, emission_at(w, &r, &surf))
 }
 
-/// What a denoiser's guides average over a pixel: the albedo, the emitted radiance and the
-/// shading normal of the first surface a ray meets (the background's colour, zero and
+/// What a denoiser's guides take from each quarter point of a pixel (beside
+/// [`centre_guides`]): the albedo, the emitted radiance and the shading normal of the
+/// first surface a ray meets (the background's colour, zero and
 /// `None` where it meets nothing); `first`: what the ray meets first (as
 /// [`World::intersect_solid`] finds it).
-pub(crate) fn albedo_and_emission(w: &World, first: Option<(Ray, Hit)>) -> (Vec3, Vec3, Option<Vec3>) {
+pub(crate) fn quarter_guides(w: &World, first: Option<(Ray, Hit)>) -> (Vec3, Vec3, Option<Vec3>) {
     let Some((r, hit)) = first else {
         return (w.scene.background, Vec3::ZERO, None);
     };
