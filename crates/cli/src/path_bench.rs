@@ -10,10 +10,17 @@
 //! Mitsuba's own 64-spp render timed in the same run when `tools/mitsuba/python` works
 //! here (its second render, after JIT compilation), else its time recorded in
 //! `mitsuba.json`; and how many times faster lucent is at equal error.
+//!
+//! And the ceiling of that figure with lucent's ray kernels: the rays of the equal-error
+//! render (recorded on one thread) traced again alone, as they were traced (one by one or
+//! in their packets), on all threads with nothing else between them. An integrator that
+//! shaded, sampled and accumulated for free would still take that long; Mitsuba's time
+//! over it is the most times faster lucent could be at equal error without faster
+//! traversal or fewer rays.
 
 use anyhow::{bail, Context, Result};
 use lucent_accel::MeshOptions;
-use lucent_render::{render, Camera, Film, Integrator, PathSettings, RenderSettings, World};
+use lucent_render::{record_rays, render, Camera, Film, Integrator, PathSettings, RenderSettings, World};
 use std::path::Path;
 use std::time::Instant;
 
@@ -52,8 +59,10 @@ pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
         bail!("no reference scenes under {} (each needs scene.xml, mitsuba.json, reference_4096spp.exr)", data.display());
     }
     println!("machine: {} threads", rayon::current_num_threads());
-    println!("| scene | lucent samples/s | relMSE 64 spp, median (lucent / Mitsuba) | lucent spp, s to Mitsuba's 64-spp error | Mitsuba 64 spp s | x faster at equal error |");
-    println!("|---|---|---|---|---|---|");
+    println!(
+        "| scene | lucent samples/s | relMSE 64 spp, median (lucent / Mitsuba) | lucent spp, s to Mitsuba's 64-spp error | Mitsuba 64 spp s | x faster at equal error | rays/sample, their s alone | ceiling x |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
     for dir in dirs {
         let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let xml = dir.join("scene.xml");
@@ -94,18 +103,33 @@ pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
         // Equal error: relMSE ∝ 1/spp.
         let spp_eq = ((64.0 * e64 / m_err).ceil() as u32).max(1);
         let t_eq = median((1..=3).map(|seed| shot(spp_eq, seed).0).collect());
+        // The equal-error render's rays, then those rays alone (median of three passes).
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+        let (_, rays) = one.install(|| record_rays(|| render(&world, &camera, &settings(spp_eq, 1), &|_| {})));
+        let t_rays = median(
+            (0..3)
+                .map(|_| {
+                    let t = Instant::now();
+                    std::hint::black_box(rays.trace(&world));
+                    t.elapsed().as_secs_f64()
+                })
+                .collect(),
+        );
+        let per_sample = rays.rays() as f64 / (f64::from(w * h) * f64::from(spp_eq));
         let live = mitsuba_seconds(&xml, &defines);
         let ms = live.or(recorded["seconds_64"].as_f64()).unwrap_or(f64::NAN);
         let source = if live.is_some() { "" } else { " (recorded)" };
         println!(
-            "| {name} ({w}x{h}) | {rate:.3e} | {e64:.5} / {m_err:.5} | {spp_eq} spp, {t_eq:.3} s | {ms:.3}{source} | {:.2} |",
-            ms / t_eq
+            "| {name} ({w}x{h}) | {rate:.3e} | {e64:.5} / {m_err:.5} | {spp_eq} spp, {t_eq:.3} s | {ms:.3}{source} | {:.2} | {per_sample:.2}, {t_rays:.3} s | {:.2} |",
+            ms / t_eq,
+            ms / t_rays
         );
         std::io::Write::flush(&mut std::io::stdout())?;
         eprintln!(
             "{}",
             serde_json::json!({"kind": "path", "scene": name, "samples_per_s": rate, "rel_mse_64": e64, "mitsuba_rel_mse_64": m_err,
-                "spp_to_mitsuba_64": spp_eq, "s_to_mitsuba_64": t_eq, "mitsuba_s_64": ms, "mitsuba_live": live.is_some()})
+                "spp_to_mitsuba_64": spp_eq, "s_to_mitsuba_64": t_eq, "mitsuba_s_64": ms, "mitsuba_live": live.is_some(),
+                "rays_per_sample": per_sample, "rays_alone_s": t_rays, "ceiling": ms / t_rays})
         );
     }
     Ok(())

@@ -30,4 +30,4 @@ pub use integrator::{Block, Integrator, LightSampling, PathSettings, Traversal, 
 pub use lights::{EmissionSample, LightModel, LightSample};
 pub use render::{jitter, pcg_hash, render, render_aovs, render_pixel, render_region, RenderSettings, TILE};
 pub use sampler::{PixelSampler, Sampler};
-pub use world::{shape_of, vertex_normals, Surface, World, WorldError};
+pub use world::{record_rays, shape_of, vertex_normals, RecordedRays, Surface, World, WorldError};

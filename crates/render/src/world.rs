@@ -456,6 +456,9 @@ impl World {
     #[must_use]
     pub fn intersect(&self, r: &Ray) -> Option<Hit> {
         count_ray();
+        if RECORDING.get() {
+            RECORD.with_borrow_mut(|q| q.closest.push(*r));
+        }
         self.accel.intersect(r)
     }
 
@@ -463,12 +466,18 @@ impl World {
     #[must_use]
     pub fn occluded(&self, r: &Ray) -> bool {
         count_ray();
+        if RECORDING.get() {
+            RECORD.with_borrow_mut(|q| q.shadow.push(*r));
+        }
         self.accel.occluded(r)
     }
 
     /// Closest hits of coherent rays, traced in packets (see `TwoLevel::intersect_packet`).
     pub fn intersect_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         RAYS.with(|c| c.set(c.get() + rays.len() as u64));
+        if RECORDING.get() {
+            RECORD.with_borrow_mut(|q| q.closest_packets.push((rays.to_vec(), None)));
+        }
         self.accel.intersect_packet(rays, out);
     }
 
@@ -476,6 +485,9 @@ impl World {
     /// `TwoLevel::intersect_packet_among`).
     pub fn intersect_packet_among(&self, rays: &[Ray], ids: &[u32], out: &mut [Option<Hit>]) {
         RAYS.with(|c| c.set(c.get() + rays.len() as u64));
+        if RECORDING.get() {
+            RECORD.with_borrow_mut(|q| q.closest_packets.push((rays.to_vec(), Some(ids.to_vec()))));
+        }
         self.accel.intersect_packet_among(rays, ids, out);
     }
 
@@ -489,12 +501,18 @@ impl World {
             return;
         }
         RAYS.with(|c| c.set(c.get() + rays.len() as u64));
+        if RECORDING.get() {
+            RECORD.with_borrow_mut(|q| q.shadow_packets.push(rays.to_vec()));
+        }
         self.accel.occluded_packet(rays, out);
     }
 
     /// Occlusion of rays in SoA blocks (empty lanes allowed), `rays` of them real.
     pub(crate) fn occluded_blocks(&self, blocks: &[lucent_accel::RayBlock], out: &mut [bool], rays: usize) {
         RAYS.with(|c| c.set(c.get() + rays as u64));
+        if RECORDING.get() {
+            RECORD.with_borrow_mut(|q| q.shadow_blocks.push((blocks.to_vec(), rays)));
+        }
         self.accel.occluded_blocks(blocks, out);
     }
 
@@ -662,6 +680,113 @@ pub fn luminance(c: Vec3) -> f32 {
 
 thread_local! {
     static RAYS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+    /// Whether this thread keeps the rays it traces in [`RECORD`] (see [`record_rays`]).
+    static RECORDING: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+    static RECORD: std::cell::RefCell<RecordedRays> = std::cell::RefCell::new(RecordedRays::default());
+}
+
+/// The queries a piece of work sent to a [`World`], kept by [`record_rays`] so that they
+/// can be traced again alone: how much of a renderer's time its rays take, with nothing
+/// else between them (the ceiling a faster integrator could reach with the same kernels).
+#[derive(Clone, Debug, Default)]
+pub struct RecordedRays {
+    /// Closest-hit rays traced one by one.
+    pub closest: Vec<Ray>,
+    /// Shadow rays traced one by one.
+    pub shadow: Vec<Ray>,
+    /// Packets of closest-hit rays, with the instances they were restricted to.
+    pub closest_packets: Vec<(Vec<Ray>, Option<Vec<u32>>)>,
+    /// Packets of shadow rays.
+    pub shadow_packets: Vec<Vec<Ray>>,
+    /// Shadow rays in SoA blocks, and how many of their lanes are rays.
+    pub shadow_blocks: Vec<(Vec<lucent_accel::RayBlock>, usize)>,
+}
+
+impl RecordedRays {
+    /// Rays recorded.
+    #[must_use]
+    pub fn rays(&self) -> u64 {
+        (self.closest.len()
+            + self.shadow.len()
+            + self.closest_packets.iter().map(|p| p.0.len()).sum::<usize>()
+            + self.shadow_packets.iter().map(Vec::len).sum::<usize>()
+            + self.shadow_blocks.iter().map(|b| b.1).sum::<usize>()) as u64
+    }
+
+    /// Traces every recorded query again on `w` (on all of rayon's threads, each query as
+    /// it was traced: alone or in its packet), for timing; returns the hits and blocked rays
+    /// found, so that the work cannot be optimised away.
+    pub fn trace(&self, w: &World) -> u64 {
+        const CHUNK: usize = 4096;
+        let hits = self.closest.par_chunks(CHUNK).map(|c| c.iter().filter(|r| w.accel.intersect(r).is_some()).count()).sum::<usize>()
+            + self.shadow.par_chunks(CHUNK).map(|c| c.iter().filter(|r| w.accel.occluded(r)).count()).sum::<usize>()
+            + self
+                .closest_packets
+                .par_chunks(64)
+                .map(|c| {
+                    let mut out = [None; lucent_accel::MAX_PACKET];
+                    c.iter()
+                        .map(|(rays, ids)| {
+                            let out = &mut out[..rays.len()];
+                            match ids {
+                                Some(ids) => w.accel.intersect_packet_among(rays, ids, out),
+                                None => w.accel.intersect_packet(rays, out),
+                            }
+                            out.iter().filter(|h| h.is_some()).count()
+                        })
+                        .sum::<usize>()
+                })
+                .sum::<usize>()
+            + self
+                .shadow_packets
+                .par_chunks(64)
+                .map(|c| {
+                    let mut out = [false; lucent_accel::MAX_PACKET];
+                    c.iter()
+                        .map(|rays| {
+                            let out = &mut out[..rays.len()];
+                            w.accel.occluded_packet(rays, out);
+                            out.iter().filter(|&&b| b).count()
+                        })
+                        .sum::<usize>()
+                })
+                .sum::<usize>()
+            + self
+                .shadow_blocks
+                .par_chunks(64)
+                .map(|c| {
+                    let mut out = Vec::new();
+                    c.iter()
+                        .map(|(blocks, _)| {
+                            out.clear();
+                            out.resize(blocks.len() * 8, false);
+                            w.accel.occluded_blocks(blocks, &mut out);
+                            out.iter().filter(|&&b| b).count()
+                        })
+                        .sum::<usize>()
+                })
+                .sum::<usize>();
+        hits as u64
+    }
+}
+
+/// Runs `f` while keeping every ray that this thread sends to a [`World`] (work that `f`
+/// hands to other threads is not seen: run it in a one-thread pool), and returns what `f`
+/// returned with those rays. When nothing is recorded, a query pays one flag test.
+pub fn record_rays<R>(f: impl FnOnce() -> R) -> (R, RecordedRays) {
+    /// Stops the recording even when `f` panics.
+    struct Stop;
+    impl Drop for Stop {
+        fn drop(&mut self) {
+            RECORDING.set(false);
+        }
+    }
+    RECORD.with_borrow_mut(|q| *q = RecordedRays::default());
+    RECORDING.set(true);
+    let stop = Stop;
+    let r = f();
+    drop(stop);
+    (r, RECORD.take())
 }
 
 fn count_ray() {
