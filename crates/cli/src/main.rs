@@ -259,7 +259,8 @@ struct PinArgs {
 enum BenchCmd {
     /// Virtual point lights and the denoiser (issue 35): VPL frames per second on
     /// Conference and the animated BART kitchen (2 threads), the rays per second of the
-    /// frame's VPL shadow rays against its camera rays, and relMSE against converged path
+    /// frame's VPL shadow rays against its camera rays, the frame rate the frame's rays
+    /// alone would allow (traced again with nothing else), and relMSE against converged path
     /// tracing (Cornell box, Sponza, the kitchen, the kitchen with its glossy lobes
     /// removed) of VPL images with and without the discontinuity buffer and of 4 samples
     /// denoised against 64 raw (three seeds each, median and range). The references are
@@ -374,8 +375,9 @@ enum BenchCmd {
     /// mitsuba): samples per second, relMSE at 64 samples per pixel against Mitsuba's
     /// 4,096-sample reference, the samples and seconds lucent needs to reach Mitsuba's own
     /// 64-sample relMSE, and Mitsuba's 64-sample time (its second render) when
-    /// tools/mitsuba/python runs here (tools/mitsuba/setup makes it). Run from the
-    /// checkout's root.
+    /// tools/mitsuba/python runs here (tools/mitsuba/setup makes it); and the ceiling:
+    /// how many times faster lucent would be if only its rays cost time (the equal-error
+    /// render's rays traced again alone). Run from the checkout's root.
     Path {
         /// The reference scenes' folder.
         #[arg(long, default_value = "crates/render/tests/data/mitsuba")]

@@ -2,7 +2,9 @@
 //! (Conference with the Embree harness's point light, and the animated BART kitchen with
 //! its own lights, posed and its VPLs made anew every frame), the rays per second of the
 //! frame's shadow rays toward the VPLs against its camera rays (each kind traced alone,
-//! as the renderer groups them), and quality: relMSE against a converged path-traced
+//! as the renderer groups them), the frame's rays (VPL generation included) traced again
+//! alone on the same 2 threads (the frame rate an integrator whose every other step were
+//! free would reach with these kernels), and quality: relMSE against a converged path-traced
 //! image (cached under `target/bench-cache/`) of the VPL image with and without the
 //! discontinuity buffer, and of 4 samples + denoiser against the raw 64-sample image, on
 //! the Cornell box, Sponza, the kitchen, and the kitchen with every opaque material made
@@ -14,7 +16,7 @@ use lucent_accel::glam::Vec3;
 use lucent_accel::MeshOptions;
 use lucent_render::integrator::vpl::{frame_rays, VplSet};
 use lucent_render::{
-    denoise, render, render_aovs, Camera, DenoiseSettings, Film, Integrator, PathSettings, RenderSettings, VplSettings, World,
+    denoise, record_rays, render, render_aovs, Camera, DenoiseSettings, Film, Integrator, PathSettings, RenderSettings, VplSettings, World,
 };
 use lucent_scene::bsdf::{Bsdf, FloatTex};
 use lucent_scene::{CameraDesc, Light, LightKind};
@@ -195,8 +197,19 @@ pub fn run(o: &VplOptions) -> Result<()> {
         let (p_pk, p_1) = (rays_per_s(&world, &primary, false, false), rays_per_s(&world, &primary, false, true));
         let (s_pk, s_1) = (rays_per_s(&world, &shadow, true, false), rays_per_s(&world, &shadow, true, true));
         let nshadow: usize = shadow.iter().map(Vec::len).sum();
+        // The whole frame's rays (VPL generation included), recorded, then traced alone.
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+        let (_, recorded) = one.install(|| record_rays(|| render(&world, &cam, &st, &|_| {})));
+        let mut alone: Vec<f64> = (0..3)
+            .map(|_| {
+                let t = Instant::now();
+                std::hint::black_box(pool.install(|| recorded.trace(&world)));
+                t.elapsed().as_secs_f64()
+            })
+            .collect();
+        let alone = median(&mut alone);
         println!(
-            "{name:<10} VPL frame {:7.1} ms = {:5.2} fps ({}{rays} rays, {:.1} Mrays/s) | one thread: camera rays {:.1} M/s packets, {:.1} single; VPL shadow rays ({nshadow}, {:.1} per packet) {:.1} M/s packets, {:.1} single",
+            "{name:<10} VPL frame {:7.1} ms = {:5.2} fps ({}{rays} rays, {:.1} Mrays/s) | one thread: camera rays {:.1} M/s packets, {:.1} single; VPL shadow rays ({nshadow}, {:.1} per packet) {:.1} M/s packets, {:.1} single | the frame's rays alone, 2 threads: {:.1} ms = {:.2} fps at most",
             med * 1e3,
             1.0 / med,
             if animated { "posed every frame, " } else { "" },
@@ -205,14 +218,17 @@ pub fn run(o: &VplOptions) -> Result<()> {
             p_1 * 1e-6,
             nshadow as f64 / shadow.len().max(1) as f64,
             s_pk * 1e-6,
-            s_1 * 1e-6
+            s_1 * 1e-6,
+            alone * 1e3,
+            1.0 / alone
         );
         println!(
             "{}",
             serde_json::json!({"kind": "vpl_speed", "scene": name, "width": wd, "height": ht, "threads": 2, "vpls": vs.count,
                 "median_ms": med * 1e3, "fps": 1.0 / med, "rays": rays, "animated": animated,
                 "camera_mrays_s_packet": p_pk * 1e-6, "camera_mrays_s_single": p_1 * 1e-6,
-                "shadow_mrays_s_packet": s_pk * 1e-6, "shadow_mrays_s_single": s_1 * 1e-6, "shadow_rays": nshadow})
+                "shadow_mrays_s_packet": s_pk * 1e-6, "shadow_mrays_s_single": s_1 * 1e-6, "shadow_rays": nshadow,
+                "rays_alone_ms": alone * 1e3, "fps_ceiling": 1.0 / alone})
         );
     }
     if o.speed_only {
