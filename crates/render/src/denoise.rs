@@ -238,12 +238,28 @@ impl Guides {
     }
 }
 
+/// Least cosine between the normals of two pixels of one surface (25°).
+const SAME_COS: f32 = 0.9;
+/// Most relative difference of the distances of two pixels of one surface.
+const SAME_DEPTH: f32 = 0.1;
+
 /// Whether lanes of `b` lie on the surface of the lanes of `a` (the same kind, normals
-/// within 25°, distances within 10%): the variance estimate's and the slopes' test.
+/// within 25°, distances within 10%): the variance estimate's test ([`Guides::same`] is
+/// its one-pixel form, the slopes').
 #[inline(always)]
 fn same8(a: &G8, b: &G8) -> M8 {
     let dot = a.n[0] * b.n[0] + a.n[1] * b.n[1] + a.n[2] * b.n[2];
-    b.kind.ne(F8::splat(0.0)) & a.kind.eq(b.kind) & dot.gt(F8::splat(0.9)) & abs8(a.z - b.z).lt(F8::splat(0.1) * a.z)
+    b.kind.ne(F8::splat(0.0)) & a.kind.eq(b.kind) & dot.gt(F8::splat(SAME_COS)) & abs8(a.z - b.z).lt(F8::splat(SAME_DEPTH) * a.z)
+}
+
+impl Guides {
+    /// Whether pixel `j` lies on pixel `i`'s surface: [`same8`] for one pair, with the same
+    /// arithmetic.
+    #[inline]
+    fn same(&self, i: usize, j: usize) -> bool {
+        let dot = self.n[0][i] * self.n[0][j] + self.n[1][i] * self.n[1][j] + self.n[2][i] * self.n[2][j];
+        self.kind[j] != 0.0 && self.kind[j] == self.kind[i] && dot > SAME_COS && (self.z[i] - self.z[j]).abs() < SAME_DEPTH * self.z[i]
+    }
 }
 
 /// Builds the guides' planes. `valid(i)`: pixel `i` has a surface to filter; `dark(i)`: of
@@ -285,13 +301,7 @@ fn guides(w: usize, h: usize, normal: &[Vec3], depth: &[f32], valid: impl Fn(usi
 fn slopes(g: &mut Guides) {
     let (w, h) = (g.w, g.h);
     let slope = |i: usize, a: Option<usize>, b: Option<usize>| {
-        let same = |j: usize| {
-            g.kind[j] != 0.0
-                && g.kind[j] == g.kind[i]
-                && g.n[0][i] * g.n[0][j] + g.n[1][i] * g.n[1][j] + g.n[2][i] * g.n[2][j] > 0.9
-                && (g.z[i] - g.z[j]).abs() < 0.1 * g.z[i]
-        };
-        let d = |j: Option<usize>| j.filter(|&j| same(j)).map(|j| (g.z[j] - g.z[i]).abs());
+        let d = |j: Option<usize>| j.filter(|&j| g.same(i, j)).map(|j| (g.z[j] - g.z[i]).abs());
         match (d(a), d(b)) {
             (Some(p), Some(q)) => p.min(q),
             (Some(p), None) | (None, Some(p)) => p,
@@ -1066,6 +1076,53 @@ mod tests {
             worst = worst.max((got / want - 1.0).abs());
         }
         assert!(worst < 3e-6, "relative error {worst}");
+    }
+
+    /// The surface test's lanes and its one-pixel form agree on every pair of a picture
+    /// with edges of depth, normal and kind (three kinds, random normals near two
+    /// directions, depths in two bands), compared lane by lane.
+    #[test]
+    fn same_for_one_pixel_is_same8_lane_by_lane() {
+        let (w, h) = (16usize, 16usize);
+        let mut seed = 0x9e37_79b9u32;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32
+        };
+        let normal: Vec<Vec3> = (0..w * h)
+            .map(|_| {
+                let base = if rnd() < 0.5 { Vec3::Y } else { Vec3::X };
+                (base + Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * 0.6).normalize()
+            })
+            .collect();
+        let depth: Vec<f32> = (0..w * h).map(|_| if rnd() < 0.5 { 1.0 + 0.2 * rnd() } else { 3.0 + rnd() }).collect();
+        let kinds: Vec<u32> = (0..w * h).map(|_| (rnd() * 3.0) as u32).collect();
+        let g = guides(w, h, &normal, &depth, |i| kinds[i] != 0, |i| kinds[i] == 2);
+        let (mut yes, mut no) = (0, 0);
+        for i in 0..w * h {
+            let a = G8 {
+                kind: F8::splat(g.kind[i]),
+                n: [F8::splat(g.n[0][i]), F8::splat(g.n[1][i]), F8::splat(g.n[2][i])],
+                z: F8::splat(g.z[i]),
+            };
+            for y in 0..h {
+                for x0 in (0..w).step_by(LANES) {
+                    let lanes = same8(&a, &g.load(y, x0 as isize));
+                    for k in 0..LANES {
+                        let one = g.same(i, y * w + x0 + k);
+                        assert_eq!(lanes.0[k] != 0, one, "pixel {i} against ({}, {y})", x0 + k);
+                        if one {
+                            yes += 1;
+                        } else {
+                            no += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(yes > 1000 && no > 1000, "both answers occur: {yes} same, {no} not");
     }
 
     /// The Cornell box at 4 samples (160 × 120), its guides, and the 4096-sample reference's
