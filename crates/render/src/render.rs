@@ -122,12 +122,9 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> crate::f
                 let mut rays = NO_RAYS;
                 cam.rays_at(&pts[..m], &mut rays[..m]);
                 let mut hits = [None; 64];
-                let packet = !w.has_alpha() && crate::integrator::coherent(&rays[..m]);
-                if packet {
-                    w.intersect_packet(&rays[..m], &mut hits[..m]);
-                }
+                let packet = crate::integrator::packet_first_hits(w, &rays[..m], None, true, &mut hits[..m]);
                 for j in 0..m {
-                    let first = if packet { hits[j].map(|h| (rays[j], h)) } else { w.intersect_solid(&rays[j]) };
+                    let first = w.first_hit(&rays[j], packet.then_some(hits[j]));
                     let (x, y) = at[j];
                     let g = &mut rows[((y - y0) * width + x) as usize];
                     if k == 0 {

@@ -415,6 +415,18 @@ impl World {
         None
     }
 
+    /// A camera path's first hit: `known`, a packet's closest hit for this ray, when given
+    /// (see `integrator::packet_first_hits`: a miss stands, and a hit does where no surface
+    /// has an alpha mask), else [`World::intersect_solid`].
+    #[must_use]
+    pub fn first_hit(&self, r: &Ray, known: Option<Option<Hit>>) -> Option<(Ray, Hit)> {
+        match known {
+            Some(Some(h)) if !self.has_alpha => Some((*r, h)),
+            Some(None) => None,
+            _ => self.intersect_solid(r),
+        }
+    }
+
     /// Whether a surface that exists (alpha masks skipped) blocks the ray.
     #[must_use]
     pub fn occluded_solid(&self, r: &Ray) -> bool {

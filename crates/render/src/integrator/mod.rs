@@ -23,7 +23,7 @@ use crate::render::jitter;
 use crate::texture::sample;
 use crate::world::World;
 use glam::Vec3;
-use lucent_accel::Ray;
+use lucent_accel::{Hit, Ray};
 use lucent_scene::Material;
 
 /// How rays are traced: choices that change the speed, never the image.
@@ -166,16 +166,13 @@ impl Integrator {
     pub fn li_block(&self, w: &World, block: &Block, rays: &[Ray], traversal: Traversal, out: &mut [Vec3]) {
         match self {
             Self::Whitted(s) if traversal.packets => whitted::li_packet_among(w, rays, block.among, s, out),
-            Self::Path(s) if traversal.packets && coherent(rays) => {
+            Self::Path(s) => {
                 // The camera rays' closest hits as one packet; each path goes on alone.
                 let mut hits = [None; lucent_accel::MAX_PACKET];
                 let hits = &mut hits[..rays.len()];
-                match block.among {
-                    Some(ids) => w.intersect_packet_among(rays, ids, hits),
-                    None => w.intersect_packet(rays, hits),
-                }
+                let known = packet_first_hits(w, rays, block.among, traversal.packets, hits);
                 for (((o, r), &(x, y)), h) in out.iter_mut().zip(rays).zip(block.pixels).zip(hits.iter()) {
-                    *o = path::li(w, r, s, x, y, block.sample, Some(*h));
+                    *o = path::li(w, r, s, x, y, block.sample, known.then_some(*h));
                 }
             }
             _ => {
@@ -210,6 +207,21 @@ impl Integrator {
 /// (8-pixel blocks span 0.065) single rays took 0.90 s where packets took 1.13 s; at
 /// 256 × 256 (0.016) packets took 0.67 s against 0.71, at 512 × 512 2.46 s against 2.62.
 const PACKET_SPREAD: f32 = 0.03;
+
+/// Traces a block's camera rays (at most [`lucent_accel::MAX_PACKET`]) as one packet, their
+/// closest hits into `hits`, when `packets` is on, no surface has an alpha mask (a packet
+/// stops at cut-out parts) and the rays are [`coherent`]; returns whether it did. The
+/// camera paths then start from those hits ([`World::first_hit`]), else they trace alone.
+pub(crate) fn packet_first_hits(w: &World, rays: &[Ray], among: Option<&[u32]>, packets: bool, hits: &mut [Option<Hit>]) -> bool {
+    if !packets || w.has_alpha() || !coherent(rays) {
+        return false;
+    }
+    match among {
+        Some(ids) => w.intersect_packet_among(rays, ids, hits),
+        None => w.intersect_packet(rays, hits),
+    }
+    true
+}
 
 pub(crate) fn coherent(rays: &[Ray]) -> bool {
     let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);

@@ -199,11 +199,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
     let mut first = first;
     let hidden = |depth: u32| depth == 0 && s.hide_emitters;
     loop {
-        let found = match first.take() {
-            Some(Some(h)) if !w.has_alpha() => Some((ray, h)),
-            Some(None) => None,
-            _ => w.intersect_solid(&ray),
-        };
+        let found = w.first_hit(&ray, first.take());
         let Some((hit_ray, hit)) = found else {
             if !hidden(depth) {
                 let d = ray.dir.normalize();

@@ -332,11 +332,7 @@ fn camera_path<'w>(
     let mut first = first;
     l.depth = f32::INFINITY;
     for depth in 0..=SPECULAR_DEPTH {
-        let found = match first.take() {
-            Some(Some(h)) if !w.has_alpha() => Some((ray, h)),
-            Some(None) => None,
-            _ => w.intersect_solid(&ray),
-        };
+        let found = w.first_hit(&ray, first.take());
         let Some((hit_ray, hit)) = found else {
             let d = ray.dir.normalize();
             l.emitted += beta * lights.env_radiance(d).unwrap_or(w.scene.background);
@@ -544,10 +540,7 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
                         }
                     }
                     let mut hits = [None; 64];
-                    let first = packets && super::coherent(&rays[..m]);
-                    if first {
-                        w.intersect_packet(&rays[..m], &mut hits[..m]);
-                    }
+                    let first = super::packet_first_hits(w, &rays[..m], None, packets, &mut hits[..m]);
                     for j in 0..m {
                         let (x, y) = coords[c + j];
                         if let Some((sh, direct)) = camera_path(w, &rays[j], s, (x, y), k, first.then_some(hits[j]), &mut layers[c + j]) {
