@@ -729,56 +729,33 @@ impl RecordedRays {
     /// it was traced: alone or in its packet), for timing; returns the hits and blocked rays
     /// found, so that the work cannot be optimised away.
     pub fn trace(&self, w: &World) -> u64 {
-        const CHUNK: usize = 4096;
-        let hits = self.closest.par_chunks(CHUNK).map(|c| c.iter().filter(|r| w.accel.intersect(r).is_some()).count()).sum::<usize>()
-            + self.shadow.par_chunks(CHUNK).map(|c| c.iter().filter(|r| w.accel.occluded(r)).count()).sum::<usize>()
-            + self
-                .closest_packets
-                .par_chunks(64)
-                .map(|c| {
-                    let mut out = [None; lucent_accel::MAX_PACKET];
-                    c.iter()
-                        .map(|(rays, ids)| {
-                            let out = &mut out[..rays.len()];
-                            match ids {
-                                Some(ids) => w.accel.intersect_packet_among(rays, ids, out),
-                                None => w.accel.intersect_packet(rays, out),
-                            }
-                            out.iter().filter(|h| h.is_some()).count()
-                        })
-                        .sum::<usize>()
-                })
-                .sum::<usize>()
-            + self
-                .shadow_packets
-                .par_chunks(64)
-                .map(|c| {
-                    let mut out = [false; lucent_accel::MAX_PACKET];
-                    c.iter()
-                        .map(|rays| {
-                            let out = &mut out[..rays.len()];
-                            w.accel.occluded_packet(rays, out);
-                            out.iter().filter(|&&b| b).count()
-                        })
-                        .sum::<usize>()
-                })
-                .sum::<usize>()
-            + self
-                .shadow_blocks
-                .par_chunks(64)
-                .map(|c| {
-                    let mut out = Vec::new();
-                    c.iter()
-                        .map(|(blocks, _)| {
-                            out.clear();
-                            out.resize(blocks.len() * 8, false);
-                            w.accel.occluded_blocks(blocks, &mut out);
-                            out.iter().filter(|&&b| b).count()
-                        })
-                        .sum::<usize>()
-                })
-                .sum::<usize>();
-        hits as u64
+        /// The sum of `f` over `items`, in chunks on rayon's threads.
+        fn par_sum<T: Sync>(items: &[T], chunk: usize, f: impl Fn(&T) -> usize + Sync) -> usize {
+            items.par_chunks(chunk).map(|c| c.iter().map(&f).sum::<usize>()).sum()
+        }
+        let closest = par_sum(&self.closest, 4096, |r| usize::from(w.accel.intersect(r).is_some()));
+        let shadow = par_sum(&self.shadow, 4096, |r| usize::from(w.accel.occluded(r)));
+        let closest_packets = par_sum(&self.closest_packets, 64, |(rays, ids)| {
+            let mut out = [None; lucent_accel::MAX_PACKET];
+            let out = &mut out[..rays.len()];
+            match ids {
+                Some(ids) => w.accel.intersect_packet_among(rays, ids, out),
+                None => w.accel.intersect_packet(rays, out),
+            }
+            out.iter().filter(|h| h.is_some()).count()
+        });
+        let shadow_packets = par_sum(&self.shadow_packets, 64, |rays| {
+            let mut out = [false; lucent_accel::MAX_PACKET];
+            let out = &mut out[..rays.len()];
+            w.accel.occluded_packet(rays, out);
+            out.iter().filter(|&&b| b).count()
+        });
+        let shadow_blocks = par_sum(&self.shadow_blocks, 64, |(blocks, _)| {
+            let mut out = vec![false; blocks.len() * lucent_accel::simd::LANES];
+            w.accel.occluded_blocks(blocks, &mut out);
+            out.iter().filter(|&&b| b).count()
+        });
+        (closest + shadow + closest_packets + shadow_packets + shadow_blocks) as u64
     }
 }
 

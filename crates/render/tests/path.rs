@@ -73,27 +73,49 @@ fn point_light_at_the_centre_gives_the_closed_form() {
     assert!((m - Vec3::ONE).abs().max_element() < 0.025, "mean radiance {m}, want 1");
 }
 
-/// The rays a render sends are recorded whole and traced again with the same answers:
+/// The rays a render sends are recorded whole (rays alone, packets and blocks: the path
+/// tracer's, Whitted's and the VPL tiles' kinds) and traced again with the same answers:
 /// inside the closed sphere every closest-hit ray hits and no shadow ray toward the light
-/// at its centre is blocked; with a light outside the sphere every shadow ray is.
+/// at its centre (or between two points of the sphere) is blocked; with a light outside
+/// the sphere every shadow ray is.
 #[test]
 fn recorded_rays_are_the_rays_traced() {
-    for (light, blocked) in [(Vec3::ZERO, false), (Vec3::new(0.0, 3.0, 0.0), true)] {
+    let whitted = Integrator::Whitted(lucent_render::WhittedSettings::default());
+    // (One set, so that a VPL's rays from a tile fill packets.)
+    let vpl = Integrator::Vpl(lucent_render::VplSettings { interleave: 1, ..lucent_render::VplSettings::default() });
+    let outside = Vec3::new(0.0, 3.0, 0.0);
+    let mut kinds = [0usize; 5];
+    for (light, integrator) in [
+        (Vec3::ZERO, path(LightSampling::Mis)),
+        (Vec3::ZERO, whitted),
+        (Vec3::ZERO, vpl),
+        (outside, path(LightSampling::Mis)),
+        (outside, whitted),
+    ] {
         let mut s = inside_sphere(0.5, 0.0);
         s.lights.push(Light { kind: LightKind::Point { position: light }, color: Vec3::ONE, inverse_square: true });
         let world = World::new(s, MeshOptions::default()).expect("world");
         let cam = Camera::new(&CENTRE, 16, 16);
-        for integrator in [path(LightSampling::Mis), Integrator::Whitted(lucent_render::WhittedSettings::default())] {
-            let settings = RenderSettings { spp: 4, integrator, ..RenderSettings::new(16, 16) };
-            let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");
-            let ((_, traced), rays) = one.install(|| lucent_render::record_rays(|| render(&world, &cam, &settings, &|_| {})));
-            assert_eq!(rays.rays(), traced, "{integrator:?}: every ray recorded");
-            let closest = (rays.closest.len() + rays.closest_packets.iter().map(|p| p.0.len()).sum::<usize>()) as u64;
-            let shadow = traced - closest;
-            assert!(closest >= 256 && shadow >= 256, "{integrator:?}: {closest} closest-hit and {shadow} shadow rays");
-            assert_eq!(rays.trace(&world), closest + if blocked { shadow } else { 0 }, "{integrator:?}, light at {light}");
+        let settings = RenderSettings { spp: 4, integrator, ..RenderSettings::new(16, 16) };
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");
+        let ((_, traced), rays) = one.install(|| lucent_render::record_rays(|| render(&world, &cam, &settings, &|_| {})));
+        assert_eq!(rays.rays(), traced, "{integrator:?}: every ray recorded");
+        for (k, n) in kinds.iter_mut().zip([
+            rays.closest.len(),
+            rays.shadow.len(),
+            rays.closest_packets.len(),
+            rays.shadow_packets.len(),
+            rays.shadow_blocks.len(),
+        ]) {
+            *k += n;
         }
+        let closest = (rays.closest.len() + rays.closest_packets.iter().map(|p| p.0.len()).sum::<usize>()) as u64;
+        let shadow = traced - closest;
+        assert!(closest >= 256 && shadow >= 256, "{integrator:?}: {closest} closest-hit and {shadow} shadow rays");
+        let blocked = if light == outside { shadow } else { 0 };
+        assert_eq!(rays.trace(&world), closest + blocked, "{integrator:?}, light at {light}");
     }
+    assert!(kinds.iter().all(|&n| n > 0), "every kind of query recorded: {kinds:?}");
 }
 
 /// On the Cornell box (an area light, diffuse walls), next-event estimation alone, BSDF

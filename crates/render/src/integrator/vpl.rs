@@ -707,7 +707,10 @@ pub fn render_region(
     let mut layers = vec![Layers::default(); ext.pixels()];
     let mut rays = 0;
     for k in r.s0..r.s1 {
+        // (The light paths are traced on this thread: its count tells their rays.)
+        let before = crate::world::rays_traced_here();
         let set = VplSet::generate(w, s, k);
+        rays += crate::world::rays_traced_here() - before;
         rays += trace_layers(w, cam, rs, &set, ext, &mut layers);
         let ew = ext.x1 - ext.x0;
         if spread {
