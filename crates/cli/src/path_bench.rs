@@ -6,8 +6,9 @@
 //! Per scene: lucent's samples per second and its relMSE at 64 spp (the median of sixteen
 //! seeds, as Mitsuba's recorded one: one render's relMSE swings with its few brightest
 //! pixels; on the envmap scene eight seeds' median was 1.13× Mitsuba's where 32 seeds'
-//! is 1.05×), the samples lucent needs to reach Mitsuba's 64-spp relMSE (relMSE falls as 1/spp for an unbiased
-//! estimator: 64 × lucent's / Mitsuba's) and the seconds that many take, measured;
+//! is 1.05×), the samples lucent needs to reach Mitsuba's 64-spp relMSE (relMSE falls as
+//! 1/spp for an unbiased estimator: 64 × lucent's / Mitsuba's) and the seconds that many
+//! take, measured;
 //! Mitsuba's own 64-spp render timed in the same run when `tools/mitsuba/python` works
 //! here (its second render, after JIT compilation), else its time recorded in
 //! `mitsuba.json`; and how many times faster lucent is at equal error.
@@ -19,9 +20,10 @@
 //! over it is the most times faster lucent could be at equal error without faster
 //! traversal or fewer rays.
 
+use crate::stats::{median, rays_alone};
 use anyhow::{bail, Context, Result};
 use lucent_accel::MeshOptions;
-use lucent_render::{record_rays, render, Camera, Film, Integrator, PathSettings, RenderSettings, World};
+use lucent_render::{render, Camera, Film, Integrator, PathSettings, RenderSettings, World};
 use std::path::Path;
 use std::time::Instant;
 
@@ -41,11 +43,6 @@ fn mitsuba_seconds(xml: &Path, defines: &[(String, String)]) -> Option<f64> {
     }
     let text = String::from_utf8_lossy(&o.stdout);
     text.split("second ").nth(1)?.split(' ').next()?.parse().ok()
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
@@ -99,23 +96,14 @@ pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
         };
         let _ = shot(4, 0); // warm-up
         let runs: Vec<(f64, f64)> = (1..=16).map(|seed| shot(64, seed)).collect();
-        let (t64, e64) = (median(runs.iter().map(|r| r.0).collect()), median(runs.iter().map(|r| r.1).collect()));
+        let (t64, e64) =
+            (median(&mut runs.iter().map(|r| r.0).collect::<Vec<_>>()), median(&mut runs.iter().map(|r| r.1).collect::<Vec<_>>()));
         let rate = f64::from(w * h) * 64.0 / t64;
         // Equal error: relMSE ∝ 1/spp.
         let spp_eq = ((64.0 * e64 / m_err).ceil() as u32).max(1);
-        let t_eq = median((1..=3).map(|seed| shot(spp_eq, seed).0).collect());
-        // The equal-error render's rays, then those rays alone (median of three passes).
-        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-        let (_, rays) = one.install(|| record_rays(|| render(&world, &camera, &settings(spp_eq, 1), &|_| {})));
-        let t_rays = median(
-            (0..3)
-                .map(|_| {
-                    let t = Instant::now();
-                    std::hint::black_box(rays.trace(&world));
-                    t.elapsed().as_secs_f64()
-                })
-                .collect(),
-        );
+        let t_eq = median(&mut (1..=3).map(|seed| shot(spp_eq, seed).0).collect::<Vec<_>>());
+        // The equal-error render's rays, then those rays alone.
+        let (rays, t_rays) = rays_alone(&world, || render(&world, &camera, &settings(spp_eq, 1), &|_| {}))?;
         let per_sample = rays.rays() as f64 / (f64::from(w * h) * f64::from(spp_eq));
         let live = mitsuba_seconds(&xml, &defines);
         let ms = live.or(recorded["seconds_64"].as_f64()).unwrap_or(f64::NAN);

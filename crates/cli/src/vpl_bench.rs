@@ -16,7 +16,7 @@ use lucent_accel::glam::Vec3;
 use lucent_accel::MeshOptions;
 use lucent_render::integrator::vpl::{frame_rays, VplSet};
 use lucent_render::{
-    denoise, record_rays, render, render_aovs, Camera, DenoiseSettings, Film, Integrator, PathSettings, RenderSettings, VplSettings, World,
+    denoise, render, render_aovs, Camera, DenoiseSettings, Film, Integrator, PathSettings, RenderSettings, VplSettings, World,
 };
 use lucent_scene::bsdf::{Bsdf, FloatTex};
 use lucent_scene::{CameraDesc, Light, LightKind};
@@ -197,17 +197,8 @@ pub fn run(o: &VplOptions) -> Result<()> {
         let (p_pk, p_1) = (rays_per_s(&world, &primary, false, false), rays_per_s(&world, &primary, false, true));
         let (s_pk, s_1) = (rays_per_s(&world, &shadow, true, false), rays_per_s(&world, &shadow, true, true));
         let nshadow: usize = shadow.iter().map(Vec::len).sum();
-        // The whole frame's rays (VPL generation included), recorded, then traced alone.
-        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-        let (_, recorded) = one.install(|| record_rays(|| render(&world, &cam, &st, &|_| {})));
-        let mut alone: Vec<f64> = (0..3)
-            .map(|_| {
-                let t = Instant::now();
-                std::hint::black_box(pool.install(|| recorded.trace(&world)));
-                t.elapsed().as_secs_f64()
-            })
-            .collect();
-        let alone = median(&mut alone);
+        // The whole frame's rays (VPL generation included), then those rays alone.
+        let (_, alone) = pool.install(|| crate::stats::rays_alone(&world, || render(&world, &cam, &st, &|_| {})))?;
         println!(
             "{name:<10} VPL frame {:7.1} ms = {:5.2} fps ({}{rays} rays, {:.1} Mrays/s) | one thread: camera rays {:.1} M/s packets, {:.1} single; VPL shadow rays ({nshadow}, {:.1} per packet) {:.1} M/s packets, {:.1} single | the frame's rays alone, 2 threads: {:.1} ms = {:.2} fps at most",
             med * 1e3,

@@ -419,7 +419,7 @@ impl World {
     /// (see `integrator::packet_first_hits`: a miss stands, and a hit does where no surface
     /// has an alpha mask), else [`World::intersect_solid`].
     #[must_use]
-    pub fn first_hit(&self, r: &Ray, known: Option<Option<Hit>>) -> Option<(Ray, Hit)> {
+    pub(crate) fn first_hit(&self, r: &Ray, known: Option<Option<Hit>>) -> Option<(Ray, Hit)> {
         match known {
             Some(Some(h)) if !self.has_alpha => Some((*r, h)),
             Some(None) => None,
@@ -467,39 +467,27 @@ impl World {
     /// Closest hit.
     #[must_use]
     pub fn intersect(&self, r: &Ray) -> Option<Hit> {
-        count_ray();
-        if RECORDING.get() {
-            RECORD.with_borrow_mut(|q| q.closest.push(*r));
-        }
+        count_rays(1, |q| q.closest.push(*r));
         self.accel.intersect(r)
     }
 
     /// Any hit.
     #[must_use]
     pub fn occluded(&self, r: &Ray) -> bool {
-        count_ray();
-        if RECORDING.get() {
-            RECORD.with_borrow_mut(|q| q.shadow.push(*r));
-        }
+        count_rays(1, |q| q.shadow.push(*r));
         self.accel.occluded(r)
     }
 
     /// Closest hits of coherent rays, traced in packets (see `TwoLevel::intersect_packet`).
     pub fn intersect_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        RAYS.with(|c| c.set(c.get() + rays.len() as u64));
-        if RECORDING.get() {
-            RECORD.with_borrow_mut(|q| q.closest_packets.push((rays.to_vec(), None)));
-        }
+        count_rays(rays.len(), |q| q.closest_packets.push((rays.to_vec(), None)));
         self.accel.intersect_packet(rays, out);
     }
 
     /// Closest hits of coherent rays that can meet no instance but those of `ids` (see
     /// `TwoLevel::intersect_packet_among`).
     pub fn intersect_packet_among(&self, rays: &[Ray], ids: &[u32], out: &mut [Option<Hit>]) {
-        RAYS.with(|c| c.set(c.get() + rays.len() as u64));
-        if RECORDING.get() {
-            RECORD.with_borrow_mut(|q| q.closest_packets.push((rays.to_vec(), Some(ids.to_vec()))));
-        }
+        count_rays(rays.len(), |q| q.closest_packets.push((rays.to_vec(), Some(ids.to_vec()))));
         self.accel.intersect_packet_among(rays, ids, out);
     }
 
@@ -512,19 +500,13 @@ impl World {
             }
             return;
         }
-        RAYS.with(|c| c.set(c.get() + rays.len() as u64));
-        if RECORDING.get() {
-            RECORD.with_borrow_mut(|q| q.shadow_packets.push(rays.to_vec()));
-        }
+        count_rays(rays.len(), |q| q.shadow_packets.push(rays.to_vec()));
         self.accel.occluded_packet(rays, out);
     }
 
     /// Occlusion of rays in SoA blocks (empty lanes allowed), `rays` of them real.
     pub(crate) fn occluded_blocks(&self, blocks: &[lucent_accel::RayBlock], out: &mut [bool], rays: usize) {
-        RAYS.with(|c| c.set(c.get() + rays as u64));
-        if RECORDING.get() {
-            RECORD.with_borrow_mut(|q| q.shadow_blocks.push((blocks.to_vec(), rays)));
-        }
+        count_rays(rays, |q| q.shadow_blocks.push((blocks.to_vec(), rays)));
         self.accel.occluded_blocks(blocks, out);
     }
 
@@ -778,8 +760,14 @@ pub fn record_rays<R>(f: impl FnOnce() -> R) -> (R, RecordedRays) {
     (r, RECORD.take())
 }
 
-fn count_ray() {
-    RAYS.with(|c| c.set(c.get() + 1));
+/// Counts `n` rays of a query on this thread, and keeps the query with `keep` while
+/// [`record_rays`] records.
+#[inline]
+fn count_rays(n: usize, keep: impl FnOnce(&mut RecordedRays)) {
+    RAYS.with(|c| c.set(c.get() + n as u64));
+    if RECORDING.get() {
+        RECORD.with_borrow_mut(keep);
+    }
 }
 
 /// Rays traced by this thread so far (closest-hit and shadow queries).
