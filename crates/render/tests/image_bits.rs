@@ -1,0 +1,180 @@
+//! The path-traced, VPL, guide and denoised images, bit for bit: a 64-bit hash of every
+//! pixel's f32 bits for a set of frames (the demo scene, Mitsuba's four reference scenes,
+//! Sponza, the animated BART kitchen posed at two times), recorded before issue 57 moved
+//! the renderer's files (one file per BSDF and light, the floor modules, the integrator
+//! seam, the world split by concern) so that the move is shown to change no image. The
+//! scalar path tracer stays the reference of the lane integrator (issue 58): these hashes
+//! are its images.
+//!
+//! As `whitted_bits.rs`: recorded on this project's AVX-512 machine; every SIMD path must
+//! give the scalar path's answers, so another CPU must give the same bits.
+
+mod common;
+use common::scene;
+use lucent_accel::MeshOptions;
+use lucent_render::{
+    denoise, render, render_aovs, render_region, Camera, DenoiseSettings, Film, FilmAccumulator, Integrator, PathSettings, Region,
+    RenderSettings, VplSettings, World,
+};
+use std::path::PathBuf;
+
+/// FNV-1a over the pixels' bits.
+fn hash_pixels(pixels: &[glam::Vec3]) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for p in pixels {
+        for c in p.to_array() {
+            for b in c.to_bits().to_le_bytes() {
+                h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+    }
+    h
+}
+
+fn hash(f: &Film) -> u64 {
+    hash_pixels(&f.pixels)
+}
+
+fn mitsuba(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mitsuba").join(name).join("scene.xml")
+}
+
+/// (name, hash) of every frame, in order.
+fn frames() -> Vec<(String, u64)> {
+    let (w, h) = (64, 48);
+    let mut out = Vec::new();
+    let mut worlds: Vec<(String, World, Camera)> = Vec::new();
+    for name in ["cornell_box", "bunny", "envmap", "materials"] {
+        let defines = [("scenes".to_string(), common::scenes_dir().display().to_string())];
+        let sc = lucent_scene::load_mitsuba_with(&mitsuba(name), &defines).expect("scene");
+        let cam = Camera::new(&sc.camera.expect("camera"), w, h);
+        worlds.push((name.into(), World::new(sc, MeshOptions::default()).expect("world"), cam));
+    }
+    let demo = World::new(lucent_scene::demo_scene(), MeshOptions::default()).expect("demo");
+    let (lo, hi) = demo.scene().bounds().expect("the demo has geometry");
+    let cam = Camera::new(&demo.scene().camera.unwrap_or_else(|| lucent_render::framing_camera(lo, hi)), w, h);
+    worlds.push(("demo".into(), demo, cam));
+    // Sponza lit by a point and a spot light (its OBJ has none).
+    let mut sc = lucent_scene::load(&scene("sponza_dabrovic/sponza.obj.gz")).expect("sponza");
+    use lucent_scene::{Light, LightKind};
+    let v = glam::Vec3::new;
+    sc.lights.push(Light { kind: LightKind::Point { position: v(0.0, 8.0, 0.0) }, color: v(60.0, 55.0, 50.0), inverse_square: true });
+    let spot = LightKind::Spot { position: v(8.0, 4.0, 0.0), direction: v(-1.0, -0.5, 0.0), inner: 0.3, outer: 0.5 };
+    sc.lights.push(Light { kind: spot, color: v(80.0, 80.0, 90.0), inverse_square: true });
+    let sponza = World::new(sc, MeshOptions::default()).expect("world");
+    let cam = Camera::new(&lucent_scene::CameraDesc::from_view(&[-10.0, 2.5, 0.0, 0.0, 4.5, 0.0, 0.0, 1.0, 0.0, 70.0]), w, h);
+    worlds.push(("sponza".into(), sponza, cam));
+    let mut kitchen =
+        World::new(lucent_scene::load(&scene("bart/kitchen/kitchen.gltf")).expect("kitchen"), MeshOptions::default()).expect("world");
+    for t in [3.0, 11.5] {
+        let desc = kitchen.set_time(t).expect("pose").expect("the kitchen has a camera");
+        let cam = Camera::new(&desc, w, h);
+        let (film, _) = render(&kitchen, &cam, &path_settings(w, h, 4, PathSettings::default()), &|_| {});
+        out.push((format!("kitchen t {t} path 4"), hash(&film)));
+        let vpl = Integrator::Vpl(VplSettings { count: 64, ..VplSettings::default() });
+        let (film, _) = render(&kitchen, &cam, &RenderSettings { spp: 1, integrator: vpl, ..RenderSettings::new(w, h) }, &|_| {});
+        out.push((format!("kitchen t {t} vpl"), hash(&film)));
+    }
+    for (name, world, cam) in &worlds {
+        for (spp, sampling) in [(4, lucent_render::LightSampling::Mis), (2, lucent_render::LightSampling::Nee)] {
+            let ps = PathSettings { sampling, max_depth: 8, ..PathSettings::default() };
+            let (film, _) = render(world, cam, &path_settings(w, h, spp, ps), &|_| {});
+            out.push((format!("{name} path {spp} {sampling:?}"), hash(&film)));
+        }
+        // Samples 2..5 of an 8-sample image as two regions, merged.
+        let rs = path_settings(w, h, 8, PathSettings::default());
+        let mut acc = FilmAccumulator::new(w, h);
+        for r in [Region { x0: 0, y0: 0, x1: w, y1: h, s0: 2, s1: 3 }, Region { x0: 0, y0: 0, x1: w, y1: h, s0: 3, s1: 5 }] {
+            acc.merge(render_region(world, cam, &rs, r, &|_| {}).0).expect("regions");
+        }
+        out.push((format!("{name} path regions"), hash(&acc.resolve(world.scene().background))));
+        let vpl = Integrator::Vpl(VplSettings { count: 64, max_depth: 8, ..VplSettings::default() });
+        let (film, _) = render(world, cam, &RenderSettings { spp: 2, integrator: vpl, ..RenderSettings::new(w, h) }, &|_| {});
+        out.push((format!("{name} vpl"), hash(&film)));
+        let aovs = render_aovs(world, cam, w, h);
+        out.push((format!("{name} albedo"), hash(&aovs.albedo)));
+        out.push((format!("{name} normal"), hash(&aovs.normal)));
+        out.push((format!("{name} emission"), hash(&aovs.emission)));
+        let depth: Vec<glam::Vec3> = aovs.depth.iter().map(|&d| glam::Vec3::splat(d)).collect();
+        out.push((format!("{name} depth"), hash_pixels(&depth)));
+        let (noisy, _) = render(world, cam, &path_settings(w, h, 4, PathSettings::default()), &|_| {});
+        out.push((format!("{name} denoised"), hash(&denoise(&noisy, &aovs, &DenoiseSettings::default()))));
+    }
+    out
+}
+
+fn path_settings(w: u32, h: u32, spp: u32, ps: PathSettings) -> RenderSettings {
+    RenderSettings { spp, integrator: Integrator::Path(ps), ..RenderSettings::new(w, h) }
+}
+
+/// Recorded at add57ab (before issue 57), on the AVX-512 machine.
+const WANT: &[(&str, u64)] = &[
+    ("kitchen t 3 path 4", 0x41bc77d2bd7b857f),
+    ("kitchen t 3 vpl", 0x65dc9cc901031368),
+    ("kitchen t 11.5 path 4", 0xcde39520826c1f6e),
+    ("kitchen t 11.5 vpl", 0xc28e28e8e1805acd),
+    ("cornell_box path 4 Mis", 0x8f35e0608baebcba),
+    ("cornell_box path 2 Nee", 0xa5abdbb3972f31dc),
+    ("cornell_box path regions", 0xeb4eeff23afddb65),
+    ("cornell_box vpl", 0xc59f01321d18d83b),
+    ("cornell_box albedo", 0x9694e37c6c877fba),
+    ("cornell_box normal", 0xd8e3ad74cc986b9c),
+    ("cornell_box emission", 0x4da068f166621af5),
+    ("cornell_box depth", 0x0f03beac25ede846),
+    ("cornell_box denoised", 0x0a318aeefa6cc5f4),
+    ("bunny path 4 Mis", 0xc20ab71b5fb282ab),
+    ("bunny path 2 Nee", 0xe295028766f6c87f),
+    ("bunny path regions", 0x08cebe99d6809823),
+    ("bunny vpl", 0x41da28a3e8fb7c48),
+    ("bunny albedo", 0x324aa08dd3f1c665),
+    ("bunny normal", 0xb8caf0a2f5494d98),
+    ("bunny emission", 0xbe7134315f056325),
+    ("bunny depth", 0x3b80d3e692579075),
+    ("bunny denoised", 0xfaa7fef3f38a596a),
+    ("envmap path 4 Mis", 0xc2ebd6e2f05cacf7),
+    ("envmap path 2 Nee", 0x62c0cf28d79ad2ab),
+    ("envmap path regions", 0xbec57e4167a8f949),
+    ("envmap vpl", 0xf1b334e5f3fda947),
+    ("envmap albedo", 0xd60786d55ef95b6a),
+    ("envmap normal", 0x8a895641a1855502),
+    ("envmap emission", 0xbe7134315f056325),
+    ("envmap depth", 0x10347fc4e4bac92b),
+    ("envmap denoised", 0x44e0c6c5dfec8b21),
+    ("materials path 4 Mis", 0x14bb5f680863a514),
+    ("materials path 2 Nee", 0xad77d6c7dff58282),
+    ("materials path regions", 0x364019990edc3d27),
+    ("materials vpl", 0xc20cef200b4cc0e6),
+    ("materials albedo", 0x033d6297437d7432),
+    ("materials normal", 0x6e6357828c06f92c),
+    ("materials emission", 0x11cee5db316b7a6d),
+    ("materials depth", 0x9b2134cb97a5c3bf),
+    ("materials denoised", 0x0272c9528609921a),
+    ("demo path 4 Mis", 0xadc67968804800b6),
+    ("demo path 2 Nee", 0xc6e39010c1ca17ab),
+    ("demo path regions", 0x862a352e2a9d458b),
+    ("demo vpl", 0x8fea8778e040d093),
+    ("demo albedo", 0xcd95783af7592d91),
+    ("demo normal", 0xd23b937a468aaa58),
+    ("demo emission", 0xbe7134315f056325),
+    ("demo depth", 0x6d96f006b59a7e65),
+    ("demo denoised", 0xedf99598bd7dd3a0),
+    ("sponza path 4 Mis", 0xab0efd569c24497f),
+    ("sponza path 2 Nee", 0xc5e3f5648c1bce83),
+    ("sponza path regions", 0x28babfef994885de),
+    ("sponza vpl", 0xc71030a98ca54e80),
+    ("sponza albedo", 0x5904ea4ccb963246),
+    ("sponza normal", 0xcdab194a964c9b71),
+    ("sponza emission", 0xbe7134315f056325),
+    ("sponza depth", 0x6af6b4af1c5fb268),
+    ("sponza denoised", 0x47beab456718fff5),
+];
+
+#[test]
+fn path_vpl_guide_and_denoised_images_keep_their_bits() {
+    let got = frames();
+    let listing: String = got.iter().map(|(n, h)| format!("    ({n:?}, {h:#018x}),\n")).collect();
+    assert_eq!(got.len(), WANT.len(), "frames changed; now:\n{listing}");
+    for ((n, h), (wn, wh)) in got.iter().zip(WANT) {
+        assert_eq!((n.as_str(), *h), (*wn, *wh), "the image {n} changed; all frames now:\n{listing}");
+    }
+}
