@@ -264,3 +264,61 @@ fn vertex_normals_average_the_faces_around_a_vertex() {
     assert!((n[3] - Vec3::new(0.0, 1.0, -1.0).normalize()).length() < 1e-6, "eave {:?}", n[3]);
     assert_eq!(n[4], Vec3::ZERO);
 }
+
+/// A floor lit by an emitting quad (a mesh instance) and, in `moving`, the quad slides from
+/// x = 0 to x = 3 over one second while a grey sphere stays put. `lit_at`: the quad placed
+/// there without animation.
+fn lamp_scene(moving: bool, lit_at: f32) -> Scene {
+    let quad = |y: f32, s: f32, material: u32, name: &str| lucent_scene::Mesh {
+        name: name.into(),
+        positions: vec![Vec3::new(-s, y, -s), Vec3::new(s, y, -s), Vec3::new(s, y, s), Vec3::new(-s, y, s)],
+        // (The lamp faces down, the floor up.)
+        indices: if y > 0.0 { vec![[0, 1, 2], [0, 2, 3]] } else { vec![[0, 2, 1], [0, 3, 2]] },
+        material: vec![material; 2],
+        ..lucent_scene::Mesh::default()
+    };
+    let lamp = Material { emission: Vec3::splat(8.0), ..Material::default() };
+    let mut s = Scene { materials: vec![Material::default(), lamp], ..Scene::default() };
+    s.meshes = vec![quad(0.0, 10.0, 0, "floor"), quad(2.0, 0.5, 1, "lamp")];
+    let at = |x: f32| Affine3A::from_translation(Vec3::new(x, 0.0, 0.0));
+    s.instances.push(Instance { geom: Geom::Mesh(0), world_from_object: Affine3A::IDENTITY });
+    s.instances.push(Instance { geom: Geom::Mesh(1), world_from_object: at(lit_at) });
+    s.instances.push(Instance { geom: Geom::Shape { kind: ShapeKind::Sphere, material: 0 }, world_from_object: at(-2.0) });
+    s.camera = Some(CameraDesc::from_view(&[0.0, 6.0, -8.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 60.0]));
+    if moving {
+        let still = |t: Vec3| Node { parent: None, t, r: Quat::IDENTITY, s: Vec3::ONE };
+        s.animation = Some(Arc::new(SceneAnimation {
+            nodes: vec![still(Vec3::ZERO), still(Vec3::ZERO), still(Vec3::new(-2.0, 0.0, 0.0))],
+            channels: vec![Channel {
+                node: 1,
+                target: Target::Translation,
+                interp: Interp::Linear,
+                times: vec![0.0, 1.0],
+                values: vec![0., 0., 0., 3., 0., 0.],
+                width: 3,
+            }],
+            instance_nodes: vec![0, 1, 2],
+            ..SceneAnimation::default()
+        }));
+    }
+    s
+}
+
+/// Posing a frame makes the light set again only when an emitter moved, and the images
+/// are those of the scene built with the emitter where it is now (next-event estimation
+/// samples it there).
+#[test]
+fn a_moved_emitter_lights_from_where_it_is_now() {
+    let path = |w: &World| {
+        let c = Camera::new(&w.scene().camera.expect("camera"), 48, 32);
+        let ps = lucent_render::PathSettings { max_depth: 3, ..lucent_render::PathSettings::default() };
+        let st = RenderSettings { spp: 4, integrator: lucent_render::Integrator::Path(ps), ..RenderSettings::new(48, 32) };
+        render(w, &c, &st, &|_| {}).0
+    };
+    let mut w = World::new(lamp_scene(true, 0.0), MeshOptions::default()).expect("world");
+    for t in [0.0, 0.5, 1.0] {
+        w.set_time(t).expect("pose");
+        let still = World::new(lamp_scene(false, 3.0 * t), MeshOptions::default()).expect("world");
+        assert_eq!(path(&w).pixels, path(&still).pixels, "t = {t}");
+    }
+}
