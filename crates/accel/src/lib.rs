@@ -27,7 +27,6 @@
 pub mod build;
 pub mod closed;
 mod geom;
-pub mod kd;
 mod kernel;
 mod mesh;
 pub mod packet;

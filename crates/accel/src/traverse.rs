@@ -389,7 +389,7 @@ pub enum Level {
 /// Counters of traversal work: the seam every kernel takes. Kernels are generic over
 /// this: the unit type `()` counts nothing and compiles away (every method is an empty
 /// inline default), [`TraversalStats`] counts visits, and the hardware study
-/// (`lucent_study`) records what each ray reads and where, for its cache and unit models.
+/// (`saarcor`) records what each ray reads and where, for its cache and unit models.
 ///
 /// Addresses are the addresses of lucent's own data (`bytes` long), so a cache model sees
 /// the real layout: nodes, object-list entries, instance matrices, triangle maps.

@@ -4,8 +4,8 @@
 
 use anyhow::{bail, Context, Result};
 use lucent_accel::glam::Vec3;
-use lucent_accel::kd::{Exact, KdMesh, KdOptions};
 use lucent_accel::{Kernel, MeshBvh, MeshOptions, Ray, TriangleTest, Width};
+use saarcor::kd::{Exact, KdMesh, KdOptions};
 use std::path::Path;
 use std::time::Instant;
 
@@ -118,7 +118,7 @@ pub struct RaysOptions {
     pub pin: bool,
     /// Write the per-pixel primary hit ids here (i32 little-endian, like `embree_bench --dump-ids`).
     pub dump_ids: Option<std::path::PathBuf>,
-    /// Trace SaarCOR's kd-tree (`lucent_accel::kd`) instead of the BVH.
+    /// Trace SaarCOR's kd-tree (`saarcor::kd`) instead of the BVH.
     pub kd: bool,
 }
 

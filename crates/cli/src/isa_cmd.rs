@@ -1,7 +1,7 @@
 //! `lucent asm` and `lucent disasm`.
 
 use anyhow::{bail, Context, Result};
-use lucent_isa::{
+use rend3r_isa::{
     assemble_words, disassemble, from_bin, from_mem, looks_legacy, to_bin, to_mem, AsmOptions, CameraTable, DisasmOptions, SetTable,
 };
 use std::path::{Path, PathBuf};

@@ -100,13 +100,13 @@ enum Cmd {
         output: PathBuf,
         /// `board`: show what REND3R's FPGA board would have shown (its 32/128-word program
         /// memory, 2 shapes/2 lights/8 triangles, binary16 datapath, one shadow ray, fixed-point
-        /// shading, RGB444 display and documented bugs). See lucent_device::board.
+        /// shading, RGB444 display and documented bugs). See rend3r_machine::board.
         #[arg(long, value_parser = ["board"])]
         compat: Option<String>,
         /// With --compat board: the 16 board switches, shown as background (RGB565 bits).
         #[arg(long, default_value = "0", value_parser = parse_u16)]
         switches: u16,
-        /// Also print REND3R's cycle model for each frame (lucent_device::cycles): the
+        /// Also print REND3R's cycle model for each frame (rend3r_machine::cycles): the
         /// paper's worst case ((shapes + 205) x (lights + 1) a pixel ray traced; 63 + 4 +
         /// width x height a triangle rasterized), the cycles the board really spends (light
         /// rays only from pixels whose camera ray hit), both as seconds at 100 MHz, beside
@@ -449,7 +449,7 @@ enum BenchCmd {
         #[arg(long, default_value = "high", value_parser = ["high", "sah", "spatial"])]
         quality: String,
         /// Index to trace: `bvh` (lucent's, the default) or `kd` (SaarCOR's kd-tree,
-        /// `lucent_accel::kd`: single rays, and 4-ray packets for any packet API; the
+        /// `saarcor::kd`: single rays, and 4-ray packets for any packet API; the
         /// width, watertight, scalar and quality options do not apply to it).
         #[arg(long, default_value = "bvh", value_parser = ["bvh", "kd"])]
         index: String,
@@ -513,8 +513,8 @@ fn run() -> Result<()> {
         Cmd::Run { program, mode, sets, size, frames, seconds, painter, spp, camera_table, output, compat, switches, cycles } => {
             run_cmd::run(run_cmd::RunArgs {
                 program,
-                mode: if mode == "raster" { lucent_device::Mode::Raster } else { lucent_device::Mode::Raytrace },
-                sets: sets.map(|s| if s == "triangles" { lucent_device::SetKind::Triangles } else { lucent_device::SetKind::Shapes }),
+                mode: if mode == "raster" { rend3r_machine::Mode::Raster } else { rend3r_machine::Mode::Raytrace },
+                sets: sets.map(|s| if s == "triangles" { rend3r_machine::SetKind::Triangles } else { rend3r_machine::SetKind::Shapes }),
                 size,
                 frames,
                 seconds,
@@ -545,13 +545,13 @@ fn run() -> Result<()> {
         }
         Cmd::Bench(BenchCmd::Net { soak: true, soak_clients, soak_frames, .. }) => net_cmd::soak(soak_clients, soak_frames),
         Cmd::Bench(BenchCmd::Net { clients, seconds, size, format, .. }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),
-        Cmd::Serve(a) => net_cmd::serve(lucent_net::ServerConfig {
+        Cmd::Serve(a) => net_cmd::serve(rend3r_net::ServerConfig {
             listen: a.listen,
             udp: (!a.no_udp).then_some(a.udp),
             http: (!a.no_http).then_some(a.http),
             width: a.size.0,
             height: a.size.1,
-            mode: if a.mode == "raster" { lucent_device::Mode::Raster } else { lucent_device::Mode::Raytrace },
+            mode: if a.mode == "raster" { rend3r_machine::Mode::Raster } else { rend3r_machine::Mode::Raytrace },
             shared: a.shared,
             max_message: a.max_message,
             max_frame_pixels: u64::from(a.max_frame.0) * u64::from(a.max_frame.1),
@@ -559,11 +559,11 @@ fn run() -> Result<()> {
             idle_timeout: std::time::Duration::from_secs(a.idle_timeout.max(1)),
             write_timeout: std::time::Duration::from_secs(a.write_timeout.max(1)),
             udp_chunk: a.udp_chunk,
-            device: lucent_net::DeviceLimits {
+            device: rend3r_net::DeviceLimits {
                 max_shapes: a.max_shapes,
                 max_lights: a.max_lights,
                 max_program_words: a.max_program_words,
-                ..lucent_net::DeviceLimits::default()
+                ..rend3r_net::DeviceLimits::default()
             },
             examples: a.examples.or_else(net_cmd::default_examples),
         }),
@@ -574,9 +574,9 @@ fn run() -> Result<()> {
             frames,
             size,
             mode: match mode.as_deref() {
-                Some("raster") => lucent_net::WireMode::Raster,
-                Some(_) => lucent_net::WireMode::Raytrace,
-                None => lucent_net::WireMode::Default,
+                Some("raster") => rend3r_net::WireMode::Raster,
+                Some(_) => rend3r_net::WireMode::Raytrace,
+                None => rend3r_net::WireMode::Default,
             },
             udp,
             camera_table_old: camera_table == "old",
@@ -618,16 +618,16 @@ fn run() -> Result<()> {
     }
 }
 
-fn pixel_format(s: &str) -> lucent_net::PixelFormat {
+fn pixel_format(s: &str) -> rend3r_net::PixelFormat {
     match s {
-        "rgb8" => lucent_net::PixelFormat::Rgb8,
-        "rgb565" => lucent_net::PixelFormat::Rgb565,
-        _ => lucent_net::PixelFormat::Png,
+        "rgb8" => rend3r_net::PixelFormat::Rgb8,
+        "rgb565" => rend3r_net::PixelFormat::Rgb565,
+        _ => rend3r_net::PixelFormat::Png,
     }
 }
 
 fn parse_u16(s: &str) -> Result<u16, String> {
-    lucent_isa::number::parse_uint(&s.to_lowercase())
+    rend3r_isa::number::parse_uint(&s.to_lowercase())
         .and_then(|v| u16::try_from(v).ok())
         .ok_or_else(|| format!("'{s}' is not a 16-bit unsigned number (e.g. 0x001f)"))
 }

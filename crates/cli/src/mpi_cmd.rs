@@ -37,7 +37,8 @@ mod imp {
     use anyhow::{bail, Result};
     use indicatif::ProgressBar;
     use lucent_cluster::RunStats;
-    use lucent_render::{Camera, Film, FilmAccumulator, RenderSettings, World};
+    use lucent_render::progressive::Progressive;
+    use lucent_render::{Camera, Film, RenderSettings, World};
     use lucent_scene::CameraDesc;
 
     /// Never made: this lucent has no MPI.
@@ -71,7 +72,7 @@ mod imp {
             _: Option<f64>,
             _: u32,
             _: &ProgressBar,
-        ) -> Result<(FilmAccumulator, u64, u32, RunStats)> {
+        ) -> Result<(Progressive, u64, u32, RunStats)> {
             match *self {}
         }
         #[allow(clippy::too_many_arguments)]
@@ -100,9 +101,10 @@ mod imp {
     use indicatif::ProgressBar;
     use lucent_cluster::mpi::{end_run, Mpi};
     use lucent_cluster::{
-        scene_digest, serve, tiles, ClusterError, Fault, Frame, Hub, Master, MasterOptions, RunStats, SceneRenderer, WorkerOptions,
+        scene_digest, serve, tiles, ClusterError, Fault, FrameSpec, Hub, Master, MasterOptions, RunStats, SceneRenderer, WorkerOptions,
         WorldRef,
     };
+    use lucent_render::progressive::{Passes, Progressive};
     use lucent_render::{Camera, Film, FilmAccumulator, Region, RegionFilm, RenderSettings, World};
     use lucent_scene::CameraDesc;
     use std::collections::HashMap;
@@ -220,49 +222,44 @@ mod imp {
             budget: Option<f64>,
             cap: u32,
             bar: &ProgressBar,
-        ) -> Result<(FilmAccumulator, u64, u32, RunStats)> {
+        ) -> Result<(Progressive, u64, u32, RunStats)> {
             let (w, h) = (settings.width, settings.height);
             let tile = self.args.mpi_tile;
+            // (The same schedule as `render --time` alone; checked before any rank works.)
+            let mut passes = budget.map(|b| Passes::timed(b, cap)).transpose().map_err(|e| anyhow::anyhow!("--time: {e}"))?;
+            let background = world.scene().background;
             self.with_master(world, None, never_used(), |m| {
-                let mut acc = FilmAccumulator::new(w, h);
+                let mut image = Progressive::new(w, h, background);
                 let mut total = RunStats::default();
-                let mut frame = [Frame { id: 0, time: None, settings: *settings, camera: Some(*cam) }];
-                let add = |acc: &mut FilmAccumulator, film: RegionFilm| -> Result<(), ClusterError> {
+                let mut frame = [FrameSpec { id: 0, time: None, settings: *settings, camera: Some(*cam) }];
+                let add = |image: &mut Progressive, film: RegionFilm| -> Result<(), ClusterError> {
                     let r = film.region;
                     bar.inc(r.pixels() as u64 * u64::from(r.s1 - r.s0));
-                    acc.merge(film)?;
+                    image.merge(film)?;
                     Ok(())
                 };
-                let spp = match budget {
+                let spp = match passes.as_mut() {
                     None => {
                         let work: Vec<(usize, Region)> = tiles(w, h, tile, 0, settings.spp).into_iter().map(|r| (0, r)).collect();
-                        total = m.run(&mut frame, &work, &lucent_cluster::mpi::terminated, &mut |_, film, _| add(&mut acc, film))?;
+                        total = m.run(&mut frame, &work, &lucent_cluster::mpi::terminated, &mut |_, film, _| add(&mut image, film))?;
                         settings.spp
                     }
-                    Some(budget) => {
-                        // As `render --time` alone: the image has `cap` samples (or
-                        // unbounded), passes of one sample doubling while a pass takes under a
-                        // sixteenth of the budget.
-                        let cap = if cap > 1 { cap } else { u32::MAX };
-                        frame[0].settings.spp = cap.max(2);
-                        let start = Instant::now();
-                        let (mut s0, mut chunk) = (0u32, 1u32);
-                        while s0 < cap && (s0 == 0 || start.elapsed().as_secs_f64() < budget) {
-                            let s1 = s0.saturating_add(chunk).min(cap);
+                    Some(passes) => {
+                        // As `render --time` alone: each pass's tiles over the ranks.
+                        frame[0].settings.spp = passes.image_spp();
+                        while let Some(samples) = passes.next() {
                             let t = Instant::now();
-                            let work: Vec<(usize, Region)> = tiles(w, h, tile, s0, s1).into_iter().map(|r| (0, r)).collect();
-                            let st = m.run(&mut frame, &work, &lucent_cluster::mpi::terminated, &mut |_, film, _| add(&mut acc, film))?;
+                            let work: Vec<(usize, Region)> =
+                                tiles(w, h, tile, samples.start, samples.end).into_iter().map(|r| (0, r)).collect();
+                            let st = m.run(&mut frame, &work, &lucent_cluster::mpi::terminated, &mut |_, film, _| add(&mut image, film))?;
                             total.add(&st);
-                            s0 = s1;
-                            if t.elapsed().as_secs_f64() < budget / 16.0 {
-                                chunk = chunk.saturating_mul(2);
-                            }
+                            passes.took(samples, t.elapsed().as_secs_f64());
                         }
-                        s0
+                        passes.samples()
                     }
                 };
                 let rays = total.rays;
-                Ok((acc, rays, spp, total))
+                Ok((image, rays, spp, total))
             })
         }
 
@@ -284,8 +281,8 @@ mod imp {
             let tile = self.args.mpi_tile;
             let bg = world.scene().background;
             self.with_master(world, fixed, fallback, |m| {
-                let mut frames: Vec<Frame> =
-                    times.iter().map(|&t| Frame { id: 0, time: Some(t), settings: *settings, camera: None }).collect();
+                let mut frames: Vec<FrameSpec> =
+                    times.iter().map(|&t| FrameSpec { id: 0, time: Some(t), settings: *settings, camera: None }).collect();
                 let mut work = Vec::new();
                 for k in 0..frames.len() {
                     match mode {
@@ -371,7 +368,7 @@ mod imp {
                 .collect();
             let mut link = self.master.hub_mut().attach_local(0);
             let opts = WorkerOptions { fault: None, ..self.opts.clone() };
-            let mut frame = [Frame { id: 0, time, settings: *settings, camera: Some(*camera) }];
+            let mut frame = [FrameSpec { id: 0, time, settings: *settings, camera: Some(*camera) }];
             let r = std::thread::scope(|s| {
                 s.spawn(move || {
                     let mut r = SceneRenderer::new(WorldRef::Shared(world), None, never_used());

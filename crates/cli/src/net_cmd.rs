@@ -2,9 +2,9 @@
 
 use crate::stats::median;
 use anyhow::{Context, Result};
-use lucent_net::client::{batches, save_frame, udp_exchange};
-use lucent_net::protocol::{Hello, Input, PixelFormat, WireMode};
-use lucent_net::{Client, Event, Server, ServerConfig};
+use rend3r_net::client::{batches, save_frame, udp_exchange};
+use rend3r_net::protocol::{Hello, Input, PixelFormat, WireMode};
+use rend3r_net::{Client, Event, Server, ServerConfig};
 use std::net::{SocketAddr, ToSocketAddrs};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -28,7 +28,7 @@ pub fn serve(cfg: ServerConfig) -> Result<()> {
         "              {}x{} {}, {}; limits: {} connections, {} B messages, {} shapes, {} lights; Ctrl-C stops",
         cfg.width,
         cfg.height,
-        if cfg.mode == lucent_device::Mode::Raster { "raster" } else { "raytrace" },
+        if cfg.mode == rend3r_machine::Mode::Raster { "raster" } else { "raytrace" },
         if cfg.shared { "one shared device" } else { "one device per connection" },
         cfg.max_connections,
         cfg.max_message,
@@ -138,7 +138,7 @@ fn send_udp(a: &SendArgs, addr: SocketAddr, ext: &str) -> Result<()> {
     let words = if ext == "rdr" {
         crate::run_cmd::load_program(
             &a.program,
-            if a.camera_table_old { lucent_isa::CameraTable::Old } else { lucent_isa::CameraTable::Final },
+            if a.camera_table_old { rend3r_isa::CameraTable::Old } else { rend3r_isa::CameraTable::Final },
         )?
         .0
     } else {
@@ -168,14 +168,14 @@ fn bench_setup() -> Vec<u32> {
     let src = "nr\ncam xloc, 0\ncam yloc, 0\ncam zloc, 0\nlt 0, xfor, 1\nlt 0, yfor, 1\nlt 0, zfor, -1\n\
                sp 0, xloc, yloc, 0, 0\nsp 0, zloc, type, -2, 1\nsp 0, col, zscl, 0b00000_000000_11111, 1\nsp 0, xscl, yscl, 1, 1\n\
                sp 1, xloc, yloc, 3, 0\nsp 1, zloc, type, -5, 1\nsp 1, col, zscl, 0b11111_111111_00000, 1\nsp 1, xscl, yscl, 0.5, 1\n";
-    lucent_isa::assemble_words(src, lucent_isa::AsmOptions::default()).unwrap_or_default()
+    rend3r_isa::assemble_words(src, rend3r_isa::AsmOptions::default()).unwrap_or_default()
 }
 
 /// One frame's batch: move sphere 1 on a circle, then `nf`.
 fn bench_move(i: u64) -> Vec<u32> {
     let a = i as f64 * 0.1;
     let src = format!("sp 1, xloc, yloc, {:.3}, {:.3}\nnf\n", 3.0 * a.cos(), 2.0 * a.sin());
-    lucent_isa::assemble_words(&src, lucent_isa::AsmOptions::default()).unwrap_or_default()
+    rend3r_isa::assemble_words(&src, rend3r_isa::AsmOptions::default()).unwrap_or_default()
 }
 
 fn pct(v: &[f64], p: f64) -> f64 {
@@ -269,10 +269,10 @@ pub fn bench(clients: &[usize], seconds: f64, size: (u32, u32), format: PixelFor
     let mut k = 0u32;
     while batch.len() + 4 <= max {
         let src = format!("sp {}, xloc, yloc, {}, 1", k % 4096, k % 7);
-        batch.extend(lucent_isa::assemble_words(&src, lucent_isa::AsmOptions::default()).unwrap_or_default());
+        batch.extend(rend3r_isa::assemble_words(&src, rend3r_isa::AsmOptions::default()).unwrap_or_default());
         k += 1;
     }
-    batch.extend(lucent_isa::assemble_words("er\ner", lucent_isa::AsmOptions::default()).unwrap_or_default());
+    batch.extend(rend3r_isa::assemble_words("er\ner", rend3r_isa::AsmOptions::default()).unwrap_or_default());
     let t = Instant::now();
     let mut words = 0u64;
     while t.elapsed().as_secs_f64() < seconds.min(3.0) {
@@ -308,10 +308,10 @@ const SOAK_SIZE: (u32, u32) = (48, 32);
 /// The frame `lucent run` makes after the setup and pose `k` (RGB8, as sent with
 /// `PixelFormat::Rgb8`).
 fn soak_reference(k: u64) -> Result<Vec<u8>> {
-    use lucent_device::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
+    use rend3r_machine::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
     let mut words = bench_setup();
     words.extend(bench_move(k));
-    let mut p = Processor::new(words, lucent_isa::CameraTable::Final)?;
+    let mut p = Processor::new(words, rend3r_isa::CameraTable::Final)?;
     anyhow::ensure!(p.run_to_frame(1_000_000) == Step::Frame, "the soak program has no frame");
     let fs = FrameSettings {
         width: SOAK_SIZE.0,
@@ -362,12 +362,12 @@ fn hostile_round(kind: Hostile, addr: SocketAddr, round: u64, stop: &std::sync::
         }
         Hostile::Truncated => {
             let _ = s.write_all(&hello.encode());
-            let _ = s.write_all(&[lucent_net::protocol::MSG_DATA, 0, 0, 0x10, 0]); // 4096 bytes announced
+            let _ = s.write_all(&[rend3r_net::protocol::MSG_DATA, 0, 0, 0x10, 0]); // 4096 bytes announced
             let _ = s.write_all(&noise(100));
         }
         Hostile::Oversize => {
             let _ = s.write_all(&hello.encode());
-            let _ = s.write_all(&[lucent_net::protocol::MSG_DATA, 0x7F, 0xFF, 0xFF, 0xFF]);
+            let _ = s.write_all(&[rend3r_net::protocol::MSG_DATA, 0x7F, 0xFF, 0xFF, 0xFF]);
             let _ = s.write_all(&noise(4096));
         }
         Hostile::StalledReader => {
@@ -378,7 +378,7 @@ fn hostile_round(kind: Hostile, addr: SocketAddr, round: u64, stop: &std::sync::
                 words.extend(bench_move(i));
             }
             let _ =
-                lucent_net::protocol::write_message(&mut s, lucent_net::protocol::MSG_DATA, &lucent_net::protocol::words_to_bytes(&words));
+                rend3r_net::protocol::write_message(&mut s, rend3r_net::protocol::MSG_DATA, &rend3r_net::protocol::words_to_bytes(&words));
             for _ in 0..40 {
                 if stop.load(Ordering::Relaxed) {
                     break;
@@ -472,8 +472,8 @@ pub fn soak(clients: usize, frames: u64) -> Result<()> {
                 let mut c = loop {
                     match Client::connect(addr, &hello, Duration::from_secs(60)) {
                         Ok(c) => break c,
-                        Err(lucent_net::client::ClientError::Refused(e))
-                            if e.code == lucent_net::protocol::ErrorCode::Busy && refused < 1000 =>
+                        Err(rend3r_net::client::ClientError::Refused(e))
+                            if e.code == rend3r_net::protocol::ErrorCode::Busy && refused < 1000 =>
                         {
                             refused += 1;
                             std::thread::sleep(Duration::from_millis(5 + 5 * refused.min(20)));

@@ -2,8 +2,8 @@
 //! lights) at 512×384, and words per second through the assembler and the processor.
 
 use anyhow::Result;
-use lucent_device::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
-use lucent_isa::{assemble_words, AsmOptions, CameraTable};
+use rend3r_isa::{assemble_words, AsmOptions, CameraTable};
+use rend3r_machine::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
 use std::fmt::Write as _;
 use std::time::Instant;
 
@@ -50,8 +50,8 @@ pub fn run(frames: usize, size: (u32, u32), spheres: &[usize], light_counts: &[u
     if let Some(l) = light_counts.iter().find(|&&l| l > 1) {
         anyhow::bail!("--lights {l}: Table IV's rows have 0 or 1 lights");
     }
-    if let Some(n) = spheres.iter().find(|&&n| n == 0 || n > lucent_device::MAX_SETS) {
-        anyhow::bail!("--spheres {n}: give 1 to {} spheres", lucent_device::MAX_SETS);
+    if let Some(n) = spheres.iter().find(|&&n| n == 0 || n > rend3r_machine::MAX_SETS) {
+        anyhow::bail!("--spheres {n}: give 1 to {} spheres", rend3r_machine::MAX_SETS);
     }
     println!("REND3R Table IV scenes at {}x{}, {} threads, median of {frames} frames", size.0, size.1, rayon::current_num_threads());
     println!("| spheres | lights | frame ms (process + render) | REND3R's estimate, s | x faster |");

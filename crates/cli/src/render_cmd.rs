@@ -3,9 +3,10 @@
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_accel::{MeshOptions, TriangleTest};
+use lucent_render::progressive::{Passes, Progressive};
 use lucent_render::{
-    framing_camera, render, render_region, Camera, FilmAccumulator, Integrator, PathSettings, Region, RenderSettings, Traversal,
-    VplSettings, WhittedSettings, World,
+    framing_camera, render, render_region, Camera, Integrator, PathSettings, Region, RenderSettings, Traversal, VplSettings,
+    WhittedSettings, World,
 };
 use lucent_scene::{CameraDesc, Scene};
 use std::io::IsTerminal;
@@ -354,7 +355,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             let (acc, rays, spp, st) = s.render(&mut world, &cam, &settings, budget, a.spp.unwrap_or(1), &bar)?;
             bar.finish_and_clear();
             cluster = Some((s.size(), st));
-            (acc.resolve(world.scene().background), rays, spp)
+            (acc.resolve(), rays, spp)
         }
         (None, None) => {
             let tiles = (w.div_ceil(lucent_render::TILE) * h.div_ceil(lucent_render::TILE)) as u64;
@@ -429,41 +430,36 @@ pub fn cluster_summary(ranks: usize, st: &lucent_cluster::RunStats) -> String {
     )
 }
 
-/// Renders for `budget` seconds: passes of whole-image regions of the next samples (one
-/// sample, doubling while a pass takes under a sixteenth of the budget), merged into a
-/// film accumulator, until the time is spent or `cap` samples (when above 1) are in.
-/// Returns the image, the rays traced and the samples per pixel.
+/// Renders for `budget` seconds: passes of whole-image regions of the next samples
+/// ([`Passes::timed`]: one sample, doubling while a pass takes under a sixteenth of the
+/// budget), merged into the progressive image, until the time is spent or `cap` samples
+/// (when above 1) are in. Returns the image, the rays traced and the samples per pixel.
 fn render_for(world: &World, cam: &Camera, settings: &RenderSettings, budget: f64, cap: u32) -> Result<(lucent_render::Film, u64, u32)> {
-    if !(budget.is_finite() && budget > 0.0) {
-        bail!("--time must be a positive number of seconds (got {budget})");
-    }
-    let cap = if cap > 1 { cap } else { u32::MAX };
-    // The image has as many samples as the cap (jittered from the first).
-    let st = RenderSettings { spp: cap.max(2), ..*settings };
+    let mut passes = Passes::timed(budget, cap).map_err(|e| anyhow::anyhow!("--time: {e}"))?;
+    let st = RenderSettings { spp: passes.image_spp(), ..*settings };
     let (w, h) = (st.width, st.height);
-    let mut acc = FilmAccumulator::new(w, h);
+    let mut image = Progressive::new(w, h, world.scene().background);
     let bar = if std::io::stderr().is_terminal() { ProgressBar::new((budget * 1e3) as u64) } else { ProgressBar::hidden() };
     bar.set_style(
         ProgressStyle::with_template("{spinner} rendering [{bar:40}] {elapsed} {msg}").unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let start = Instant::now();
-    let (mut s0, mut chunk, mut rays) = (0u32, 1u32, 0u64);
-    while s0 < cap && (s0 == 0 || start.elapsed().as_secs_f64() < budget) {
-        let s1 = s0.saturating_add(chunk).min(cap);
+    let mut rays = 0u64;
+    while let Some(samples) = passes.next() {
         let t = Instant::now();
-        let (part, r) = render_region(world, cam, &st, Region::full(w, h, s0, s1), &|_| {});
-        acc.merge(part)?;
+        let (part, r) = render_region(world, cam, &st, Region::full(w, h, samples.start, samples.end), &|_| {});
+        image.merge(part)?;
         rays += r;
-        s0 = s1;
-        if t.elapsed().as_secs_f64() < budget / 16.0 {
-            chunk = chunk.saturating_mul(2);
-        }
-        let elapsed = start.elapsed().as_secs_f64();
+        passes.took(samples, t.elapsed().as_secs_f64());
+        let elapsed = passes.elapsed();
         bar.set_position(((elapsed.min(budget)) * 1e3) as u64);
-        bar.set_message(format!("{s0} spp, {:.2} M samples/s", f64::from(w) * f64::from(h) * f64::from(s0) / elapsed.max(1e-9) * 1e-6));
+        bar.set_message(format!(
+            "{} spp, {:.2} M samples/s",
+            passes.samples(),
+            f64::from(w) * f64::from(h) * f64::from(passes.samples()) / elapsed.max(1e-9) * 1e-6
+        ));
     }
     bar.finish_and_clear();
-    Ok((acc.resolve(world.scene().background), rays, s0))
+    Ok((image.resolve(), rays, passes.samples()))
 }
 
 pub fn info(path: Option<&Path>, demo: DemoArg) -> Result<()> {

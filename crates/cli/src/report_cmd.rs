@@ -1,12 +1,12 @@
-//! `lucent report`: the hardware study (lucent_study) as SaarCOR's and REND3R's tables.
+//! `lucent report`: the hardware study (saarcor) as SaarCOR's and REND3R's tables.
 
 use crate::render_cmd::{choose_camera, load_scene, DemoArg};
 use anyhow::{bail, Context, Result};
 use lucent_accel::MeshOptions;
 use lucent_render::{Camera, World};
-use lucent_study::precision::{precision_study, Format};
-use lucent_study::report::{Rend3rReport, SaarcorReport, Tables};
-use lucent_study::saarcor::{model_frame, Machine, Traced};
+use saarcor::dynrtp::{model_frame, Machine, Traced};
+use saarcor::precision::{precision_study, Format};
+use saarcor::report::{Rend3rReport, SaarcorReport, Tables};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -99,7 +99,7 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
     let triangles = scene.meshes.iter().map(|m| m.indices.len()).sum();
     let world = World::new(scene, MeshOptions::default())?;
     let t = Instant::now();
-    let kd = lucent_study::kd_of_world(&world)?;
+    let kd = saarcor::kd_of_world(&world)?;
     tracing::info!("kd index built in {:.2} s", t.elapsed().as_secs_f64());
     let machine = Machine {
         cache_bytes: [a.cache_bytes[0], a.cache_bytes[1], a.cache_bytes[2]],
@@ -129,7 +129,7 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
     }
     // lucent's own time for the same rays (the fast single-ray kernels, this machine).
     let t = Instant::now();
-    let hits = lucent_device::cycles::hit_pixels(&world, &cam4, size4.0, size4.1);
+    let hits = rend3r_machine::cycles::hit_pixels(&world, &cam4, size4.0, size4.1);
     rep.lucent_ms = Some(t.elapsed().as_secs_f64() * 1e3);
     tracing::debug!("{hits} primary hits");
     if !formats.is_empty() {
@@ -160,14 +160,14 @@ fn print_tables(json: bool, rep: &impl Tables) {
 }
 
 fn rend3r(a: &ReportArgs) -> Result<()> {
-    use lucent_device::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
+    use rend3r_machine::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
     let Some(path) = a.input.as_deref() else { bail!("give a REND3R program") };
-    let (words, kind) = crate::run_cmd::load_program(path, lucent_isa::CameraTable::Final)?;
+    let (words, kind) = crate::run_cmd::load_program(path, rend3r_isa::CameraTable::Final)?;
     let sets = kind.unwrap_or(SetKind::Shapes);
     let mode = if sets == SetKind::Triangles { Mode::Raster } else { Mode::Raytrace };
     let size = a.size.unwrap_or((512, 384));
     let fs = FrameSettings { width: size.0, height: size.1, mode, sets, painter: false, spp: 1 };
-    let mut p = Processor::new(words, lucent_isa::CameraTable::Final).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let mut p = Processor::new(words, rend3r_isa::CameraTable::Final).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     let mut rep = Rend3rReport {
         program: path.display().to_string(),
         mode: if mode == Mode::Raster { "raster" } else { "raytrace" },
@@ -181,7 +181,7 @@ fn rend3r(a: &ReportArgs) -> Result<()> {
         let t = Instant::now();
         render_frame(&p.state, &fs)?;
         let ms = t.elapsed().as_secs_f64() * 1e3;
-        let (c, hits) = lucent_device::cycles::frame_cycles(&p.state, &fs)?;
+        let (c, hits) = rend3r_machine::cycles::frame_cycles(&p.state, &fs)?;
         rep.frames.push((frame, p.state.used_sets() as u64, p.state.used_lights() as u64, c.worst, c.board, hits, ms));
     }
     print_tables(a.json, &rep);

@@ -1,8 +1,8 @@
 //! `lucent run`: executes a REND3R program and writes one PNG per `nf`.
 
 use anyhow::{Context, Result};
-use lucent_device::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
-use lucent_isa::{assemble_words, AsmOptions, CameraTable};
+use rend3r_isa::{assemble_words, AsmOptions, CameraTable};
+use rend3r_machine::{render_frame, FrameSettings, Mode, Processor, SetKind, Step};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -29,7 +29,7 @@ pub fn load_program(path: &Path, camera_table: CameraTable) -> Result<(Vec<u32>,
     if ext == "rdr" {
         let src = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
         let words = assemble_words(&src, AsmOptions { camera_table }).map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))?;
-        Ok((words, lucent_device::set_kind_of_source(&src)))
+        Ok((words, rend3r_machine::set_kind_of_source(&src)))
     } else {
         Ok((crate::isa_cmd::read_words(path)?, None))
     }
@@ -66,7 +66,7 @@ pub fn run(a: RunArgs) -> Result<()> {
             out.display()
         );
         if a.cycles {
-            let (c, hits) = lucent_device::cycles::frame_cycles(&p.state, &fs)?;
+            let (c, hits) = rend3r_machine::cycles::frame_cycles(&p.state, &fs)?;
             let (ws, bs) = c.seconds();
             println!(
                 "  REND3R cycles: worst case {} ({ws:.4} s at 100 MHz), board {} ({bs:.4} s; {hits} of {} pixels hit); lucent {ms:.1} ms = {:.0}x faster than the board",
@@ -113,7 +113,7 @@ fn reached_frame(a: &RunArgs, step: Step, executed: u64, frame: u64) -> Result<b
 }
 
 fn run_board(a: &RunArgs, words: &[u32], switches: u16) -> Result<()> {
-    use lucent_device::board::{Board, Build};
+    use rend3r_machine::board::{Board, Build};
     let build = if a.mode == Mode::Raster { Build::Raster } else { Build::Raytracing };
     if words.len() > build.rom_words() {
         println!(

@@ -2,9 +2,9 @@
 
 use anyhow::{Context, Result};
 use lucent_accel::MeshOptions;
-use lucent_device::{FrameSettings, Mode, Processor, SetKind};
 use lucent_render::World;
 use lucent_viewer::{Content, ViewOptions};
+use rend3r_machine::{FrameSettings, Mode, Processor, SetKind};
 use std::path::{Path, PathBuf};
 
 /// Options of `lucent view`.
@@ -82,8 +82,8 @@ pub fn run(a: ViewArgs) -> Result<()> {
     let content = match a.input.as_deref() {
         Some(p) if is_program(p) && session.is_some() => anyhow::bail!("--mpi renders scenes; REND3R programs run on one process"),
         Some(p) if is_program(p) => {
-            let (words, sets) = crate::run_cmd::load_program(p, lucent_isa::CameraTable::Final)?;
-            let processor = Processor::new(words, lucent_isa::CameraTable::Final).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
+            let (words, sets) = crate::run_cmd::load_program(p, rend3r_isa::CameraTable::Final)?;
+            let processor = Processor::new(words, rend3r_isa::CameraTable::Final).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
             let mode = if a.mode == "raster" { Mode::Raster } else { Mode::Raytrace };
             let sets = sets.unwrap_or(SetKind::for_mode(mode));
             let settings = FrameSettings { width: a.size.0, height: a.size.1, mode, sets, painter: false, spp: 1 };

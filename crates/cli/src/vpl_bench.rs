@@ -193,7 +193,7 @@ pub fn run(o: &VplOptions) -> Result<()> {
         let med = median(&mut times);
         // The rays of one frame, by kind, each traced alone on one thread.
         let set = VplSet::generate(&world, &vs, 0);
-        let (primary, shadow) = frame_rays(&world, &cam, &st, &set);
+        let (primary, shadow) = frame_rays(&world, &cam, &st.job(), &set);
         let (p_pk, p_1) = (rays_per_s(&world, &primary, false, false), rays_per_s(&world, &primary, false, true));
         let (s_pk, s_1) = (rays_per_s(&world, &shadow, true, false), rays_per_s(&world, &shadow, true, true));
         let nshadow: usize = shadow.iter().map(Vec::len).sum();

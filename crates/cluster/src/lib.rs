@@ -23,7 +23,7 @@ pub mod worker;
 
 pub use link::{ChannelLink, Hub, Link, Remote};
 pub use master::{Master, MasterOptions, RunStats};
-pub use wire::{Frame, Msg, WireError};
+pub use wire::{DecodeError, FrameSpec, Msg};
 pub use worker::{serve, Fault, Renderer, WorkerOptions, WorkerStats};
 
 use lucent_render::{MergeError, Region, World};
@@ -38,7 +38,7 @@ pub enum ClusterError {
         /// The sender.
         rank: usize,
         /// What is wrong.
-        source: WireError,
+        source: DecodeError,
     },
     /// A rank sent nothing (not even a heartbeat) for too long.
     #[error("rank {rank} stopped answering (no message for {:.1} s); it held {}", .silent.as_secs_f64(), regions_text(.regions))]
@@ -190,7 +190,7 @@ impl<'a> SceneRenderer<'a> {
 }
 
 impl Renderer for SceneRenderer<'_> {
-    fn render(&mut self, frame: &Frame, region: Region) -> Result<(lucent_render::RegionFilm, u64), String> {
+    fn render(&mut self, frame: &FrameSpec, region: Region) -> Result<(lucent_render::RegionFilm, u64), String> {
         if let (Some(t), WorldRef::Owned(w)) = (frame.time, &mut self.world) {
             if self.posed != Some(t) {
                 self.animated = w.set_time(t).map_err(|e| format!("cannot pose the scene at {t} s: {e}"))?;

@@ -3,7 +3,7 @@
 //! ends the run with a clear error when one fails or falls silent.
 
 use crate::link::Hub;
-use crate::wire::{Frame, Msg};
+use crate::wire::{FrameSpec, Msg};
 use crate::ClusterError;
 use lucent_render::{Region, RegionFilm};
 use std::collections::VecDeque;
@@ -185,7 +185,7 @@ impl Master {
     /// it held), a termination, or what `on_done` returns.
     pub fn run(
         &mut self,
-        frames: &mut [Frame],
+        frames: &mut [FrameSpec],
         work: &[(usize, Region)],
         interrupted: &dyn Fn() -> bool,
         on_done: &mut dyn FnMut(usize, RegionFilm, u64) -> Result<(), ClusterError>,

@@ -1,5 +1,5 @@
 //! The messages ranks exchange, as bytes: a tag byte, then little-endian fields. Every
-//! decoder is total: bytes that are not a message give a [`WireError`] naming what is wrong
+//! decoder is total: bytes that are not a message give a [`DecodeError`] naming what is wrong
 //! and where, never a panic, and no length read from the bytes is allocated before the
 //! bytes are checked to hold it.
 
@@ -10,7 +10,7 @@ use lucent_render::{
 
 /// Why bytes are not a message.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
-pub enum WireError {
+pub enum DecodeError {
     /// The bytes end inside a field.
     #[error("the message ends at byte {at} inside {what}")]
     Short {
@@ -46,7 +46,7 @@ pub const MAX_TEXT: usize = 64 * 1024;
 
 /// What a frame's regions are rendered with.
 #[derive(Clone, Copy, Debug)]
-pub struct Frame {
+pub struct FrameSpec {
     /// Set by the master: frames of one run, and of later runs, have increasing ids.
     pub id: u32,
     /// The animation time to pose the scene at, if it is animated.
@@ -70,7 +70,7 @@ pub enum Msg {
         threads: u32,
     },
     /// Master → worker: the frame the next jobs belong to.
-    Frame(Frame),
+    Frame(FrameSpec),
     /// Master → worker: render `region` of the current frame.
     Job {
         /// Job id (the master's index of the region).
@@ -140,34 +140,34 @@ struct In<'a> {
 }
 
 impl In<'_> {
-    fn take(&mut self, n: usize, what: &'static str) -> Result<&[u8], WireError> {
-        let end = self.at.checked_add(n).filter(|&e| e <= self.b.len()).ok_or(WireError::Short { at: self.at, what })?;
+    fn take(&mut self, n: usize, what: &'static str) -> Result<&[u8], DecodeError> {
+        let end = self.at.checked_add(n).filter(|&e| e <= self.b.len()).ok_or(DecodeError::Short { at: self.at, what })?;
         let s = &self.b[self.at..end];
         self.at = end;
         Ok(s)
     }
-    fn u8(&mut self, what: &'static str) -> Result<u8, WireError> {
+    fn u8(&mut self, what: &'static str) -> Result<u8, DecodeError> {
         Ok(self.take(1, what)?[0])
     }
-    fn u32(&mut self, what: &'static str) -> Result<u32, WireError> {
+    fn u32(&mut self, what: &'static str) -> Result<u32, DecodeError> {
         let s = self.take(4, what)?;
         Ok(u32::from_le_bytes([s[0], s[1], s[2], s[3]]))
     }
-    fn u64(&mut self, what: &'static str) -> Result<u64, WireError> {
+    fn u64(&mut self, what: &'static str) -> Result<u64, DecodeError> {
         Ok(u64::from(self.u32(what)?) | (u64::from(self.u32(what)?) << 32))
     }
-    fn f32(&mut self, what: &'static str) -> Result<f32, WireError> {
+    fn f32(&mut self, what: &'static str) -> Result<f32, DecodeError> {
         Ok(f32::from_bits(self.u32(what)?))
     }
-    fn flag(&mut self, what: &'static str) -> Result<bool, WireError> {
+    fn flag(&mut self, what: &'static str) -> Result<bool, DecodeError> {
         let at = self.at;
         match self.u8(what)? {
             0 => Ok(false),
             1 => Ok(true),
-            v => Err(WireError::Invalid { at, what: format!("{what} is {v}, not 0 or 1") }),
+            v => Err(DecodeError::Invalid { at, what: format!("{what} is {v}, not 0 or 1") }),
         }
     }
-    fn region(&mut self) -> Result<Region, WireError> {
+    fn region(&mut self) -> Result<Region, DecodeError> {
         let at = self.at;
         let mut v = [0u32; 6];
         for x in &mut v {
@@ -184,8 +184,8 @@ impl In<'_> {
     }
 }
 
-fn invalid(at: usize, what: String) -> WireError {
-    WireError::Invalid { at, what }
+fn invalid(at: usize, what: String) -> DecodeError {
+    DecodeError::Invalid { at, what }
 }
 
 fn put_settings(o: &mut Out, s: &RenderSettings) {
@@ -225,7 +225,7 @@ fn put_settings(o: &mut Out, s: &RenderSettings) {
     }
 }
 
-fn get_settings(i: &mut In) -> Result<RenderSettings, WireError> {
+fn get_settings(i: &mut In) -> Result<RenderSettings, DecodeError> {
     let at = i.at;
     let (width, height, spp) = (i.u32("the width")?, i.u32("the height")?, i.u32("the samples per pixel")?);
     if width == 0 || height == 0 || width > 16384 || height > 16384 || spp == 0 {
@@ -334,8 +334,8 @@ impl Msg {
     /// The message `bytes` hold.
     ///
     /// # Errors
-    /// [`WireError`] for bytes that are not exactly one message.
-    pub fn decode(bytes: &[u8]) -> Result<Self, WireError> {
+    /// [`DecodeError`] for bytes that are not exactly one message.
+    pub fn decode(bytes: &[u8]) -> Result<Self, DecodeError> {
         let mut i = In { b: bytes, at: 0 };
         let msg = match i.u8("the message tag")? {
             HELLO => Msg::Hello { digest: i.u64("the digest")?, threads: i.u32("the thread count")? },
@@ -358,7 +358,7 @@ impl Msg {
                 } else {
                     None
                 };
-                Msg::Frame(Frame { id, time: has_time.then_some(t), settings, camera })
+                Msg::Frame(FrameSpec { id, time: has_time.then_some(t), settings, camera })
             }
             JOB => Msg::Job { id: i.u32("the job id")?, region: i.region()? },
             DONE => {
@@ -393,10 +393,10 @@ impl Msg {
                 Msg::Failed { id: has_id.then_some(id), message: String::from_utf8_lossy(text).into_owned() }
             }
             STOP => Msg::Stop,
-            t => return Err(WireError::Invalid { at: 0, what: format!("message tag {t} does not exist") }),
+            t => return Err(DecodeError::Invalid { at: 0, what: format!("message tag {t} does not exist") }),
         };
         if i.at != bytes.len() {
-            return Err(WireError::Trailing { len: i.at, extra: bytes.len() - i.at });
+            return Err(DecodeError::Trailing { len: i.at, extra: bytes.len() - i.at });
         }
         Ok(msg)
     }
@@ -440,7 +440,7 @@ mod tests {
         ];
         for (k, s) in settings.into_iter().enumerate() {
             let time = (k % 2 == 0).then_some(k as f32 * 0.5);
-            msgs.push(Msg::Frame(Frame { id: k as u32, time, settings: s, camera: (k != 1).then(camera) }));
+            msgs.push(Msg::Frame(FrameSpec { id: k as u32, time, settings: s, camera: (k != 1).then(camera) }));
         }
         for m in msgs {
             let b = m.encode();
@@ -477,7 +477,7 @@ mod tests {
     fn bad_fields_are_named() {
         let e = Msg::decode(&[9]).expect_err("no such tag");
         assert_eq!(e.to_string(), "byte 0: message tag 9 does not exist");
-        let mut b = Msg::Frame(Frame { id: 0, time: None, settings: RenderSettings::new(4, 4), camera: Some(camera()) }).encode();
+        let mut b = Msg::Frame(FrameSpec { id: 0, time: None, settings: RenderSettings::new(4, 4), camera: Some(camera()) }).encode();
         let n = b.len();
         b[n - 4 * Camera::BITS + 14 * 4] = 2; // the orthographic flag
         assert!(Msg::decode(&b).expect_err("bad camera").to_string().contains("no camera's"));

@@ -3,7 +3,7 @@
 //! so the master can tell a busy rank from a dead one).
 
 use crate::link::Link;
-use crate::wire::{Frame, Msg};
+use crate::wire::{FrameSpec, Msg};
 use crate::ClusterError;
 use lucent_render::{Region, RegionFilm};
 use std::panic::AssertUnwindSafe;
@@ -16,7 +16,7 @@ pub trait Renderer: Send {
     ///
     /// # Errors
     /// A message for the master (the run ends with it).
-    fn render(&mut self, frame: &Frame, region: Region) -> Result<(RegionFilm, u64), String>;
+    fn render(&mut self, frame: &FrameSpec, region: Region) -> Result<(RegionFilm, u64), String>;
 }
 
 /// A fault a worker injects into itself (for tests of the master's fault handling).
@@ -78,7 +78,7 @@ type Finished = (u32, Result<(RegionFilm, u64), String>, f32);
 /// A broken message or a gone master ([`ClusterError`]), or a failed render (after telling
 /// the master).
 pub fn serve(link: &mut dyn Link, renderer: &mut dyn Renderer, opts: &WorkerOptions) -> Result<WorkerStats, ClusterError> {
-    let (job_tx, job_rx) = channel::<(Frame, u32, Region)>();
+    let (job_tx, job_rx) = channel::<(FrameSpec, u32, Region)>();
     let pool = opts.pool.clone();
     let (res_tx, res_rx) = channel::<Finished>();
     std::thread::scope(|s| {
@@ -115,14 +115,14 @@ fn panic_text(p: &Box<dyn std::any::Any + Send>) -> String {
 /// The talking thread: messages in, jobs to the render thread, results and heartbeats out.
 fn pump(
     link: &mut dyn Link,
-    jobs: &std::sync::mpsc::Sender<(Frame, u32, Region)>,
+    jobs: &std::sync::mpsc::Sender<(FrameSpec, u32, Region)>,
     results: &std::sync::mpsc::Receiver<Finished>,
     opts: &WorkerOptions,
 ) -> Result<WorkerStats, ClusterError> {
     let mut stats = WorkerStats::default();
     link.send(Msg::Hello { digest: opts.digest, threads: opts.threads }.encode())?;
     let mut last_sent = Instant::now();
-    let mut frame: Option<Frame> = None;
+    let mut frame: Option<FrameSpec> = None;
     let mut received = 0u32;
     let mut failed: Option<String> = None;
     loop {

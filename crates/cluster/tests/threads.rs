@@ -4,7 +4,8 @@
 
 use lucent_accel::MeshOptions;
 use lucent_cluster::{
-    scene_digest, serve, tiles, ClusterError, Fault, Frame, Hub, Master, MasterOptions, Renderer, SceneRenderer, WorkerOptions, WorldRef,
+    scene_digest, serve, tiles, ClusterError, Fault, FrameSpec, Hub, Master, MasterOptions, Renderer, SceneRenderer, WorkerOptions,
+    WorldRef,
 };
 use lucent_render::{render, Camera, FilmAccumulator, Integrator, PathSettings, Region, RegionFilm, RenderSettings, VplSettings, World};
 use std::time::{Duration, Instant};
@@ -19,7 +20,7 @@ fn cluster_render<'w>(
     ranks: usize,
     opts: MasterOptions,
     digest: u64,
-    frame: Frame,
+    frame: FrameSpec,
     work: &[Region],
     renderer: &(dyn Fn(usize) -> (Box<dyn Renderer + 'w>, WorkerOptions) + Sync),
 ) -> Result<(FilmAccumulator, lucent_cluster::RunStats), ClusterError> {
@@ -74,7 +75,7 @@ fn images_over_ranks_are_the_one_process_image() {
         let settings = RenderSettings { spp, integrator, ..RenderSettings::new(w, h) };
         let one = render(&wld, &cam, &settings, &|_| {}).0;
         let digest = scene_digest(&wld);
-        let frame = Frame { id: 0, time: None, settings, camera: Some(cam) };
+        let frame = FrameSpec { id: 0, time: None, settings, camera: Some(cam) };
         for (ranks, tile) in [(1usize, 32u32), (3, 16), (4, 48)] {
             let work = tiles(w, h, tile, 0, spp);
             let mk = |_: usize| -> (Box<dyn Renderer + '_>, WorkerOptions) {
@@ -115,7 +116,7 @@ struct Faulty {
 }
 
 impl Renderer for Faulty {
-    fn render(&mut self, _: &Frame, region: Region) -> Result<(RegionFilm, u64), String> {
+    fn render(&mut self, _: &FrameSpec, region: Region) -> Result<(RegionFilm, u64), String> {
         std::thread::sleep(self.sleep);
         if Some(region) == self.fail_at {
             return Err("out of memory (injected)".into());
@@ -124,10 +125,10 @@ impl Renderer for Faulty {
     }
 }
 
-fn faulty_frame() -> Frame {
+fn faulty_frame() -> FrameSpec {
     let s = lucent_scene::demo_scene();
     let cam = Camera::new(&s.camera.expect("camera"), 64, 64);
-    Frame { id: 0, time: None, settings: RenderSettings::new(64, 64), camera: Some(cam) }
+    FrameSpec { id: 0, time: None, settings: RenderSettings::new(64, 64), camera: Some(cam) }
 }
 
 #[test]

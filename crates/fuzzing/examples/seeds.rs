@@ -74,24 +74,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if target == "mem" {
             // The same program as raw big-endian words (the binary decoder's input) and in
             // the wire protocol.
-            if let Ok(words) = lucent_isa::from_mem(&String::from_utf8_lossy(&data)) {
-                let bytes = lucent_isa::to_bin(&words);
+            if let Ok(words) = rend3r_isa::from_mem(&String::from_utf8_lossy(&data)) {
+                let bytes = rend3r_isa::to_bin(&words);
                 put("decode", rel.clone(), &bytes)?;
                 put("mem", format!("{rel}.bin"), &bytes)?;
-                let hello = lucent_net::Hello {
-                    input: lucent_net::Input::Words,
-                    format: lucent_net::PixelFormat::Rgb565,
+                let hello = rend3r_net::Hello {
+                    input: rend3r_net::Input::Words,
+                    format: rend3r_net::PixelFormat::Rgb565,
                     old_camera_table: false,
                     width: 64,
                     height: 48,
-                    mode: lucent_net::WireMode::Default,
+                    mode: rend3r_net::WireMode::Default,
                 };
                 let mut wire = hello.encode().to_vec();
                 for chunk in words.chunks(64) {
-                    lucent_net::protocol::write_message(&mut wire, 1, &lucent_net::protocol::words_to_bytes(chunk))?;
+                    rend3r_net::protocol::write_message(&mut wire, 1, &rend3r_net::protocol::words_to_bytes(chunk))?;
                 }
                 put("net", rel.clone(), &wire)?;
-                put("ws", format!("{rel}.bin"), &ws_frame(2, &lucent_net::protocol::words_to_bytes(&words), true))?;
+                put("ws", format!("{rel}.bin"), &ws_frame(2, &rend3r_net::protocol::words_to_bytes(&words), true))?;
             }
         }
         if target == "asm" && data.len() < 60_000 {
@@ -125,7 +125,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     // Messages between MPI ranks, made by lucent's own encoder.
     {
-        use lucent_cluster::{Frame, Msg};
+        use lucent_cluster::{FrameSpec, Msg};
         use lucent_render::{Camera, Integrator, PathSettings, Region, RegionFilm, RenderSettings, VplSettings};
         let desc = lucent_scene::CameraDesc::from_view(&[0.0, 1.0, 4.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 40.0]);
         let mut film = RegionFilm::new(Region { x0: 8, y0: 4, x1: 12, y1: 7, s0: 0, s1: 2 });
@@ -145,7 +145,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         {
             let settings = RenderSettings { spp: 4, integrator, ..RenderSettings::new(64, 48) };
             let camera = (k % 2 == 0).then(|| Camera::new(&desc, 64, 48));
-            msgs.push(Msg::Frame(Frame { id: k as u32, time: (k == 1).then_some(0.5), settings, camera }));
+            msgs.push(Msg::Frame(FrameSpec { id: k as u32, time: (k == 1).then_some(0.5), settings, camera }));
         }
         for (i, m) in msgs.iter().enumerate() {
             put("cluster", format!("msg{i}"), &m.encode())?;

@@ -158,7 +158,7 @@ pub fn image(data: &[u8]) {
 
 /// REND3R assembly: whatever assembles must disassemble and reassemble to the same words.
 pub fn asm(data: &[u8]) {
-    use lucent_isa::{assemble_words, disassemble, AsmOptions, DisasmOptions};
+    use rend3r_isa::{assemble_words, disassemble, AsmOptions, DisasmOptions};
     let Ok(src) = std::str::from_utf8(data) else { return };
     if let Ok(words) = assemble_words(src, AsmOptions::default()) {
         let text = disassemble(&words, DisasmOptions::default()).expect("assembled words decode");
@@ -169,26 +169,26 @@ pub fn asm(data: &[u8]) {
 /// `.mem` text and raw binary programs, then the words through the processor.
 pub fn mem(data: &[u8]) {
     if let Ok(text) = std::str::from_utf8(data) {
-        if let Ok(words) = lucent_isa::from_mem(text) {
+        if let Ok(words) = rend3r_isa::from_mem(text) {
             run_words(&words);
         }
     }
-    if let Ok(words) = lucent_isa::from_bin(data) {
+    if let Ok(words) = rend3r_isa::from_bin(data) {
         run_words(&words);
     }
 }
 
 /// Runs `words` through a processor for a bounded number of steps (no frames rendered).
 fn run_words(words: &[u32]) {
-    if let Ok(mut p) = lucent_device::Processor::new(words.to_vec(), lucent_isa::CameraTable::Final) {
+    if let Ok(mut p) = rend3r_machine::Processor::new(words.to_vec(), rend3r_isa::CameraTable::Final) {
         run_steps(&mut p);
     }
 }
 
 /// At most 16 frames of at most 4,096 words each (a busy loop is stopped): enough to reach
 /// every instruction, `lr` loops and `nr` resets, while an endless loop costs 65,536 steps.
-fn run_steps(p: &mut lucent_device::Processor) {
-    use lucent_device::Step;
+fn run_steps(p: &mut rend3r_machine::Processor) {
+    use rend3r_machine::Step;
     for _ in 0..16 {
         match p.run_to_frame(4_096) {
             Step::Frame => {}
@@ -201,7 +201,7 @@ fn run_steps(p: &mut lucent_device::Processor) {
 /// Big-endian words through the decoders and the disassembler (whatever disassembles
 /// reassembles to the same words).
 pub fn decode(data: &[u8]) {
-    use lucent_isa::{assemble_words, decode, disassemble, AsmOptions, DisasmOptions};
+    use rend3r_isa::{assemble_words, decode, disassemble, AsmOptions, DisasmOptions};
     let words: Vec<u32> = data.chunks_exact(4).map(|c| u32::from_be_bytes([c[0], c[1], c[2], c[3]])).collect();
     let _ = decode(&words);
     if let Ok(text) = disassemble(&words, DisasmOptions::default()) {
@@ -212,19 +212,19 @@ pub fn decode(data: &[u8]) {
 /// The TCP/UDP wire protocol: a hello, then messages whose payloads are run as
 /// instruction batches by a streaming processor, plus every server-message decoder.
 pub fn net(data: &[u8]) {
-    use lucent_device::Processor;
-    use lucent_net::protocol::{self, Chunk, Done, FrameHeader, Hello, Welcome, WireError, HELLO_LEN};
+    use rend3r_machine::Processor;
+    use rend3r_net::protocol::{self, Chunk, Done, ErrorMessage, FrameHeader, Hello, Welcome, HELLO_LEN};
     if data.len() >= HELLO_LEN {
         let mut h = [0u8; HELLO_LEN];
         h.copy_from_slice(&data[..HELLO_LEN]);
         let _ = Hello::parse(&h);
     }
-    let _ = (WireError::decode(data), Done::decode(data), FrameHeader::decode(data), Welcome::decode(data), Chunk::decode(data));
-    let Ok(mut p) = Processor::new(Vec::new(), lucent_isa::CameraTable::Final) else { return };
+    let _ = (ErrorMessage::decode(data), Done::decode(data), FrameHeader::decode(data), Welcome::decode(data), Chunk::decode(data));
+    let Ok(mut p) = Processor::new(Vec::new(), rend3r_isa::CameraTable::Final) else { return };
     let mut r = data.get(HELLO_LEN.min(data.len())..).unwrap_or(&[]);
     while let Ok(Some((_, payload))) = protocol::read_message(&mut r, 4096) {
         let words = protocol::words_from_bytes(&payload);
-        if lucent_isa::decode(&words).is_ok() && p.push(&words).is_ok() {
+        if rend3r_isa::decode(&words).is_ok() && p.push(&words).is_ok() {
             run_steps(&mut p);
         }
     }
@@ -253,17 +253,17 @@ impl Write for Duplex<'_> {
 pub fn websocket(data: &[u8]) {
     use tungstenite::protocol::{Role, WebSocketConfig};
     use tungstenite::{Message, WebSocket};
-    let max = lucent_net::ServerConfig::default().max_message as usize;
+    let max = rend3r_net::ServerConfig::default().max_message as usize;
     let config = WebSocketConfig::default().max_message_size(Some(max)).max_frame_size(Some(max));
     let mut ws = WebSocket::from_raw_socket(Duplex(data), Role::Server, Some(config));
     for _ in 0..1024 {
         match ws.read() {
             Ok(Message::Text(t)) => {
-                if let Ok(words) = lucent_isa::assemble_words(t.as_str(), lucent_isa::AsmOptions::default()) {
+                if let Ok(words) = rend3r_isa::assemble_words(t.as_str(), rend3r_isa::AsmOptions::default()) {
                     run_words(&words);
                 }
             }
-            Ok(Message::Binary(b)) => run_words(&lucent_net::protocol::words_from_bytes(&b)),
+            Ok(Message::Binary(b)) => run_words(&rend3r_net::protocol::words_from_bytes(&b)),
             Ok(_) => {}
             Err(_) => break,
         }
@@ -272,7 +272,7 @@ pub fn websocket(data: &[u8]) {
 
 /// An HTTP request head as the page server parses it.
 pub fn http(data: &[u8]) {
-    let r = lucent_net::http::parse_head(data);
+    let r = rend3r_net::http::parse_head(data);
     let _ = (r.header("upgrade"), r.header("sec-websocket-key"), r.path.split('?').next());
 }
 

@@ -72,7 +72,7 @@ struct DiskSun {
 impl LightModel for DiskSun {
     fn sample(&self, _p: Vec3, u: (f32, f32)) -> Option<LightSample> {
         let cos_max = self.half_angle.cos();
-        let dir = lucent_render::lights::uniform_cone(self.toward, cos_max, u);
+        let dir = lucent_render::sampling::uniform_cone(self.toward, cos_max, u);
         Some(LightSample { dir, dist: f32::INFINITY, li: self.radiance, pdf: 1.0 / (2.0 * PI * (1.0 - cos_max)), delta: false })
     }
 
@@ -80,7 +80,7 @@ impl LightModel for DiskSun {
         // Its irradiance at normal incidence (a light's power only steers the choice among
         // lights within one emitter; the choice among lights is uniform).
         let solid = 2.0 * PI * (1.0 - self.half_angle.cos());
-        lucent_render::lights::luminance(self.radiance) * solid
+        lucent_render::color::luminance(self.radiance) * solid
     }
 }
 

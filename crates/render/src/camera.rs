@@ -327,8 +327,8 @@ impl Camera {
 
     /// Eye, right, up and forward vectors and the half extents of the viewport at distance
     /// 1 (orthographic: of the view), for projecting the scene onto the image.
-    pub(crate) fn frame(&self) -> Frame {
-        Frame { vectors: [self.eye, self.right, self.up, self.forward], half_w: self.half_w, half_h: self.half_h, ortho: self.ortho }
+    pub(crate) fn basis(&self) -> CameraBasis {
+        CameraBasis { vectors: [self.eye, self.right, self.up, self.forward], half_w: self.half_w, half_h: self.half_h, ortho: self.ortho }
     }
 
     /// Near and far clip.
@@ -345,7 +345,7 @@ impl Camera {
 }
 
 /// See [`Camera::frame`].
-pub(crate) struct Frame {
+pub(crate) struct CameraBasis {
     /// Eye, right, up, forward.
     pub vectors: [Vec3; 4],
     pub half_w: f32,

@@ -79,7 +79,7 @@ impl Candidates {
 /// Which pixels' primary rays may meet an instance, as one 64-bit mask per 8×8 block (bit
 /// `8·row + column` within the block), and which instances those can be, per block (when
 /// there are few).
-/// It covers the whole image, or one band of rows ([`Prepared::band`]).
+/// It covers the whole image, or one band of rows ([`CoverageBands::band`]).
 #[derive(Clone, Debug)]
 pub struct Coverage {
     /// The first block row held (0 for the whole image).
@@ -146,7 +146,7 @@ impl Coverage {
     }
 
     fn with(w: &World, cam: &Camera, centres: bool) -> Option<Self> {
-        let prep = Prepared::new(w, cam, centres)?;
+        let prep = CoverageBands::new(w, cam, centres)?;
         let mut c = Coverage {
             by0: 0,
             blocks_x: prep.blocks_x,
@@ -206,9 +206,9 @@ impl Coverage {
 
 /// A frame's coverage before its rows are filled: what each instance covers, and which
 /// instances each band of [`BAND_ROWS`] image rows must fill. Bands are filled apart
-/// ([`Prepared::band`]), so the tile renderer fills each band in the task that renders it:
+/// ([`CoverageBands::band`]), so the tile renderer fills each band in the task that renders it:
 /// one parallel step per frame, not two.
-pub struct Prepared {
+pub struct CoverageBands {
     blocks_x: u32,
     height: u32,
     centres: bool,
@@ -221,7 +221,7 @@ pub struct Prepared {
     list: Vec<u32>,
 }
 
-impl Prepared {
+impl CoverageBands {
     /// Image rows per band (whole blocks).
     pub const BAND_ROWS: u32 = BAND_ROWS;
 
@@ -727,7 +727,7 @@ impl RowKernel for Avx2Rows {
 }
 
 fn projection(cam: &Camera) -> Option<Projection> {
-    let v = cam.frame();
+    let v = cam.basis();
     let [eye, right, up, forward] = v.vectors.map(|x| x.as_dvec3());
     let basis = DMat3::from_cols(right, up, forward);
     let det = basis.determinant();

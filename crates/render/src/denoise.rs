@@ -45,11 +45,12 @@
 // Lane and channel loops index several arrays at once.
 #![allow(clippy::needless_range_loop)]
 
-use crate::film::{Aovs, Film};
 #[cfg(doc)]
-use crate::integrator::vpl::FILTER_ALBEDO_MIN;
-use crate::integrator::vpl::{dark as is_dark, demodulating};
-use crate::shading::{Real, ROUND};
+use crate::aov::FILTER_ALBEDO_MIN;
+use crate::aov::{dark as is_dark, demodulating, Layers};
+use crate::color::LUMINANCE;
+use crate::film::{Aovs, Film};
+use crate::lanes::{Real, ROUND};
 use glam::Vec3;
 use lucent_accel::simd::{F8, LANES, M8};
 use rayon::prelude::*;
@@ -98,9 +99,6 @@ const B3: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
 /// The twelve taps of a 5 × 5 kernel that come after its centre in row-major order (the
 /// other twelve are their mirror images): offsets in kernel steps.
 const FORWARD: [(i32, i32); 12] = [(1, 0), (2, 0), (-2, 1), (-1, 1), (0, 1), (1, 1), (2, 1), (-2, 2), (-1, 2), (0, 2), (1, 2), (2, 2)];
-
-/// Luminance weights (as [`crate::world::luminance`]).
-const LUM: [f32; 3] = [0.2126, 0.7152, 0.0722];
 
 /// The guides in planes, one entry per pixel (row-major).
 struct Guides {
@@ -597,7 +595,7 @@ fn gather_row(w: usize, r: usize, y: usize, rows: &[(usize, &[&Outlier])], row: 
 
 /// [`spread_outliers`] on a VPL image's layers (`w` × `h`, row-major): their reflected
 /// light, demodulated, before the discontinuity buffer averages it.
-pub(crate) fn spread_outliers_of_layers(layers: &mut [crate::integrator::vpl::Layers], w: usize, h: usize, sigmas: f32, radius: u32) {
+pub(crate) fn spread_outliers_of_layers(layers: &mut [Layers], w: usize, h: usize, sigmas: f32, radius: u32) {
     let normal: Vec<Vec3> = layers.iter().map(|l| l.normal).collect();
     let depth: Vec<f32> = layers.iter().map(|l| l.depth).collect();
     let l = &*layers;
@@ -620,7 +618,7 @@ pub(crate) fn spread_outliers_of_layers(layers: &mut [crate::integrator::vpl::La
 
 /// The luminance of red, green and blue planes (as [`crate::world::luminance`]).
 fn luminance(c: &[Vec<f32>; 3]) -> Vec<f32> {
-    (0..c[0].len()).into_par_iter().map(|i| LUM[0] * c[0][i] + LUM[1] * c[1][i] + LUM[2] * c[2][i]).collect()
+    (0..c[0].len()).into_par_iter().map(|i| LUMINANCE[0] * c[0][i] + LUMINANCE[1] * c[1][i] + LUMINANCE[2] * c[2][i]).collect()
 }
 
 /// Red, green and blue planes of `v`.
@@ -921,7 +919,7 @@ fn trade_row(p: &PassIn, wts: &[f32], lt: &Light, y: usize, out: [&mut [f32]; 5]
         store_lanes(og, x0, cnt, c[1]);
         store_lanes(ob, x0, cnt, c[2]);
         store_lanes(ov, x0, cnt, vi.blend(live, vs + kept * kept * vi));
-        store_lanes(ol, x0, cnt, F8::splat(LUM[0]) * c[0] + F8::splat(LUM[1]) * c[1] + F8::splat(LUM[2]) * c[2]);
+        store_lanes(ol, x0, cnt, F8::splat(LUMINANCE[0]) * c[0] + F8::splat(LUMINANCE[1]) * c[1] + F8::splat(LUMINANCE[2]) * c[2]);
     }
 }
 

@@ -2,32 +2,63 @@
 //!
 //! Turns a scene into pixels: [`World`] builds the two-level index from a
 //! `lucent_scene::Scene`, [`Camera`] makes primary rays, an [`Integrator`] shades them
-//! (Whitted, or a debug view), [`render()`] runs tiles on all cores ([`render_region`]
-//! one rectangle × sample range of them, which a [`FilmAccumulator`] merges), and [`Film`]
-//! writes PNG or EXR.
-#![warn(missing_docs)]
+//! (path tracing, Whitted, virtual point lights, or a debug view), [`render()`] renders a
+//! whole image on all cores ([`render_region`] one rectangle × sample range of it, which a
+//! [`FilmAccumulator`] merges), and [`Film`] writes PNG or EXR.
+//!
+//! The crate's floors, from the bottom (no module imports one above its floor):
+//! 1. the floor: [`color`], [`sampling`], [`sampler`], `lanes`, [`aov`], [`texture`],
+//!    [`camera`];
+//! 2. the scene as rendered: [`bsdf`], [`lights`], [`materials`], [`world`], `coverage`,
+//!    [`film`], [`denoise`];
+//! 3. the tile loop, [`tiles`];
+//! 4. the [`integrator`]s;
+//! 5. the driver: [`render()`], [`render_region`], [`progressive`].
+//!
+//! # Example
+//! ```
+//! use lucent_render::{render, Camera, Integrator, PathSettings, RenderSettings, World};
+//! let scene = lucent_scene::demo_scene();
+//! let camera = Camera::new(&scene.camera.expect("the demo has a camera"), 32, 24);
+//! let world = World::new(scene, lucent_accel::MeshOptions::default()).expect("a world");
+//! let settings = RenderSettings { spp: 4, integrator: Integrator::Path(PathSettings::default()), ..RenderSettings::new(32, 24) };
+//! let (image, rays) = render(&world, &camera, &settings, &|_| {});
+//! assert_eq!(image.pixels.len(), 32 * 24);
+//! assert!(rays > 0 && image.pixels.iter().any(|p| p.max_element() > 0.0));
+//! ```
+#![deny(missing_docs)]
 
+pub mod aov;
 pub mod bsdf;
 pub mod camera;
+pub mod color;
 mod coverage;
 pub mod denoise;
 pub mod film;
 pub mod integrator;
+pub(crate) mod lanes;
 pub mod lights;
 pub mod materials;
+pub mod progressive;
 mod render;
 pub mod sampler;
-mod shading;
+pub mod sampling;
 pub mod texture;
-mod world;
+pub mod tiles;
+pub mod world;
 
 pub use bsdf::{Bsdf, BsdfModel, BsdfSample};
 pub use camera::{framing_camera, Camera};
 pub use coverage::{Coverage, BLOCK_EDGE};
 pub use denoise::{denoise, DenoiseSettings};
 pub use film::{Aovs, Film, FilmAccumulator, MergeError, OutputError, Region, RegionFilm};
-pub use integrator::{Block, Integrator, LightSampling, PathSettings, Traversal, VplSettings, WhittedSettings};
+pub use integrator::guides::render_aovs;
+pub use integrator::{Integrator, LightSampling, PathSettings, VplSettings, WhittedSettings};
 pub use lights::{EmissionSample, LightModel, LightSample};
-pub use render::{jitter, pcg_hash, render, render_aovs, render_pixel, render_region, RenderSettings, TILE};
-pub use sampler::{PixelSampler, Sampler};
-pub use world::{record_rays, shape_of, vertex_normals, RecordedRays, Surface, World, WorldError};
+pub use render::{render, render_pixel, render_region, RenderSettings};
+pub use sampler::{jitter, pcg_hash, CameraSamples, PixelSampler, Sampler};
+pub use tiles::{Block, Job, Traversal, TILE};
+pub use world::pose::vertex_normals;
+pub use world::record::{record_rays, RecordedRays};
+pub use world::surface::Surface;
+pub use world::{shape_of, World, WorldError};

@@ -1,10 +1,13 @@
 //! The scene's materials prepared for the path tracer: what can be computed once per
 //! material (rough plastic's coating tables, plastics' sampling weights and diffuse Fresnel
-//! reflectance, the user's BSDFs) kept beside it, and [`Prepared::bsdf_at`] resolving the
+//! reflectance, the user's BSDFs) kept beside it, and [`PreparedMaterial::bsdf_at`] resolving the
 //! textures of a surface point into a [`Bsdf`].
 
 use crate::bsdf::microfacet::{fresnel_diffuse_reflectance, Microfacet};
-use crate::bsdf::{plastic_spec_weight, Bsdf, BsdfModel, RoughPlasticTables};
+use crate::bsdf::{
+    plastic_spec_weight, Bsdf, BsdfModel, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughPlastic,
+    RoughPlasticTables, ThinDielectric,
+};
 use crate::texture::sample;
 use glam::{Vec2, Vec3, Vec4};
 use lucent_scene::{Bsdf as Desc, ColorTex, FloatTex, Material, Scene, Texture};
@@ -12,11 +15,11 @@ use std::sync::Arc;
 
 /// One material, prepared.
 #[derive(Debug, Clone)]
-pub struct Prepared {
+pub struct PreparedMaterial {
     /// The model (the scene's, or its Phong terms read as one).
     pub desc: Desc,
     /// The back's model, for `Sides::Back`.
-    pub back: Option<Box<Prepared>>,
+    pub back: Option<Box<PreparedMaterial>>,
     /// Rough plastic's tables.
     tables: Option<std::sync::Arc<RoughPlasticTables>>,
     /// Plastics' specular sampling weight.
@@ -50,7 +53,7 @@ fn color_mean(c: &ColorTex, textures: &[Texture]) -> Vec3 {
     }
 }
 
-impl Prepared {
+impl PreparedMaterial {
     /// Prepares one BSDF (`scene` for its textures).
     #[must_use]
     pub fn new(desc: Desc, scene: &Scene) -> Self {
@@ -85,46 +88,50 @@ impl Prepared {
         let float = |f: &FloatTex| eval_float(f, textures, uv);
         let rough = |r: &Option<lucent_scene::Rough>| r.as_ref().map(|r| Microfacet::new(r.dist, float(&r.alpha)));
         match &self.desc {
-            Desc::Diffuse { reflectance } => Bsdf::Diffuse { r: color(reflectance) },
-            Desc::Conductor { eta, k, specular, rough: r } => Bsdf::Conductor { eta: *eta, k: *k, spec: color(specular), mf: rough(r) },
+            Desc::Diffuse { reflectance } => Bsdf::Diffuse(Diffuse { r: color(reflectance) }),
+            Desc::Conductor { eta, k, specular, rough: r } => {
+                Bsdf::Conductor(Conductor { eta: *eta, k: *k, spec: color(specular), mf: rough(r) })
+            }
             Desc::Dielectric { eta, reflectance, transmittance, rough: r } => {
-                Bsdf::Dielectric { eta: *eta, refl: color(reflectance), trans: color(transmittance), mf: rough(r) }
+                Bsdf::Dielectric(Dielectric { eta: *eta, refl: color(reflectance), trans: color(transmittance), mf: rough(r) })
             }
             Desc::ThinDielectric { eta, reflectance, transmittance } => {
-                Bsdf::Thin { eta: *eta, refl: color(reflectance), trans: color(transmittance) }
+                Bsdf::Thin(ThinDielectric { eta: *eta, refl: color(reflectance), trans: color(transmittance) })
             }
             Desc::Plastic { diffuse, specular, eta, nonlinear, rough: r } => match (r, &self.tables) {
-                (Some((dist, alpha)), Some(tables)) => Bsdf::RoughPlastic {
+                (Some((dist, alpha)), Some(tables)) => Bsdf::RoughPlastic(RoughPlastic {
                     diffuse: color(diffuse),
                     spec: color(specular),
                     nonlinear: *nonlinear,
                     spec_weight: self.spec_weight,
                     mf: Microfacet::new(*dist, *alpha),
                     tables,
-                },
-                _ => Bsdf::Plastic {
+                }),
+                _ => Bsdf::Plastic(Plastic {
                     diffuse: color(diffuse),
                     spec: color(specular),
                     eta: *eta,
                     nonlinear: *nonlinear,
                     spec_weight: self.spec_weight,
                     fdr_int: self.fdr_int,
-                },
+                }),
             },
             Desc::MetallicRoughness { base_color, metallic, roughness, transmission, ior } => {
                 let r = float(roughness).clamp(0.0, 1.0);
                 let f0 = ((ior - 1.0) / (ior + 1.0)).powi(2);
-                Bsdf::MetallicRoughness {
+                Bsdf::MetallicRoughness(MetallicRoughness {
                     base: color(base_color),
                     metallic: float(metallic).clamp(0.0, 1.0),
                     mf: Microfacet::new(lucent_scene::Distribution::Ggx, r * r),
                     transmission: float(transmission).clamp(0.0, 1.0),
                     f0: if f0.is_finite() { f0 } else { 0.04 },
-                }
+                })
             }
-            Desc::DiffuseGlossy { diffuse, specular, alpha } => {
-                Bsdf::DiffuseGlossy { kd: color(diffuse), ks: *specular, mf: Microfacet::new(lucent_scene::Distribution::Beckmann, *alpha) }
-            }
+            Desc::DiffuseGlossy { diffuse, specular, alpha } => Bsdf::DiffuseGlossy(DiffuseGlossy {
+                kd: color(diffuse),
+                ks: *specular,
+                mf: Microfacet::new(lucent_scene::Distribution::Beckmann, *alpha),
+            }),
         }
     }
 

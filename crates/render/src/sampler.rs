@@ -11,6 +11,10 @@
 //! stochastic transparency", 2011, as refined by Burley). Dimensions 2k and 2k + 1 form
 //! pair k, each pair with its own seeds, so any pair is a (0, m, 2)-net of the first 2^m
 //! samples: every elementary interval of area 2^-m holds exactly one sample.
+//!
+//! Beside it, the hashes the other integrators jitter with ([`jitter`]: Whitted's
+//! supersampling, the debug views' lens), so that every random number of every
+//! integrator is made here.
 
 /// Generator matrix of the second Sobol' dimension, one 32-bit column per bit of the index.
 const SOBOL1: [u32; 32] = {
@@ -96,6 +100,64 @@ pub fn hash32(mut x: u32) -> u32 {
 #[must_use]
 pub fn to_unit(x: u32) -> f32 {
     (x >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+}
+
+/// A 32-bit hash (Jarzynski & Olano, "Hash Functions for GPU Rendering", JCGT 2020: PCG).
+#[must_use]
+pub fn pcg_hash(x: u32) -> u32 {
+    let s = x.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let w = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277_803_737);
+    (w >> 22) ^ w
+}
+
+/// The jitter of sample `s` of pixel (x, y): a pure function, so images do not depend on
+/// thread count or tile order.
+#[must_use]
+pub fn jitter(x: u32, y: u32, s: u32) -> (f32, f32) {
+    let h = pcg_hash(x ^ pcg_hash(y ^ pcg_hash(s)));
+    let h2 = pcg_hash(h);
+    ((h >> 8) as f32 / (1u32 << 24) as f32, (h2 >> 8) as f32 / (1u32 << 24) as f32)
+}
+
+/// The default seed of the path tracer's and the VPL integrator's samplers.
+pub const DEFAULT_SEED: u32 = 0x1ce7_0001;
+
+/// The sampler pair of the lens position (thin-lens cameras), far from the bounces'.
+pub const LENS_PAIR: u32 = 0x4000_0000;
+
+/// Where an integrator's camera samples lie in their pixel and on the lens: the sampler's
+/// first pair and its [`LENS_PAIR`] (the path tracer and VPLs), or hashes of pixel and
+/// sample ([`jitter`]: Whitted and the debug views); every sample at its pixel's centre
+/// when `centred` (one-sample images of all but the path tracer).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CameraSamples {
+    /// The low-discrepancy sampler, or `None` for hashes.
+    pub sobol: Option<Sampler>,
+    /// Every sample at its pixel's centre.
+    pub centred: bool,
+}
+
+impl CameraSamples {
+    /// Where in pixel (x, y) sample `k` lies, as an offset in [0, 1)².
+    #[inline]
+    #[must_use]
+    pub fn pixel(&self, x: u32, y: u32, k: u32) -> (f32, f32) {
+        match self.sobol {
+            _ if self.centred => (0.5, 0.5),
+            Some(s) => s.get2(x, y, k, 0),
+            None => jitter(x, y, k),
+        }
+    }
+
+    /// Where on the lens sample `k` of pixel (x, y) passes, in [0, 1)².
+    #[inline]
+    #[must_use]
+    pub fn lens(&self, x: u32, y: u32, k: u32) -> (f32, f32) {
+        match self.sobol {
+            Some(s) => s.get2(x, y, k, LENS_PAIR),
+            None => jitter(x ^ 0x5bd1_e995, y, k),
+        }
+    }
 }
 
 /// Owen-scrambled Sobol' samples; `seed` tells apart independent images (another seed is

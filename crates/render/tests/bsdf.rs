@@ -13,7 +13,7 @@
 
 use glam::{Affine2, Vec2, Vec3};
 use lucent_render::bsdf::Bsdf;
-use lucent_render::materials::Prepared;
+use lucent_render::materials::PreparedMaterial;
 use lucent_scene::{Bsdf as Desc, ColorTex, Distribution, FloatTex, Rough, Scene};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
@@ -113,7 +113,7 @@ fn bsdfs_match_mitsuba() {
     let scene = Scene::default();
     let mut checked = 0;
     for (name, entry) in data["bsdfs"].as_object().expect("bsdfs") {
-        let prep = Prepared::new(mitsuba_equivalent(name), &scene);
+        let prep = PreparedMaterial::new(mitsuba_equivalent(name), &scene);
         let bsdf = prep.bsdf_at(&[], Vec2::ZERO);
         for (k, (wo, wi)) in wos.iter().zip(&wis).enumerate() {
             let want = v3(&entry["eval"][k]);
@@ -395,7 +395,7 @@ fn sampling_follows_the_pdf_chi_square() {
     let bsdfs = all_bsdfs();
     let tests = bsdfs.len() * wos.len();
     for (name, desc) in &bsdfs {
-        let prep = Prepared::new(desc.clone(), &scene);
+        let prep = PreparedMaterial::new(desc.clone(), &scene);
         let bsdf = prep.bsdf_at(&[], Vec2::new(0.3, 0.7));
         for wo in wos {
             if wo.z < 0.0 && (!bsdf.transmits() || bsdf.symmetric()) {
@@ -438,14 +438,14 @@ fn white_furnace() {
     let wo = Vec3::new(0.4, -0.2, 0.85).normalize();
     // Sampling and evaluation give the same albedo for every non-delta BSDF.
     for (name, desc) in all_bsdfs() {
-        let prep = Prepared::new(desc, &scene);
+        let prep = PreparedMaterial::new(desc, &scene);
         let bsdf = prep.bsdf_at(&[], Vec2::new(0.3, 0.7));
         let (a, b) = albedos(&bsdf, wo, &mut rng);
         assert!(close(a, b, 0.02, 2e-3), "{name}: albedo {a} by sampling, {b} by eval");
         assert!(a.max_element() <= 1.0 + 0.01, "{name}: albedo {a} above one");
     }
     // Closed forms: what conserves energy reflects all of it.
-    let white = |desc: Desc| Prepared::new(desc, &scene);
+    let white = |desc: Desc| PreparedMaterial::new(desc, &scene);
     let one = |desc: Desc, tol: f32, name: &str, rng: &mut Pcg64| {
         let p = white(desc);
         let b = p.bsdf_at(&[], Vec2::ZERO);
@@ -504,7 +504,7 @@ fn reciprocity() {
             Desc::Dielectric { eta, .. } => eta,
             _ => 1.0,
         };
-        let prep = Prepared::new(desc, &scene);
+        let prep = PreparedMaterial::new(desc, &scene);
         let b = prep.bsdf_at(&[], Vec2::new(0.3, 0.7));
         let mut checked = 0;
         for _ in 0..2000 {

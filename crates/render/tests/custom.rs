@@ -47,7 +47,7 @@ struct Sun {
 impl LightModel for Sun {
     fn sample(&self, _p: Vec3, u: (f32, f32)) -> Option<LightSample> {
         let cos_max = self.half_angle.cos();
-        let dir = lucent_render::lights::uniform_cone(self.toward, cos_max, u);
+        let dir = lucent_render::sampling::uniform_cone(self.toward, cos_max, u);
         Some(LightSample { dir, dist: f32::INFINITY, li: self.radiance, pdf: 1.0 / (2.0 * PI * (1.0 - cos_max)), delta: false })
     }
     fn power(&self) -> f32 {

@@ -7,7 +7,8 @@
 
 mod common;
 use lucent_accel::MeshOptions;
-use lucent_render::integrator::vpl::{discontinuity, Layers, VplSet};
+use lucent_render::aov::Layers;
+use lucent_render::integrator::vpl::{discontinuity, VplSet};
 use lucent_render::{render, render_pixel, render_region, Camera, Film, Integrator, Region, RenderSettings, VplSettings, World};
 use std::path::PathBuf;
 

@@ -2,14 +2,15 @@
 //! thread between events (each frame is spread over every core by rayon), so what is
 //! shown is always the newest finished frame.
 
-use crate::control::{Accumulator, Adaptive, CameraController, NavMode, Plan};
+use crate::control::{blit, Adaptive, CameraController, NavMode, Plan};
 use crate::font::draw_text;
 use glam::Vec3;
-use lucent_device::{render_frame, FrameSettings, Processor, Step};
+use lucent_render::progressive::Progressive;
 use lucent_render::{
     denoise, render_aovs, render_region, Camera, DenoiseSettings, Film, Integrator, PathSettings, Region, RegionFilm, RenderSettings,
     VplSettings, WhittedSettings, World,
 };
+use rend3r_machine::{render_frame, FrameSettings, Processor, Step};
 use std::collections::HashSet;
 use std::num::NonZeroU32;
 use std::path::PathBuf;
@@ -118,7 +119,7 @@ struct App {
     stats: String,
     cam: Option<CameraController>,
     adaptive: Adaptive,
-    acc: Accumulator,
+    acc: Progressive,
     whitted: WhittedSettings,
     /// Which integrator shows (key 4 cycles): see [`App::integrator`].
     view: usize,
@@ -323,7 +324,7 @@ impl App {
     fn screenshot(&mut self) {
         let film = match &self.program {
             Some(p) => p.last.clone(),
-            None => Some(self.shown.clone().unwrap_or_else(|| self.acc.film())),
+            None => Some(self.shown.clone().unwrap_or_else(|| self.acc.image().clone())),
         };
         let Some(film) = film else { return };
         let _ = std::fs::create_dir_all(&self.opts.screenshot_dir);
@@ -569,7 +570,10 @@ impl App {
             },
             None => match &self.shown {
                 Some(f) => crate::control::blit(&f.pixels, f.width, f.height, 1.0, &mut buf, full.0, full.1),
-                None => self.acc.blit(&mut buf, full.0, full.1),
+                None => {
+                    let img = self.acc.image();
+                    blit(&img.pixels, img.width, img.height, 1.0, &mut buf, full.0, full.1);
+                }
             },
         }
         let scale = if full.0 >= 900 { 2 } else { 1 };
@@ -727,7 +731,7 @@ pub fn run_with(content: Content, opts: ViewOptions, passes: Option<Box<dyn Pass
         stats: String::new(),
         cam: None,
         adaptive,
-        acc: Accumulator::default(),
+        acc: Progressive::default(),
         whitted: WhittedSettings::default(),
         view,
         denoise: true,

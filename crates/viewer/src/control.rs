@@ -4,7 +4,6 @@
 //! without a display.
 
 use glam::Vec3;
-use lucent_render::{Film, FilmAccumulator, RegionFilm};
 use lucent_scene::CameraDesc;
 
 /// How the mouse moves the camera.
@@ -258,71 +257,6 @@ impl Adaptive {
     }
 }
 
-/// The running average of sample passes: each pass is a region of the image (the whole
-/// image, one sample index) merged into the film's accumulator, so the still image is the
-/// one `lucent render` makes of the same samples.
-#[derive(Clone, Debug)]
-pub struct Accumulator {
-    acc: FilmAccumulator,
-    /// The mean so far (resolved after each pass, for display).
-    image: Film,
-    passes: u32,
-}
-
-impl Default for Accumulator {
-    fn default() -> Self {
-        Self { acc: FilmAccumulator::new(0, 0), image: Film::new(0, 0), passes: 0 }
-    }
-}
-
-impl Accumulator {
-    /// Adds a pass (or starts over with it: when `accumulate` is false, its size differs,
-    /// or its samples are not the ones that come next).
-    pub fn add(&mut self, part: RegionFilm, accumulate: bool) {
-        let r = part.region;
-        // Passes are whole images, so pixel (0, 0) tells which samples are in.
-        if !accumulate || (r.x1, r.y1) != self.acc.size() || self.acc.samples_at(0, 0) != r.s0 {
-            self.acc = FilmAccumulator::new(r.x1, r.y1);
-            self.passes = 0;
-        }
-        if let Err(e) = self.acc.merge(part) {
-            tracing::debug!("a pass was not added: {e}");
-            return;
-        }
-        self.passes += 1;
-        self.image = self.acc.resolve(Vec3::ZERO);
-    }
-
-    /// The average as a film.
-    #[must_use]
-    pub fn film(&self) -> Film {
-        self.image.clone()
-    }
-
-    /// The average, borrowed.
-    #[must_use]
-    pub fn image(&self) -> &Film {
-        &self.image
-    }
-
-    /// Passes added.
-    #[must_use]
-    pub fn passes(&self) -> u32 {
-        self.passes
-    }
-
-    /// Size of the image.
-    #[must_use]
-    pub fn size(&self) -> (u32, u32) {
-        (self.image.width, self.image.height)
-    }
-
-    /// Writes the average, scaled to `w`×`h` (nearest pixel), as 0RGB sRGB into `out`.
-    pub fn blit(&self, out: &mut [u32], w: u32, h: u32) {
-        blit(&self.image.pixels, self.image.width, self.image.height, 1.0, out, w, h);
-    }
-}
-
 /// Writes `pixels` (`width`×`height`, linear, times `scale`), scaled to `w`×`h` (nearest
 /// pixel), as 0RGB sRGB into `out`; black when there is nothing. Pixels are converted once
 /// at their own resolution (through a table), then copied, so a quarter-resolution frame
@@ -335,7 +269,7 @@ pub fn blit(pixels: &[Vec3], width: u32, height: u32, scale: f32, out: &mut [u32
         return;
     }
     // The film's own exact 8-bit sRGB codes, so the window shows the bytes a PNG would hold.
-    let table = lucent_render::film::srgb8_table();
+    let table = lucent_render::color::srgb8_table();
     let q = |c: f32| u32::from(table.encode(c));
     let src: Vec<u32> = pixels
         .par_iter()
@@ -357,7 +291,7 @@ pub fn blit(pixels: &[Vec3], width: u32, height: u32, scale: f32, out: &mut [u32
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lucent_render::Region;
+    use lucent_render::{Region, RegionFilm};
 
     #[test]
     fn the_window_shows_the_bytes_a_png_would_hold() {
@@ -427,25 +361,23 @@ mod tests {
         f
     }
 
+    /// The viewer's passes go into the library's progressive image; blitting shows its
+    /// mean in sRGB, scaled to the window.
     #[test]
-    fn accumulator_averages_and_scales() {
-        let mut acc = Accumulator::default();
+    fn accumulated_passes_blit_to_the_window() {
+        let mut acc = lucent_render::progressive::Progressive::default();
         acc.add(pass(2, 1, 0, &[Vec3::ONE, Vec3::ZERO]), false);
         acc.add(pass(2, 1, 1, &[Vec3::ZERO, Vec3::ZERO]), true);
         assert_eq!(acc.passes(), 2);
-        assert_eq!(acc.film().pixels[0], Vec3::splat(0.5));
+        let img = acc.image();
+        assert_eq!(img.pixels[0], Vec3::splat(0.5));
         let mut out = vec![0u32; 4 * 2];
-        acc.blit(&mut out, 4, 2);
+        blit(&img.pixels, img.width, img.height, 1.0, &mut out, 4, 2);
         // 0.5 linear is 188 in sRGB; the left half of every row is pixel 0.
         assert_eq!(out[0], 188 << 16 | 188 << 8 | 188);
         assert_eq!(out[1], out[0]);
         assert_eq!(out[2], 0);
         assert_eq!(out[4], out[0]);
-        // A new size starts over, and so does a sample added twice.
-        acc.add(pass(3, 3, 0, &[Vec3::ZERO; 9]), true);
-        assert_eq!((acc.passes(), acc.size()), (1, (3, 3)));
-        acc.add(pass(3, 3, 0, &[Vec3::ONE; 9]), true);
-        assert_eq!((acc.passes(), acc.film().pixels[0]), (1, Vec3::ONE));
     }
 
     #[test]

@@ -1,117 +1,128 @@
-//! Rough plastic's coating tables (as Mitsuba's `roughplastic` precomputes them): the
-//! fraction of light the rough coating transmits for 64 directions (cosines evenly spaced
-//! over [0, 1]), and its internal reflectance (twice the mean over the same cosines of
-//! the reflectance from inside, each times its cosine), both integrals over the visible
-//! microfacet normals, here by Gauss-Legendre quadrature.
+//! Mitsuba's `plastic`: a diffuse base under a smooth dielectric coating (Weidlich and
+//! Wilkie 2007's layering: the base's light enters and leaves through the coating's
+//! Fresnel transmittance, with internal reflection summed), the coating's mirror
+//! reflection a delta lobe.
 
-use super::microfacet::{fresnel_dielectric, gauss_legendre, reflect, refract, Microfacet};
+use super::microfacet::fresnel_dielectric;
+use super::sample::{by_density, mean, mirror, BsdfSample};
+use crate::sampling::cosine_hemisphere;
 use glam::Vec3;
+use std::f32::consts::FRAC_1_PI;
 
-/// Cosines in the transmittance table.
-pub const RES: usize = 64;
-
-/// A rough coating's transmittance table and internal reflectance.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RoughPlasticTables {
-    /// Relative index of the coating.
+/// Smooth plastic.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plastic {
+    /// Base albedo.
+    pub diffuse: Vec3,
+    /// Factor on the coating's reflection.
+    pub spec: Vec3,
+    /// Coating index.
     pub eta: f32,
-    /// Transmittance from outside, at cosines `i / (RES − 1)` (the first at 10⁻⁶).
-    pub transmittance: [f32; RES],
-    /// Reflectance from inside, averaged over the cosine-weighted hemisphere.
-    pub internal: f32,
+    /// Mitsuba's `nonlinear`.
+    pub nonlinear: bool,
+    /// Probability weight of the specular lobe (Mitsuba's `specular_sampling_weight`).
+    pub spec_weight: f32,
+    /// The coating's diffuse Fresnel reflectance from inside.
+    pub fdr_int: f32,
 }
 
-impl RoughPlasticTables {
-    /// The tables of a coating of relative index `eta` and roughness `mf` (made once per
-    /// distinct coating in a process, then shared).
+impl Plastic {
+    /// f(wo, wi)·|cos θi| of the diffuse part (the coating's reflection is a delta lobe).
     #[must_use]
-    pub fn new(mf: &Microfacet, eta: f32) -> std::sync::Arc<Self> {
-        type Cache = std::sync::Mutex<std::collections::HashMap<(bool, u32, u32), std::sync::Arc<RoughPlasticTables>>>;
-        static CACHE: std::sync::OnceLock<Cache> = std::sync::OnceLock::new();
-        let key = (mf.dist == lucent_scene::Distribution::Ggx, mf.alpha.to_bits(), eta.to_bits());
-        let cache = CACHE.get_or_init(Default::default);
-        if let Some(t) = cache.lock().ok().and_then(|c| c.get(&key).cloned()) {
-            return t;
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Vec3::ZERO;
         }
-        let t = std::sync::Arc::new(Self::compute(mf, eta));
-        if let Ok(mut c) = cache.lock() {
-            c.insert(key, t.clone());
-        }
-        t
+        let (diffuse, eta, fdr_int) = (self.diffuse, self.eta, self.fdr_int);
+        let (fo, _) = fresnel_dielectric(wo.z, eta);
+        let (fi, _) = fresnel_dielectric(wi.z, eta);
+        let base = if self.nonlinear { diffuse / (Vec3::ONE - diffuse * fdr_int) } else { diffuse / (1.0 - fdr_int) };
+        base * (FRAC_1_PI * wi.z / (eta * eta) * (1.0 - fo) * (1.0 - fi))
     }
 
-    fn compute(mf: &Microfacet, eta: f32) -> Self {
-        let q = gauss_legendre(128);
-        let mut transmittance = [0.0f32; RES];
-        let mut internal = 0.0f64;
-        for (i, t) in transmittance.iter_mut().enumerate() {
-            let mu = (i as f32 / (RES - 1) as f32).max(1e-6);
-            let wi = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-            *t = visible_integral(mf, wi, &q, |m| {
-                let (f, cos_t) = fresnel_dielectric(wi.dot(m), eta);
-                let wt = refract(wi, m, cos_t, eta);
-                if wt.z * wi.z >= 0.0 {
-                    0.0
-                } else {
-                    (1.0 - f) * mf.g1(wt, m)
-                }
-            }) as f32;
-            let r = visible_integral(mf, wi, &q, |m| {
-                let (f, _) = fresnel_dielectric(wi.dot(m), 1.0 / eta);
-                let wr = reflect(wi, m);
-                if wr.z <= 0.0 {
-                    0.0
-                } else {
-                    f * mf.g1(wr, m)
-                }
-            });
-            internal += r * f64::from(mu);
-        }
-        Self { eta, transmittance, internal: (2.0 * internal / RES as f64) as f32 }
+    /// The probability of the specular lobe for `wo` (Fresnel reflectance times its
+    /// weight, over the diffuse lobe's).
+    #[inline]
+    fn spec_prob(&self, wo: Vec3) -> (f32, f32) {
+        let (fo, _) = fresnel_dielectric(wo.z, self.eta);
+        let ps = fo * self.spec_weight;
+        let pd = (1.0 - fo) * (1.0 - self.spec_weight);
+        (fo, ps / (ps + pd))
     }
 
-    /// The transmittance for a direction of cosine `cos` (linear between the table's).
+    /// The density of [`Plastic::sample`]'s diffuse lobe.
     #[must_use]
-    pub fn external(&self, cos: f32) -> f32 {
-        let x = cos.clamp(0.0, 1.0) * (RES - 1) as f32;
-        let i = (x as usize).min(RES - 2);
-        let f = x - i as f32;
-        self.transmittance[i] * (1.0 - f) + self.transmittance[i + 1] * f
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return 0.0;
+        }
+        let (fo, _) = fresnel_dielectric(wo.z, self.eta);
+        let ps = fo * self.spec_weight;
+        let pd = (1.0 - fo) * (1.0 - self.spec_weight);
+        pd / (ps + pd) * wi.z * FRAC_1_PI
+    }
+
+    /// The coating's mirror reflection or the base's cosine lobe, chosen by `u`.
+    #[must_use]
+    pub fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let (fo, ps) = self.spec_prob(wo);
+        if u < ps {
+            Some(BsdfSample { wi: mirror(wo), weight: self.spec * (fo / ps), pdf: ps, delta: true, eta: 1.0 })
+        } else {
+            let wi = cosine_hemisphere(u2);
+            by_density(wo, wi, self.pdf(wo, wi), || self.eval(wo, wi), 1.0)
+        }
     }
 }
 
-/// ∫ g(m) over the normals visible from `wi`, weighted by their visible density
-/// (D(m) G1(wi, m) ⟨wi, m⟩ / cos θi, the exact masking, as Mitsuba's visible-normal samples
-/// follow it), by a product Gauss-Legendre rule over a map of [0, 1]² onto normals: for
-/// GGX the visible normals' own (exact and smooth: each node weighs one), for Beckmann
-/// the map onto D(m) cos θm (Walter et al. 2007, eq. 28: its visible map inverts a CDF
-/// numerically, too slow for a million nodes), each node weighed by visible / D cos.
-fn visible_integral(mf: &Microfacet, wi: Vec3, q: &[(f64, f64)], g: impl Fn(Vec3) -> f32) -> f64 {
-    let mut sum = 0.0f64;
-    let a2 = f64::from(mf.alpha * mf.alpha);
-    for &(x, wx) in q {
-        let u = 0.5 * (x + 1.0);
-        // tan² θm of D cos θm at u (Beckmann).
-        let tan2 = -a2 * (1.0 - u).max(1e-300).ln();
-        let cos = 1.0 / (1.0 + tan2).sqrt();
-        let sin = (1.0 - cos * cos).max(0.0).sqrt();
-        for &(y, wy) in q {
-            let v = 0.5 * (y + 1.0);
-            let weight = 0.25 * wx * wy;
-            if mf.dist == lucent_scene::Distribution::Ggx {
-                let m = mf.sample(wi, (u as f32, v as f32));
-                sum += weight * f64::from(g(m));
-                continue;
+/// Mitsuba's specular sampling weight for plastics: the specular factor's mean over the
+/// diffuse one's plus it.
+#[must_use]
+pub fn plastic_spec_weight(diffuse_mean: Vec3, spec_mean: Vec3) -> f32 {
+    let (d, s) = (mean(diffuse_mean), mean(spec_mean));
+    if d + s > 0.0 {
+        s / (d + s)
+    } else {
+        0.5
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::microfacet::fresnel_diffuse_reflectance;
+
+    /// With a white base and no absorption, the coating keeps the energy it lets in: the
+    /// albedo (sampled) is one at every angle in the nonlinear model, which sums the base's
+    /// internal bounces exactly.
+    #[test]
+    fn white_plastic_reflects_everything() {
+        let eta = 1.5;
+        let p = Plastic {
+            diffuse: Vec3::ONE,
+            spec: Vec3::ONE,
+            eta,
+            nonlinear: true,
+            spec_weight: plastic_spec_weight(Vec3::ONE, Vec3::ONE),
+            fdr_int: fresnel_diffuse_reflectance(1.0 / eta),
+        };
+        for cos in [0.2f32, 0.6, 0.95] {
+            let wo = Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos);
+            let n = 256;
+            let mut albedo = Vec3::ZERO;
+            for i in 0..n {
+                for j in 0..n {
+                    let u = (i as f32 + 0.5) / n as f32;
+                    let u2 = ((j as f32 + 0.5) / n as f32, ((i * 7 + j * 13) % n) as f32 / n as f32 + 0.5 / n as f32);
+                    if let Some(s) = p.sample(wo, u, u2) {
+                        albedo += s.weight / (n * n) as f32;
+                    }
+                }
             }
-            let phi = 2.0 * std::f64::consts::PI * v;
-            let m = Vec3::new((sin * phi.cos()) as f32, (sin * phi.sin()) as f32, cos as f32);
-            let sample_pdf = mf.d(m) * m.z;
-            if sample_pdf.is_nan() || sample_pdf <= 0.0 {
-                continue;
-            }
-            let visible = mf.d(m) * mf.g1_exact(wi, m) * wi.dot(m).max(0.0) / wi.z;
-            sum += weight * f64::from(g(m) * visible / sample_pdf);
+            assert!((albedo - Vec3::ONE).abs().max_element() < 0.02, "cos {cos}: {albedo}");
         }
     }
-    sum
 }

@@ -4,9 +4,9 @@
 //! lanes use a polynomial, sums taken in another order).
 
 use super::{DenoiseSettings, B3};
+use crate::aov::{dark as is_dark, demodulating};
+use crate::color::luminance as lum;
 use crate::film::{Aovs, Film};
-use crate::integrator::vpl::{dark as is_dark, demodulating};
-use crate::world::luminance as lum;
 use glam::Vec3;
 use rayon::prelude::*;
 

@@ -1,45 +1,41 @@
 //! The integrators: what radiance a camera ray carries back. One closed enum,
-//! [`Integrator`], behind one entry point ([`Integrator::li_block`], which the tile
-//! renderer calls with a block of camera rays, and [`Integrator::li`], the single-ray
-//! reference). How rays are traced (packets or one by one) is a [`Traversal`], apart from
-//! what an integrator computes: the same settings give the same image either way.
+//! [`Integrator`], behind one entry point, [`Integrator::render`]: every integrator renders
+//! a [`Region`] (pixels × sample range) of a [`Job`]'s image into a [`Sink`]. Those that
+//! shade pixel by pixel do it through the tile loop ([`render_blocks`], with
+//! [`Integrator`] as its [`BlockShader`]); VPLs render whole frames. [`Integrator::li`] is
+//! the single-ray reference. How rays are traced (packets or one by one) is a
+//! [`crate::tiles::Traversal`], apart from what an integrator computes: the same settings
+//! give the same image either way.
 //!
 //! - [`whitted`]: Whitted ray tracing (point lights, hard shadows, mirror and glass);
 //! - [`path`]: path tracing (next-event estimation and BSDF sampling, MIS, roulette);
 //! - [`vpl`]: instant global illumination (virtual point lights, interleaved sampling,
-//!   the discontinuity buffer): whole frames, through [`vpl::render_region`];
-//! - the debug views, [`Integrator::EyeLight`] and [`Integrator::Normals`].
+//!   the discontinuity buffer);
+//! - the debug views, [`Integrator::EyeLight`] and [`Integrator::Normals`];
+//! - [`guides`]: a denoiser's guides (albedo, normal, depth, emission per pixel).
+//!
+//! Adding an integrator: a file here with its settings and its `li` (or its own frame
+//! loop, as [`vpl`]), a variant of [`Integrator`], and an arm in [`Integrator::render`],
+//! [`Integrator::li`] and, if it shades blocks, [`Integrator::li_block`].
 
+pub mod guides;
+pub(crate) mod hit;
 pub mod path;
 pub mod vpl;
 pub mod whitted;
 
 pub use path::{LightSampling, PathSettings};
 pub use vpl::VplSettings;
-pub(crate) use whitted::NO_RAYS;
 pub use whitted::{fresnel_dielectric, li_packet, refract, WhittedSettings};
 
-use crate::render::jitter;
-use crate::texture::sample;
+use crate::camera::Camera;
+use crate::film::Region;
+use crate::sampler::CameraSamples;
+use crate::tiles::{render_blocks, Block, BlockShader, Job, Sink, Traversal};
 use crate::world::World;
 use glam::Vec3;
-use lucent_accel::{Hit, Ray};
-use lucent_scene::Material;
-
-/// How rays are traced: choices that change the speed, never the image.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Traversal {
-    /// Trace coherent rays (a block's camera rays, their shadow rays toward one light, a
-    /// flat mirror's reflections) as packets of up to 8×8 (the default), rather than one
-    /// by one.
-    pub packets: bool,
-}
-
-impl Default for Traversal {
-    fn default() -> Self {
-        Self { packets: true }
-    }
-}
+use hit::{material, packet_first_hits, textured_kd};
+use lucent_accel::Ray;
 
 /// What a pixel shows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -65,20 +61,6 @@ impl Default for Integrator {
     }
 }
 
-/// One block's camera rays as the tile renderer hands them to an integrator: the pixel and
-/// the sample index of each ray (so an integrator's random numbers are a pure function of
-/// pixel, sample and dimension), and the only instances the rays can meet, when known.
-#[derive(Clone, Copy, Debug)]
-pub struct Block<'a> {
-    /// Pixel of each ray.
-    pub pixels: &'a [(u32, u32)],
-    /// Sample index (the same for every ray of the block).
-    pub sample: u32,
-    /// The instances the block's camera rays can meet, when the frame's coverage lists
-    /// them (see [`crate::Coverage::candidates`]); `None`: any.
-    pub among: Option<&'a [u32]>,
-}
-
 impl Integrator {
     /// Name (the heads-up line, `--integrator`).
     #[must_use]
@@ -92,60 +74,29 @@ impl Integrator {
         }
     }
 
-    /// The low-discrepancy sampler the path tracer and the VPL integrator draw from
-    /// (`None` for the others).
+    /// Where the camera samples of an image of `spp` samples per pixel lie: the path
+    /// tracer's and VPLs' sampler (its first pair in the pixel, [`crate::sampler::LENS_PAIR`]
+    /// on the lens), hashes for the others; at the pixel's centre for one-sample images of
+    /// all but the path tracer.
     #[inline]
-    fn sampler(&self) -> Option<crate::sampler::Sampler> {
-        match self {
+    #[must_use]
+    pub fn camera_samples(&self, spp: u32) -> CameraSamples {
+        let sobol = match self {
             Self::Path(s) => Some(s.sampler()),
             Self::Vpl(s) => Some(s.sampler()),
             _ => None,
-        }
+        };
+        CameraSamples { sobol, centred: spp <= 1 && !matches!(self, Self::Path(_)) }
     }
 
-    /// Where in pixel (x, y) sample `k` of an image of `spp` samples per pixel lies, as an
-    /// offset in [0, 1)²: the centre when [`Integrator::centred`]; else, for the path
-    /// tracer and VPLs, the sampler's first pair of dimensions, and for the others a
-    /// jittered position that is a pure function of (x, y, k) ([`jitter`]).
-    #[inline]
-    #[must_use]
-    pub fn pixel_offset(&self, x: u32, y: u32, k: u32, spp: u32) -> (f32, f32) {
-        match self.sampler() {
-            _ if self.centred(spp) => (0.5, 0.5),
-            Some(s) => s.get2(x, y, k, 0),
-            None => jitter(x, y, k),
-        }
-    }
-
-    /// Where on the lens sample `k` of pixel (x, y) passes, in [0, 1)² (cameras with a
-    /// thin lens): for the path tracer and VPLs, a pair of the sampler's dimensions of its
-    /// own; for the others, a hash.
-    #[inline]
-    #[must_use]
-    pub fn lens_offset(&self, x: u32, y: u32, k: u32) -> (f32, f32) {
-        match self.sampler() {
-            Some(s) => s.get2(x, y, k, path::LENS_PAIR),
-            None => jitter(x ^ 0x5bd1_e995, y, k),
-        }
-    }
-
-    /// Whether a camera ray that meets nothing shows the scene's background colour (so
-    /// the renderer may skip tracing it): not for the path tracer with an environment
-    /// light or hidden emitters.
-    #[must_use]
-    pub fn misses_show_background(&self, w: &World) -> bool {
+    /// Renders `region` of `job`'s image into `sink` (per pixel, the sum of the region's
+    /// samples): the one way every integrator is reached. `progress(tiles)` is called as
+    /// tiles finish. Returns the rays traced.
+    pub fn render(&self, w: &World, cam: &Camera, job: &Job, region: Region, sink: &impl Sink, progress: &(dyn Fn(u64) + Sync)) -> u64 {
         match self {
-            Self::Path(s) => w.scene.environment.is_none() && !s.hide_emitters,
-            Self::Vpl(_) => w.scene.environment.is_none(),
-            _ => true,
+            Self::Vpl(v) => vpl::render(w, cam, job, v, region, sink, progress),
+            _ => render_blocks(w, cam, job, self, region, progress, sink),
         }
-    }
-
-    /// Whether every sample of an image of `spp` samples lies at its pixel's centre.
-    #[inline]
-    #[must_use]
-    pub fn centred(&self, spp: u32) -> bool {
-        spp <= 1 && !matches!(self, Self::Path(_))
     }
 
     /// Radiance along one camera ray, the ray of sample `sample` of pixel `pixel` (which
@@ -201,65 +152,22 @@ impl Integrator {
     }
 }
 
-/// Whether a block's camera rays are narrow enough for a packet to pay: their unit
-/// directions differ by at most [`PACKET_SPREAD`] in every component. Measured on the
-/// bunny reference scene, path traced (median of two runs, 2 threads): at 64 × 64 pixels
-/// (8-pixel blocks span 0.065) single rays took 0.90 s where packets took 1.13 s; at
-/// 256 × 256 (0.016) packets took 0.67 s against 0.71, at 512 × 512 2.46 s against 2.62.
-const PACKET_SPREAD: f32 = 0.03;
-
-/// Traces a block's camera rays (at most [`lucent_accel::MAX_PACKET`]) as one packet, their
-/// closest hits into `hits`, when `packets` is on, no surface has an alpha mask (a packet
-/// stops at cut-out parts) and the rays are [`coherent`]; returns whether it did. The
-/// camera paths then start from those hits ([`World::first_hit`]), else they trace alone.
-pub(crate) fn packet_first_hits(w: &World, rays: &[Ray], among: Option<&[u32]>, packets: bool, hits: &mut [Option<Hit>]) -> bool {
-    if !packets || w.has_alpha() || !coherent(rays) {
-        return false;
+impl BlockShader for Integrator {
+    fn camera_samples(&self, spp: u32) -> CameraSamples {
+        Integrator::camera_samples(self, spp)
     }
-    match among {
-        Some(ids) => w.intersect_packet_among(rays, ids, hits),
-        None => w.intersect_packet(rays, hits),
+
+    /// Not for the path tracer with an environment light or hidden emitters, nor VPLs
+    /// with an environment.
+    fn misses_show_background(&self, w: &World) -> bool {
+        match self {
+            Self::Path(s) => w.scene.environment.is_none() && !s.hide_emitters,
+            Self::Vpl(_) => w.scene.environment.is_none(),
+            _ => true,
+        }
     }
-    true
-}
 
-pub(crate) fn coherent(rays: &[Ray]) -> bool {
-    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-    for r in rays {
-        let d = r.dir.normalize_or_zero();
-        lo = lo.min(d);
-        hi = hi.max(d);
+    fn li_block(&self, w: &World, block: &Block, rays: &[Ray], traversal: Traversal, out: &mut [Vec3]) {
+        Integrator::li_block(self, w, block, rays, traversal, out);
     }
-    (hi - lo).max_element() <= PACKET_SPREAD
-}
-
-/// The radiance `mat` emits at texture coordinates `uv` (its emission times its emission
-/// texture, when it has one), on the side its normal points to.
-pub(crate) fn emitted(w: &World, mat: &Material, uv: glam::Vec2) -> Vec3 {
-    match mat.emission_tex.and_then(|t| w.scene.textures.get(t as usize)) {
-        Some(t) => mat.emission * sample(t, uv).truncate(),
-        None => mat.emission,
-    }
-}
-
-/// Material `index` of the scene, or the default one for an index out of range (PERF:
-/// borrowed, not cloned: a clone allocates the name on every hit).
-pub(crate) fn material(w: &World, index: u32) -> &Material {
-    w.scene.materials.get(index as usize).unwrap_or_else(|| default_material())
-}
-
-/// `Material::default()`, made once.
-pub(crate) fn default_material() -> &'static Material {
-    static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
-    DEFAULT.get_or_init(Material::default)
-}
-
-/// The material's diffuse reflectance at `uv`, textured.
-#[inline(always)]
-pub(crate) fn textured_kd(w: &World, mat: &Material, uv: glam::Vec2) -> Vec3 {
-    let mut kd = mat.diffuse;
-    if let Some(t) = mat.diffuse_tex.and_then(|t| w.scene.textures.get(t as usize)) {
-        kd *= sample(t, uv).truncate();
-    }
-    kd
 }

@@ -23,13 +23,13 @@
 //! without an environment, rays that leave the scene see the background colour
 //! (a constant environment that next-event estimation does not sample).
 
-use super::{emitted, material};
-use crate::bsdf::Bsdf;
+use super::hit::{bsdf_frame, emitted, material, shading_normal};
 use crate::sampler::Sampler;
-use crate::world::{Surface, World};
+pub use crate::sampler::DEFAULT_SEED;
+use crate::sampling::power_heuristic;
+use crate::world::World;
 use glam::Vec3;
 use lucent_accel::{Hit, Ray};
-use lucent_scene::Sides;
 
 /// Which strategies estimate the light arriving at a surface.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -75,109 +75,11 @@ impl Default for PathSettings {
     }
 }
 
-/// The default seed of the path tracer's sampler.
-pub const DEFAULT_SEED: u32 = 0x1ce7_0001;
-
-/// The sampler pair of the lens position (thin-lens cameras), far from the bounces'.
-pub(crate) const LENS_PAIR: u32 = 0x4000_0000;
-
 /// Sampler pairs per bounce, after pair 0 (the pixel position).
 const PAIRS: u32 = 2;
 
 /// Hashed numbers per bounce.
 const CHOICES: u32 = 4;
-
-/// The power heuristic with β = 2 for `a` against `b` (pdfs of one sample each).
-#[inline]
-fn power_heuristic(a: f32, b: f32) -> f32 {
-    let (a2, b2) = (a * a, b * b);
-    if a2 + b2 > 0.0 && (a2 + b2).is_finite() {
-        a2 / (a2 + b2)
-    } else if a.is_infinite() {
-        1.0
-    } else {
-        0.0
-    }
-}
-
-/// A unit vector's orthonormal frame: tangent, bitangent (Duff et al., "Building an
-/// Orthonormal Basis, Revisited", JCGT 2017).
-#[inline]
-fn frame(n: Vec3) -> (Vec3, Vec3) {
-    let sign = 1f32.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
-}
-
-/// A shading frame: world to local and back.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Frame {
-    t: Vec3,
-    b: Vec3,
-    pub n: Vec3,
-}
-
-impl Frame {
-    pub fn new(n: Vec3) -> Self {
-        let (t, b) = frame(n);
-        Self { t, b, n }
-    }
-    #[inline]
-    pub fn to_local(self, v: Vec3) -> Vec3 {
-        Vec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
-    }
-    #[inline]
-    pub fn to_world(self, v: Vec3) -> Vec3 {
-        self.t * v.x + self.b * v.y + self.n * v.z
-    }
-}
-
-/// The shading normal at a surface point: the interpolated one, bent by the material's
-/// tangent-space normal map when it has one (tangents from the triangle's texture
-/// coordinates: x along ∂p/∂u, y along ∂p/∂v, as glTF's maps are authored).
-pub(crate) fn shading_normal(w: &World, ray: &Ray, hit: &Hit, surf: &Surface) -> Vec3 {
-    let mat = material(w, surf.material);
-    let Some(nm) = mat.normal_map else { return surf.ns };
-    let Some(tex) = w.scene.textures.get(nm.tex as usize) else { return surf.ns };
-    let Some((dpdu, dpdv)) = w.uv_tangents(ray, hit) else { return surf.ns };
-    let c = crate::texture::sample(tex, surf.uv).truncate() * 2.0 - Vec3::ONE;
-    let n = surf.ns;
-    let t = (dpdu - n * n.dot(dpdu)).normalize_or_zero();
-    let b = (dpdv - n * n.dot(dpdv) - t * t.dot(dpdv)).normalize_or_zero();
-    if t == Vec3::ZERO || b == Vec3::ZERO {
-        return n;
-    }
-    let bent = (t * (c.x * nm.scale) + b * (c.y * nm.scale) + n * c.z).normalize_or_zero();
-    if bent == Vec3::ZERO || !bent.is_finite() {
-        n
-    } else {
-        bent
-    }
-}
-
-/// The BSDF of a surface point for a viewer along `-d`, and the frame to evaluate it in
-/// (sided as Mitsuba's: see the module's notes).
-pub(crate) fn bsdf_frame<'w>(w: &'w World, surf: &Surface, ns: Vec3, d: Vec3) -> (Bsdf<'w>, Frame) {
-    let prep = w.prepared(surf.material);
-    let mat = material(w, surf.material);
-    let textures = &w.scene.textures;
-    let back = -d.dot(ns) < 0.0;
-    let bsdf = prep.bsdf_at(textures, surf.uv);
-    if !back {
-        return (bsdf, Frame::new(ns));
-    }
-    match &mat.sides {
-        Sides::Back(_) => match &prep.back {
-            Some(b) => (b.bsdf_at(textures, surf.uv), Frame::new(-ns)),
-            None => (bsdf, Frame::new(-ns)),
-        },
-        // (A dielectric's inside is told by the frame: never turned.)
-        Sides::Both if !bsdf.transmits() || bsdf.symmetric() => (bsdf, Frame::new(-ns)),
-        _ if bsdf.symmetric() => (bsdf, Frame::new(-ns)),
-        _ => (bsdf, Frame::new(ns)),
-    }
-}
 
 /// Radiance along a camera ray through pixel (x, y), sample `index`; `first`, when given,
 /// is the camera ray's closest hit, already found (by a packet of the block's camera rays).
@@ -288,44 +190,6 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
     }
     if radiance.is_finite() {
         radiance
-    } else {
-        Vec3::ZERO
-    }
-}
-
-/// A denoiser's guides from the ray through a pixel's centre: the shading normal, the
-/// distance and the emitted radiance of its first visible surface (zero, infinity and zero
-/// where it meets nothing).
-/// `first`: what the ray meets first (as [`World::intersect_solid`] finds it).
-pub(crate) fn centre_guides(w: &World, ray: &Ray, first: Option<(Ray, Hit)>) -> (Vec3, f32, Vec3) {
-    let Some((r, hit)) = first else {
-        return (Vec3::ZERO, f32::INFINITY, Vec3::ZERO);
-    };
-    let surf = w.surface(&r, &hit);
-    let ns = shading_normal(w, &r, &hit, &surf);
-    let depth = (surf.p - ray.org).length();
-    (ns, depth, emission_at(w, &r, &surf))
-}
-
-/// What a denoiser's guides take from each quarter point of a pixel (beside
-/// [`centre_guides`]): the albedo, the emitted radiance and the shading normal of the
-/// first surface a ray meets (the background's colour, zero and
-/// `None` where it meets nothing); `first`: what the ray meets first (as
-/// [`World::intersect_solid`] finds it).
-pub(crate) fn quarter_guides(w: &World, first: Option<(Ray, Hit)>) -> (Vec3, Vec3, Option<Vec3>) {
-    let Some((r, hit)) = first else {
-        return (w.scene.background, Vec3::ZERO, None);
-    };
-    let surf = w.surface(&r, &hit);
-    let ns = shading_normal(w, &r, &hit, &surf);
-    (w.prepared(surf.material).albedo(&w.scene.textures, surf.uv), emission_at(w, &r, &surf), Some(ns))
-}
-
-/// What `surf`, met by `r`, emits back along it.
-fn emission_at(w: &World, r: &Ray, surf: &Surface) -> Vec3 {
-    let mat = material(w, surf.material);
-    if mat.emission.max_element() > 0.0 && r.dir.dot(surf.ng) < 0.0 {
-        emitted(w, mat, surf.uv)
     } else {
         Vec3::ZERO
     }

@@ -41,12 +41,16 @@
 //! from the pixel's sampler, as the path tracer's. Everything is a pure function of
 //! (pixel, sample): images do not depend on thread count or tile order.
 
-use super::path::{bsdf_frame, shading_normal, Frame};
-use super::{emitted, material};
+use super::hit::{bsdf_frame, emitted, material, packet_first_hits, shading_normal};
+use crate::aov::{dark, demodulate, demodulating, Layers};
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
-use crate::film::{Region, RegionFilm};
-use crate::render::{RenderSettings, TILE};
+use crate::denoise::spread_outliers_of_layers;
+use crate::film::Region;
+use crate::sampler::{CameraSamples, DEFAULT_SEED};
+use crate::sampling::ShadingFrame;
+use crate::tiles::{Job, Sink, NO_RAYS, TILE};
+use crate::world::record::rays_traced_here;
 
 /// Tile edge of VPL frames: 16 × 16 pixels (with 4 × 4 interleaving a VPL's shadow rays
 /// from one tile are a packet of 16). Measured on the Cornell box at 512 × 384 (4 frames,
@@ -87,7 +91,7 @@ impl Eq for VplSettings {}
 
 impl Default for VplSettings {
     fn default() -> Self {
-        Self { count: 256, max_depth: u32::MAX, clamp: DEFAULT_CLAMP, interleave: 4, discontinuity: true, seed: super::path::DEFAULT_SEED }
+        Self { count: 256, max_depth: u32::MAX, clamp: DEFAULT_CLAMP, interleave: 4, discontinuity: true, seed: DEFAULT_SEED }
     }
 }
 
@@ -108,6 +112,13 @@ pub const SPECULAR_DEPTH: u32 = 8;
 const LIGHT_ROW: u32 = 0x7fff_0000;
 
 impl VplSettings {
+    /// Where the camera samples of an image of `spp` samples per pixel lie (see
+    /// [`crate::Integrator::camera_samples`]).
+    #[must_use]
+    pub fn camera_samples(&self, spp: u32) -> CameraSamples {
+        CameraSamples { sobol: Some(self.sampler()), centred: spp <= 1 }
+    }
+
     /// The sampler of the camera side.
     #[must_use]
     pub fn sampler(&self) -> Sampler {
@@ -138,7 +149,7 @@ pub struct Vpl<'w> {
     /// and on the other side.
     org: [Vec3; 2],
     ng: Vec3,
-    frame: Frame,
+    frame: ShadingFrame,
     /// Toward where its light came from (local).
     wo: Vec3,
     bsdf: Bsdf<'w>,
@@ -266,7 +277,7 @@ struct Shade<'w> {
     p: Vec3,
     ng: Vec3,
     off: f32,
-    frame: Frame,
+    frame: ShadingFrame,
     wo: Vec3,
     bsdf: Bsdf<'w>,
     /// Throughput of the specular chain that led here.
@@ -281,36 +292,6 @@ impl Shade<'_> {
         self.p + n * self.off
     }
 }
-
-/// One pixel sample's parts: what the discontinuity buffer needs.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Layers {
-    /// Emission seen directly (or through mirrors and glass), and the background.
-    pub emitted: Vec3,
-    /// The light reflected at the shading point, direct and indirect, over the albedo
-    /// (demodulated): what the discontinuity buffer filters (as Wald et al. filter the
-    /// irradiance of all their point lights).
-    pub lit: Vec3,
-    /// The albedo the indirect light is demodulated by (the shading point's, times the
-    /// specular chain's throughput).
-    pub albedo: Vec3,
-    /// Shading normal of the first surface (zero: none).
-    pub normal: Vec3,
-    /// Distance to the first surface (infinite: none).
-    pub depth: f32,
-}
-
-impl Layers {
-    /// The sample's radiance.
-    #[inline]
-    #[must_use]
-    pub fn radiance(&self) -> Vec3 {
-        self.emitted + modulate(self) * self.lit
-    }
-}
-
-/// The least albedo demodulation divides by (per channel), here and in the denoiser.
-pub(crate) const ALBEDO_MIN: f32 = 1e-3;
 
 /// Follows a camera ray (its first hit given, when known) through delta lobes to its
 /// shading point: the emission on the way into `l.emitted`, the first surface's normal
@@ -436,59 +417,19 @@ pub fn li_layers(w: &World, ray: &Ray, set: &VplSet, pixel: (u32, u32)) -> Layer
     l
 }
 
-#[inline]
-fn demodulate(ind: Vec3, albedo: Vec3) -> Vec3 {
-    let v = ind / demodulating(albedo);
-    if v.is_finite() {
-        v
-    } else {
-        Vec3::ZERO
-    }
-}
-
-/// The least albedo (largest channel) of a pixel whose light the discontinuity buffer and
-/// the denoiser demodulate: the light a darker surface reflects is not proportional to its
-/// albedo (a black plastic's coating, a dark metal), and divided by it, it would flood its
-/// neighbours (measured on the kitchen: relMSE 2.6 against path tracing, 0.15
-/// unfiltered). Such surfaces are filtered in radiance (albedo 1), among their own kind.
-pub const FILTER_ALBEDO_MIN: f32 = 0.02;
-
-/// Whether a surface of this albedo is dark (see [`FILTER_ALBEDO_MIN`]).
-#[inline]
-pub(crate) fn dark(albedo: Vec3) -> bool {
-    albedo.max_element() < FILTER_ALBEDO_MIN
-}
-
-/// The albedo demodulation divides by: the albedo, or 1 for a dark surface.
-#[inline]
-pub(crate) fn demodulating(albedo: Vec3) -> Vec3 {
-    if dark(albedo) {
-        Vec3::ONE
-    } else {
-        albedo.max(Vec3::splat(ALBEDO_MIN))
-    }
-}
-
-/// A VPL image sample's albedo as demodulation uses it.
-#[inline]
-fn modulate(l: &Layers) -> Vec3 {
-    demodulating(l.albedo)
-}
-
 /// The layers of every pixel of `r` (row-major) for the sample `set` belongs to, tile by
 /// tile (32 × 32) on all cores: camera rays of each 8 × 8 block as a packet, then per
 /// tile and VPL one packet of shadow rays from the VPL to the tile's pixels of its set. Returns the
 /// rays traced.
-pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, r: Region, out: &mut [Layers]) -> u64 {
+pub fn trace_layers(w: &World, cam: &Camera, job: &Job, set: &VplSet, r: Region, out: &mut [Layers]) -> u64 {
     let (s, k) = (&set.settings, set.frame);
     let width = r.x1 - r.x0;
     if width == 0 || r.y1 <= r.y0 {
         return 0;
     }
     let d_min2 = d_min2(w, s);
-    let integrator = rs.integrator;
-    let spp = rs.spp.max(1);
-    let packets = rs.traversal.packets;
+    let cs = set.settings.camera_samples(job.spp.max(1));
+    let packets = job.traversal.packets;
     // Bands of VPL_TILE rows, tiles of VPL_TILE columns; per band, the tile's buffers.
     const N: usize = (VPL_TILE * VPL_TILE) as usize;
     out.par_chunks_mut((width * VPL_TILE) as usize)
@@ -496,7 +437,7 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
         .map(|(band, rows)| {
             let y0 = r.y0 + band as u32 * VPL_TILE;
             let y1 = (y0 + VPL_TILE).min(r.y1);
-            let before = crate::world::rays_traced_here();
+            let before = rays_traced_here();
             let mut shades: Vec<Option<Shade>> = vec![None; N];
             let mut layers = vec![Layers::default(); N];
             let mut coords = vec![(0u32, 0u32); N];
@@ -527,20 +468,20 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
                 // Camera rays, 64 at a time.
                 for c in (0..n).step_by(64) {
                     let m = (n - c).min(64);
-                    let mut rays = super::NO_RAYS;
+                    let mut rays = NO_RAYS;
                     let mut pts = [(0f32, 0f32); 64];
                     for (p, &(x, y)) in pts.iter_mut().zip(&coords[c..c + m]) {
-                        let (jx, jy) = integrator.pixel_offset(x, y, k, spp);
+                        let (jx, jy) = cs.pixel(x, y, k);
                         *p = (x as f32 + jx, y as f32 + jy);
                     }
                     cam.rays_at(&pts[..m], &mut rays[..m]);
                     if cam.has_lens() {
                         for (ray, &(x, y)) in rays[..m].iter_mut().zip(&coords[c..c + m]) {
-                            *ray = cam.through_lens(ray, integrator.lens_offset(x, y, k));
+                            *ray = cam.through_lens(ray, cs.lens(x, y, k));
                         }
                     }
                     let mut hits = [None; 64];
-                    let first = super::packet_first_hits(w, &rays[..m], None, packets, &mut hits[..m]);
+                    let first = packet_first_hits(w, &rays[..m], None, packets, &mut hits[..m]);
                     for j in 0..m {
                         let (x, y) = coords[c + j];
                         if let Some((sh, direct)) = camera_path(w, &rays[j], s, (x, y), k, first.then_some(hits[j]), &mut layers[c + j]) {
@@ -564,7 +505,7 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
                     for v in set.set(si) {
                         for c in (0..m).step_by(64) {
                             let cm = (m - c).min(64);
-                            let mut rays = super::NO_RAYS;
+                            let mut rays = NO_RAYS;
                             let mut terms = [(0usize, Vec3::ZERO); 64];
                             let mut q = 0;
                             for &j in &who[c..c + cm] {
@@ -608,7 +549,7 @@ pub fn trace_layers(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet, 
                 }
                 x0 = x1;
             }
-            crate::world::rays_traced_here() - before
+            rays_traced_here() - before
         })
         .sum()
 }
@@ -672,25 +613,26 @@ pub fn discontinuity(layers: &[Layers], r: Region, m: u32, x: u32, y: u32) -> Ve
     }
 }
 
-/// Renders a region (rectangle × samples) with virtual point lights: per sample, the
-/// frame's VPLs, the layers of the region and a margin of `interleave / 2` pixels
-/// around it (which the discontinuity buffer reads; the layers are a pure function of
-/// pixel and sample, so regions merged give the whole image's pixels), then per pixel
+/// Renders a region (rectangle × samples) with virtual point lights into `sink`: per
+/// sample, the frame's VPLs, the layers of the region and a margin of `interleave / 2`
+/// pixels around it (which the discontinuity buffer reads; the layers are a pure function
+/// of pixel and sample, so regions merged give the whole image's pixels), then per pixel
 /// `emitted + albedo × lit`, the reflected light filtered when
-/// [`VplSettings::discontinuity`] is on. `progress(tiles)` as [`crate::render`] calls it
-/// (during the last sample). Returns the region's film and the rays traced.
-pub fn render_region(
+/// [`VplSettings::discontinuity`] is on; each pixel's sum over the samples goes to the
+/// sink. `progress(tiles)` as the tile loop calls it (during the last sample). Returns the
+/// rays traced.
+pub fn render(
     w: &World,
     cam: &Camera,
-    rs: &RenderSettings,
+    job: &Job,
     s: &VplSettings,
     region: Region,
+    sink: &impl Sink,
     progress: &(dyn Fn(u64) + Sync),
-) -> (RegionFilm, u64) {
-    let r = region.clip(rs.width, rs.height);
-    let mut film = RegionFilm::new(r);
+) -> u64 {
+    let r = region.clip(job.width, job.height);
     if r.is_empty() {
-        return (film, 0);
+        return 0;
     }
     let m = s.interleave.clamp(1, 64);
     // (Outliers spread first: a pixel's value depends on outliers up to OUTLIER_RADIUS
@@ -700,35 +642,42 @@ pub fn render_region(
     let ext = Region {
         x0: r.x0.saturating_sub(margin),
         y0: r.y0.saturating_sub(margin),
-        x1: (r.x1 + margin).min(rs.width),
-        y1: (r.y1 + margin).min(rs.height),
+        x1: (r.x1 + margin).min(job.width),
+        y1: (r.y1 + margin).min(job.height),
         ..r
     };
     let mut layers = vec![Layers::default(); ext.pixels()];
+    let mut sums = vec![Vec3::ZERO; r.pixels()];
+    let rw = r.x1 - r.x0;
     let mut rays = 0;
     for k in r.s0..r.s1 {
         // (The light paths are traced on this thread: its count tells their rays.)
-        let before = crate::world::rays_traced_here();
+        let before = rays_traced_here();
         let set = VplSet::generate(w, s, k);
-        rays += crate::world::rays_traced_here() - before;
-        rays += trace_layers(w, cam, rs, &set, ext, &mut layers);
+        rays += rays_traced_here() - before;
+        rays += trace_layers(w, cam, job, &set, ext, &mut layers);
         let ew = ext.x1 - ext.x0;
         if spread {
-            crate::denoise::spread_outliers_of_layers(&mut layers, ew as usize, (ext.y1 - ext.y0) as usize, OUTLIER_SIGMAS, OUTLIER_RADIUS);
+            spread_outliers_of_layers(&mut layers, ew as usize, (ext.y1 - ext.y0) as usize, OUTLIER_SIGMAS, OUTLIER_RADIUS);
         }
         for y in r.y0..r.y1 {
             for x in r.x0..r.x1 {
                 let l = &layers[((y - ext.y0) * ew + (x - ext.x0)) as usize];
                 let lit = if margin > 0 { discontinuity(&layers, ext, m, x, y) } else { l.lit };
-                let v = l.emitted + modulate(l) * lit;
-                film.add(x, y, if v.is_finite() { v } else { Vec3::ZERO }, 1.0);
+                let v = l.emitted + demodulating(l.albedo) * lit;
+                sums[((y - r.y0) * rw + (x - r.x0)) as usize] += if v.is_finite() { v } else { Vec3::ZERO };
             }
         }
         if k + 1 == r.s1 {
             progress(u64::from(r.x1.div_ceil(TILE) - r.x0 / TILE) * u64::from(r.y1.div_ceil(TILE) - r.y0 / TILE));
         }
     }
-    (film, rays)
+    for y in r.y0..r.y1 {
+        for x in r.x0..r.x1 {
+            sink.put(x, y, sums[((y - r.y0) * rw + (x - r.x0)) as usize]);
+        }
+    }
+    rays
 }
 
 /// The rays of one VPL frame, grouped as the renderer traces them (for measuring their
@@ -736,20 +685,20 @@ pub fn render_region(
 /// rays toward the VPLs, one packet per 16 × 16 tile, set and VPL (rays of zero
 /// contribution left out, as the renderer does).
 #[must_use]
-pub fn frame_rays(w: &World, cam: &Camera, rs: &RenderSettings, set: &VplSet) -> (Vec<Vec<Ray>>, Vec<Vec<Ray>>) {
+pub fn frame_rays(w: &World, cam: &Camera, job: &Job, set: &VplSet) -> (Vec<Vec<Ray>>, Vec<Vec<Ray>>) {
     let (s, k) = (&set.settings, set.frame);
     let d_min2 = d_min2(w, s);
-    let spp = rs.spp.max(1);
+    let cs = s.camera_samples(job.spp.max(1));
     let (mut primary, mut shadow) = (Vec::new(), Vec::new());
-    for ty in (0..rs.height).step_by(VPL_TILE as usize) {
-        for tx in (0..rs.width).step_by(VPL_TILE as usize) {
+    for ty in (0..job.height).step_by(VPL_TILE as usize) {
+        for tx in (0..job.width).step_by(VPL_TILE as usize) {
             let mut shades = Vec::new();
-            for by in (ty..(ty + VPL_TILE).min(rs.height)).step_by(8) {
-                for bx in (tx..(tx + VPL_TILE).min(rs.width)).step_by(8) {
+            for by in (ty..(ty + VPL_TILE).min(job.height)).step_by(8) {
+                for bx in (tx..(tx + VPL_TILE).min(job.width)).step_by(8) {
                     let mut rays = Vec::new();
-                    for y in by..(by + 8).min(rs.height) {
-                        for x in bx..(bx + 8).min(rs.width) {
-                            let (jx, jy) = rs.integrator.pixel_offset(x, y, k, spp);
+                    for y in by..(by + 8).min(job.height) {
+                        for x in bx..(bx + 8).min(job.width) {
+                            let (jx, jy) = cs.pixel(x, y, k);
                             let ray = cam.ray(x as f32 + jx, y as f32 + jy);
                             let mut l = Layers::default();
                             if let Some((sh, _)) = camera_path(w, &ray, s, (x, y), k, None, &mut l) {

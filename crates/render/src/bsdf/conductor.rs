@@ -1,0 +1,101 @@
+//! Mitsuba's `conductor` and `roughconductor`: a metal's mirror reflection with its complex
+//! Fresnel term, or a microfacet lobe of it (Walter et al. 2007, sampled by the visible
+//! normals).
+
+use super::microfacet::{fresnel_conductor, reflect, Microfacet};
+use super::sample::{by_density, mirror, BsdfSample};
+use glam::Vec3;
+
+/// A smooth (`mf` = None) or rough conductor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Conductor {
+    /// Real part of the index.
+    pub eta: Vec3,
+    /// Imaginary part.
+    pub k: Vec3,
+    /// Factor.
+    pub spec: Vec3,
+    /// Roughness.
+    pub mf: Option<Microfacet>,
+}
+
+impl Conductor {
+    /// f(wo, wi)·|cos θi| (zero for the mirror).
+    #[must_use]
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        let Some(mf) = self.mf else { return Vec3::ZERO };
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let h = (wo + wi).normalize();
+        let d = mf.d(h);
+        if d == 0.0 {
+            return Vec3::ZERO;
+        }
+        fresnel_conductor(wo.dot(h), self.eta, self.k) * self.spec * (d * mf.g(wo, wi, h) / (4.0 * wo.z))
+    }
+
+    /// The density of [`Conductor::sample`] (zero for the mirror).
+    #[must_use]
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let Some(mf) = self.mf else { return 0.0 };
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return 0.0;
+        }
+        let h = (wo + wi).normalize();
+        mf.pdf(wo, h) / (4.0 * wo.dot(h))
+    }
+
+    /// The mirror direction, or a visible facet's reflection for `u2`.
+    #[must_use]
+    pub fn sample(&self, wo: Vec3, u2: (f32, f32)) -> Option<BsdfSample> {
+        if wo.z <= 0.0 {
+            return None;
+        }
+        match self.mf {
+            None => {
+                let wi = mirror(wo);
+                Some(BsdfSample { wi, weight: self.spec * fresnel_conductor(wo.z, self.eta, self.k), pdf: 1.0, delta: true, eta: 1.0 })
+            }
+            Some(mf) => {
+                let m = mf.sample(wo, u2);
+                let wi = reflect(wo, m);
+                if wi.z <= 0.0 {
+                    return None;
+                }
+                by_density(wo, wi, self.pdf(wo, wi), || self.eval(wo, wi), 1.0)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lucent_scene::Distribution;
+
+    /// A perfect mirror (k → ∞ makes the Fresnel term 1) reflects everything into the
+    /// mirror direction; a rough one's sampled weights average to its albedo, which is at
+    /// most one and near one for a nearly smooth surface.
+    #[test]
+    fn a_perfect_mirror_reflects_everything() {
+        let wo = Vec3::new(0.4, -0.2, 0.894_427_2).normalize();
+        let smooth = Conductor { eta: Vec3::ZERO, k: Vec3::splat(1e6), spec: Vec3::ONE, mf: None };
+        let s = smooth.sample(wo, (0.5, 0.5)).expect("the mirror");
+        assert!(s.delta && (s.wi - Vec3::new(-wo.x, -wo.y, wo.z)).length() < 1e-6);
+        assert!((s.weight - Vec3::ONE).abs().max_element() < 1e-5, "{}", s.weight);
+        let rough = Conductor { mf: Some(Microfacet::new(Distribution::Ggx, 0.05)), ..smooth };
+        let n = 64;
+        let mut albedo = Vec3::ZERO;
+        for i in 0..n {
+            for j in 0..n {
+                let u = ((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                if let Some(s) = rough.sample(wo, u) {
+                    assert!((s.pdf - rough.pdf(wo, s.wi)).abs() <= 1e-4 * s.pdf);
+                    albedo += s.weight / (n * n) as f32;
+                }
+            }
+        }
+        assert!(albedo.max_element() <= 1.0 + 1e-3 && albedo.min_element() > 0.97, "{albedo}");
+    }
+}

@@ -1,0 +1,130 @@
+//! What the integrators read at a hit: its material, the light it emits, its shading
+//! normal (bent by normal maps), its BSDF and shading frame; and the first hits of a
+//! block's camera rays, traced as one packet where that pays.
+
+use crate::bsdf::Bsdf;
+use crate::sampling::ShadingFrame;
+use crate::texture::sample;
+use crate::world::surface::Surface;
+use crate::world::World;
+use glam::Vec3;
+use lucent_accel::{Hit, Ray};
+use lucent_scene::{Material, Sides};
+
+/// Whether a block's camera rays are narrow enough for a packet to pay: their unit
+/// directions differ by at most [`PACKET_SPREAD`] in every component. Measured on the
+/// bunny reference scene, path traced (median of two runs, 2 threads): at 64 × 64 pixels
+/// (8-pixel blocks span 0.065) single rays took 0.90 s where packets took 1.13 s; at
+/// 256 × 256 (0.016) packets took 0.67 s against 0.71, at 512 × 512 2.46 s against 2.62.
+const PACKET_SPREAD: f32 = 0.03;
+
+/// Traces a block's camera rays (at most [`lucent_accel::MAX_PACKET`]) as one packet, their
+/// closest hits into `hits`, when `packets` is on, no surface has an alpha mask (a packet
+/// stops at cut-out parts) and the rays are [`coherent`]; returns whether it did. The
+/// camera paths then start from those hits ([`World::first_hit`]), else they trace alone.
+pub(crate) fn packet_first_hits(w: &World, rays: &[Ray], among: Option<&[u32]>, packets: bool, hits: &mut [Option<Hit>]) -> bool {
+    if !packets || w.has_alpha() || !coherent(rays) {
+        return false;
+    }
+    match among {
+        Some(ids) => w.intersect_packet_among(rays, ids, hits),
+        None => w.intersect_packet(rays, hits),
+    }
+    true
+}
+
+pub(crate) fn coherent(rays: &[Ray]) -> bool {
+    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for r in rays {
+        let d = r.dir.normalize_or_zero();
+        lo = lo.min(d);
+        hi = hi.max(d);
+    }
+    (hi - lo).max_element() <= PACKET_SPREAD
+}
+
+/// The radiance `mat` emits at texture coordinates `uv` (its emission times its emission
+/// texture, when it has one), on the side its normal points to.
+pub(crate) fn emitted(w: &World, mat: &Material, uv: glam::Vec2) -> Vec3 {
+    match mat.emission_tex.and_then(|t| w.scene.textures.get(t as usize)) {
+        Some(t) => mat.emission * sample(t, uv).truncate(),
+        None => mat.emission,
+    }
+}
+
+/// Material `index` of the scene, or the default one for an index out of range (PERF:
+/// borrowed, not cloned: a clone allocates the name on every hit).
+pub(crate) fn material(w: &World, index: u32) -> &Material {
+    w.scene.materials.get(index as usize).unwrap_or_else(|| default_material())
+}
+
+/// `Material::default()`, made once.
+pub(crate) fn default_material() -> &'static Material {
+    static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
+    DEFAULT.get_or_init(Material::default)
+}
+
+/// The material's diffuse reflectance at `uv`, textured.
+#[inline(always)]
+pub(crate) fn textured_kd(w: &World, mat: &Material, uv: glam::Vec2) -> Vec3 {
+    let mut kd = mat.diffuse;
+    if let Some(t) = mat.diffuse_tex.and_then(|t| w.scene.textures.get(t as usize)) {
+        kd *= sample(t, uv).truncate();
+    }
+    kd
+}
+/// The shading normal at a surface point: the interpolated one, bent by the material's
+/// tangent-space normal map when it has one (tangents from the triangle's texture
+/// coordinates: x along ∂p/∂u, y along ∂p/∂v, as glTF's maps are authored).
+pub(crate) fn shading_normal(w: &World, ray: &Ray, hit: &Hit, surf: &Surface) -> Vec3 {
+    let mat = material(w, surf.material);
+    let Some(nm) = mat.normal_map else { return surf.ns };
+    let Some(tex) = w.scene.textures.get(nm.tex as usize) else { return surf.ns };
+    let Some((dpdu, dpdv)) = w.uv_tangents(ray, hit) else { return surf.ns };
+    let c = sample(tex, surf.uv).truncate() * 2.0 - Vec3::ONE;
+    let n = surf.ns;
+    let t = (dpdu - n * n.dot(dpdu)).normalize_or_zero();
+    let b = (dpdv - n * n.dot(dpdv) - t * t.dot(dpdv)).normalize_or_zero();
+    if t == Vec3::ZERO || b == Vec3::ZERO {
+        return n;
+    }
+    let bent = (t * (c.x * nm.scale) + b * (c.y * nm.scale) + n * c.z).normalize_or_zero();
+    if bent == Vec3::ZERO || !bent.is_finite() {
+        n
+    } else {
+        bent
+    }
+}
+
+/// The BSDF of a surface point for a viewer along `-d`, and the frame to evaluate it in
+/// (sided as Mitsuba's: see the module's notes).
+pub(crate) fn bsdf_frame<'w>(w: &'w World, surf: &Surface, ns: Vec3, d: Vec3) -> (Bsdf<'w>, ShadingFrame) {
+    let prep = w.prepared(surf.material);
+    let mat = material(w, surf.material);
+    let textures = &w.scene.textures;
+    let back = -d.dot(ns) < 0.0;
+    let bsdf = prep.bsdf_at(textures, surf.uv);
+    if !back {
+        return (bsdf, ShadingFrame::new(ns));
+    }
+    match &mat.sides {
+        Sides::Back(_) => match &prep.back {
+            Some(b) => (b.bsdf_at(textures, surf.uv), ShadingFrame::new(-ns)),
+            None => (bsdf, ShadingFrame::new(-ns)),
+        },
+        // (A dielectric's inside is told by the frame: never turned.)
+        Sides::Both if !bsdf.transmits() || bsdf.symmetric() => (bsdf, ShadingFrame::new(-ns)),
+        _ if bsdf.symmetric() => (bsdf, ShadingFrame::new(-ns)),
+        _ => (bsdf, ShadingFrame::new(ns)),
+    }
+}
+
+/// What `surf`, met by `r`, emits back along it.
+pub(crate) fn emission_at(w: &World, r: &Ray, surf: &Surface) -> Vec3 {
+    let mat = material(w, surf.material);
+    if mat.emission.max_element() > 0.0 && r.dir.dot(surf.ng) < 0.0 {
+        emitted(w, mat, surf.uv)
+    } else {
+        Vec3::ZERO
+    }
+}

@@ -1,0 +1,156 @@
+//! Light from infinitely far in every direction: a constant, or an equirectangular map
+//! (Mitsuba's `envmap`: its lookup, its frame) sampled by its luminance.
+
+use super::sample::LightSample;
+use crate::color::luminance;
+use crate::sampling::{uniform_sphere, Distribution2D};
+use glam::{Affine3A, Vec2, Vec3};
+use lucent_scene::{Environment, HdrImage};
+use std::f32::consts::PI;
+use std::sync::Arc;
+
+/// An environment light.
+#[derive(Clone, Debug)]
+pub(crate) struct EnvLight {
+    scale: Vec3,
+    map: Option<(Arc<HdrImage>, Distribution2D)>,
+    to_world: Affine3A,
+    to_local: Affine3A,
+    /// Mean radiance (power estimate).
+    mean: Vec3,
+}
+
+impl EnvLight {
+    /// The environment light of `e` (`None` when its transform or map is unusable).
+    pub(crate) fn new(e: &Environment) -> Option<Self> {
+        let to_local = e.to_world.inverse();
+        if !to_local.is_finite() {
+            return None;
+        }
+        let Some(img) = e.image.clone() else {
+            return Some(Self { scale: e.scale, map: None, to_world: e.to_world, to_local, mean: e.scale });
+        };
+        let (w, h) = (img.width as usize, img.height as usize);
+        if w < 2 || h < 3 || img.texels.len() < w * h {
+            return None;
+        }
+        // The sampling density: a grid of cells over (u, v) in [0, 1)² (twice the map's
+        // resolution, at least 256 × 128), each the mean over 4 × 4 points of the
+        // luminance the lookup gives there times sin θ, plus a tenth of the largest
+        // luminance of the texels the lookup may blend anywhere in the cell: the density
+        // follows the radiance closely and is not zero wherever some light comes from.
+        let (gw, gh) = ((2 * w).max(256), (2 * h).max(128));
+        let unit = Self { scale: Vec3::ONE, map: None, to_world: Affine3A::IDENTITY, to_local: Affine3A::IDENTITY, mean: Vec3::ONE };
+        let lookup = |u: f32, v: f32| luminance(unit.lookup(&img, u, v)).max(0.0);
+        let lum = |x: usize, y: usize| luminance(img.texels[y.min(h - 1) * w + x % w]).max(0.0);
+        let mut f = vec![0f32; gw * gh];
+        for (gy, row) in f.chunks_mut(gw).enumerate() {
+            let (v0, v1) = (gy as f32 / gh as f32, (gy + 1) as f32 / gh as f32);
+            let (r0, r1) = ((v0 * (h - 1) as f32).floor() as usize, ((v1 * (h - 1) as f32).ceil() as usize).min(h - 1));
+            let s_mid = (PI * 0.5 * (v0 + v1)).sin();
+            for (gx, cell) in row.iter_mut().enumerate() {
+                let (u0, u1) = (gx as f32 / gw as f32, (gx + 1) as f32 / gw as f32);
+                let mut sum = 0.0;
+                for j in 0..4 {
+                    let v = v0 + (v1 - v0) * (j as f32 + 0.5) / 4.0;
+                    let st = (PI * v).sin();
+                    for i in 0..4 {
+                        sum += lookup(u0 + (u1 - u0) * (i as f32 + 0.5) / 4.0, v) * st;
+                    }
+                }
+                // The texel columns whose bilinear footprint reaches the cell.
+                let (c0, c1) = ((u0 * w as f32 - 0.5).floor() as i64, (u1 * w as f32 - 0.5).floor() as i64 + 1);
+                let mut m = 0f32;
+                for r in r0..=r1 {
+                    for c in c0..=c1 {
+                        m = m.max(lum(c.rem_euclid(w as i64) as usize, r));
+                    }
+                }
+                *cell = sum / 16.0 + 0.1 * m * s_mid;
+            }
+        }
+        let mut mean = Vec3::ZERO;
+        let mut wsum = 0.0;
+        for y in 0..h {
+            let st = (PI * y as f32 / (h - 1) as f32).sin();
+            for x in 0..w {
+                mean += img.texels[y * w + x] * st;
+                wsum += st;
+            }
+        }
+        let mean = if wsum > 0.0 { mean / wsum * e.scale } else { e.scale };
+        Some(Self { scale: e.scale, map: Some((img, Distribution2D::new(&f, gw, gh))), to_world: e.to_world, to_local, mean })
+    }
+
+    /// Its power, as light through the scene's bounding sphere of radius `radius` (for the
+    /// choice among lights).
+    pub(crate) fn power(&self, radius: f32) -> f32 {
+        luminance(self.mean) * 4.0 * PI * PI * radius * radius
+    }
+
+    /// Radiance arriving from world direction `dir` (unit): Mitsuba's lookup, u =
+    /// atan2(x, −z) / 2π and v = acos(y) / π in the map's frame, bilinear with texel
+    /// columns centred at (i + ½) / w (wrapping) and rows at j / (h − 1), pole to pole.
+    pub(crate) fn eval(&self, dir: Vec3) -> Vec3 {
+        let Some((img, _)) = &self.map else { return self.scale };
+        let d = self.to_local.transform_vector3(dir).normalize_or_zero();
+        let u = d.x.atan2(-d.z) * (0.5 / PI);
+        let v = d.y.clamp(-1.0, 1.0).acos() / PI;
+        self.lookup(img, u, v) * self.scale
+    }
+
+    /// The map's bilinear value at (u, v) (see [`EnvLight::eval`]).
+    fn lookup(&self, img: &HdrImage, u: f32, v: f32) -> Vec3 {
+        let (w, h) = (img.width as usize, img.height as usize);
+        let mut x = u - 0.5 / w as f32;
+        x -= x.floor();
+        let x = x * w as f32;
+        let y = v * (h - 1) as f32;
+        let (x0, y0) = ((x as usize).min(w - 1), (y as usize).min(h - 2));
+        let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+        let t = |xi: usize, yi: usize| img.texels[yi * w + xi % w];
+        let top = t(x0, y0) * (1.0 - fx) + t(x0 + 1, y0) * fx;
+        let bottom = t(x0, y0 + 1) * (1.0 - fx) + t(x0 + 1, y0 + 1) * fx;
+        top * (1.0 - fy) + bottom * fy
+    }
+
+    /// A direction (unit, world) and its density per solid angle.
+    pub(crate) fn sample(&self, u: (f32, f32)) -> Option<LightSample> {
+        let (local, pdf) = match &self.map {
+            None => (uniform_sphere(u), 1.0 / (4.0 * PI)),
+            Some((_, dist)) => {
+                let (uv, p) = dist.sample(u);
+                let (theta, phi) = (uv.y * PI, uv.x * 2.0 * PI);
+                let (st, ct) = theta.sin_cos();
+                let (sp, cp) = phi.sin_cos();
+                if st <= 0.0 {
+                    return None;
+                }
+                (Vec3::new(sp * st, ct, -cp * st), p / (2.0 * PI * PI * st))
+            }
+        };
+        let dir = self.to_world.transform_vector3(local).normalize_or_zero();
+        if dir == Vec3::ZERO {
+            return None;
+        }
+        Some(LightSample { dir, dist: f32::INFINITY, li: self.eval(dir), pdf, delta: false })
+    }
+
+    /// The density of [`EnvLight::sample`] for world direction `dir`.
+    pub(crate) fn pdf(&self, dir: Vec3) -> f32 {
+        match &self.map {
+            None => 1.0 / (4.0 * PI),
+            Some((_, dist)) => {
+                let d = self.to_local.transform_vector3(dir).normalize_or_zero();
+                let u = d.x.atan2(-d.z) * (0.5 / PI);
+                let u = u - u.floor();
+                let v = d.y.clamp(-1.0, 1.0).acos() / PI;
+                let st = (1.0 - d.y * d.y).max(0.0).sqrt();
+                if st <= 0.0 {
+                    return 0.0;
+                }
+                dist.pdf(Vec2::new(u, v)) / (2.0 * PI * PI * st)
+            }
+        }
+    }
+}

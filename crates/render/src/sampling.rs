@@ -1,0 +1,214 @@
+//! Sampling: warps of the unit square onto disks, hemispheres, spheres and cones, shading
+//! frames, piecewise-constant 1D and 2D distributions (pbrt-v4's `PiecewiseConstant1D`
+//! and `2D`), and the power heuristic of multiple importance sampling.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
+
+/// A point on Shirley and Chiu's concentric map of the unit disk.
+#[inline]
+#[must_use]
+pub fn concentric_disk(u: (f32, f32)) -> Vec2 {
+    let (a, b) = (2.0 * u.0 - 1.0, 2.0 * u.1 - 1.0);
+    if a == 0.0 && b == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, phi) = if a.abs() > b.abs() {
+        (a, std::f32::consts::FRAC_PI_4 * (b / a))
+    } else {
+        (b, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (a / b))
+    };
+    Vec2::new(r * phi.cos(), r * phi.sin())
+}
+
+/// Cosine-weighted hemisphere sampling (Malley's method over Shirley and Chiu's concentric
+/// disk), local frame.
+#[inline]
+#[must_use]
+pub fn cosine_hemisphere(u: (f32, f32)) -> Vec3 {
+    let d = concentric_disk(u);
+    Vec3::new(d.x, d.y, (1.0 - d.x * d.x - d.y * d.y).max(0.0).sqrt())
+}
+
+/// A uniformly chosen unit vector, for `u` in [0, 1)².
+#[must_use]
+pub fn uniform_sphere(u: (f32, f32)) -> Vec3 {
+    let z = 1.0 - 2.0 * u.0;
+    let s = (1.0 - z * z).max(0.0).sqrt();
+    let (sp, cp) = (2.0 * PI * u.1).sin_cos();
+    Vec3::new(s * cp, s * sp, z)
+}
+
+/// A direction chosen uniformly within the cone of unit `axis` whose half-angle has
+/// cosine `cos_max`, for `u` in [0, 1)²; its density per solid angle is
+/// `1 / (2π (1 − cos_max))` (Shirley and Wang 1994).
+#[must_use]
+pub fn uniform_cone(axis: Vec3, cos_max: f32, u: (f32, f32)) -> Vec3 {
+    let cos_t = 1.0 - u.0 * (1.0 - cos_max);
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let (sp, cp) = (2.0 * PI * u.1).sin_cos();
+    let (t, b) = axis.any_orthonormal_pair();
+    (t * (sin_t * cp) + b * (sin_t * sp) + axis * cos_t).normalize_or_zero()
+}
+
+/// The power heuristic with β = 2 for `a` against `b` (pdfs of one sample each).
+#[inline]
+#[must_use]
+pub fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 && (a2 + b2).is_finite() {
+        a2 / (a2 + b2)
+    } else if a.is_infinite() {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// A unit vector's orthonormal frame: tangent, bitangent (Duff et al., "Building an
+/// Orthonormal Basis, Revisited", JCGT 2017).
+#[inline]
+fn frame(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
+}
+
+/// A shading frame about a unit normal: world directions to local ones (z along the
+/// normal, as the BSDFs see them) and back.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadingFrame {
+    t: Vec3,
+    b: Vec3,
+    /// The normal (local z).
+    pub n: Vec3,
+}
+
+impl ShadingFrame {
+    /// The frame about unit `n`.
+    #[must_use]
+    pub fn new(n: Vec3) -> Self {
+        let (t, b) = frame(n);
+        Self { t, b, n }
+    }
+    /// World `v` in the frame.
+    #[inline]
+    #[must_use]
+    pub fn to_local(self, v: Vec3) -> Vec3 {
+        Vec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    }
+    /// Local `v` in the world.
+    #[inline]
+    #[must_use]
+    pub fn to_world(self, v: Vec3) -> Vec3 {
+        self.t * v.x + self.b * v.y + self.n * v.z
+    }
+}
+
+/// A piecewise-constant 1D distribution over [0, 1).
+#[derive(Clone, Debug, Default)]
+pub struct Distribution1D {
+    /// Cumulative, normalised, `n + 1` entries from 0 to 1.
+    cdf: Vec<f32>,
+    /// Function values, normalised to integrate to 1 over [0, 1).
+    pdf: Vec<f32>,
+    integral: f64,
+}
+
+impl Distribution1D {
+    /// The distribution of `n` equal cells with values `f` (negative values count as 0;
+    /// all zero: uniform).
+    #[must_use]
+    pub fn new(f: &[f32]) -> Self {
+        let n = f.len().max(1);
+        let sum: f64 = f.iter().map(|&x| f64::from(x.max(0.0))).sum();
+        let integral = sum / n as f64;
+        let mut cdf = Vec::with_capacity(n + 1);
+        cdf.push(0.0);
+        let mut acc = 0f64;
+        for &x in f {
+            acc += f64::from(x.max(0.0));
+            cdf.push(if sum > 0.0 { (acc / sum) as f32 } else { cdf.len() as f32 / n as f32 });
+        }
+        if let Some(last) = cdf.last_mut() {
+            *last = 1.0;
+        }
+        let pdf = f.iter().map(|&x| if sum > 0.0 { (f64::from(x.max(0.0)) / integral) as f32 } else { 1.0 }).collect();
+        Self { cdf, pdf, integral }
+    }
+
+    /// A point in [0, 1) for `u`, the density there and its cell.
+    #[must_use]
+    pub fn sample(&self, u: f32) -> (f32, f32, usize) {
+        let n = self.pdf.len();
+        let i = self.cdf.partition_point(|&c| c <= u).saturating_sub(1).min(n - 1);
+        let (lo, hi) = (self.cdf[i], self.cdf[i + 1]);
+        let t = if hi > lo { (u - lo) / (hi - lo) } else { 0.5 };
+        (((i as f32 + t) / n as f32).min(1.0 - f32::EPSILON), self.pdf[i], i)
+    }
+
+    /// The density at `x` in [0, 1).
+    #[must_use]
+    pub fn pdf_at(&self, x: f32) -> f32 {
+        let n = self.pdf.len();
+        self.pdf[((x * n as f32) as usize).min(n - 1)]
+    }
+}
+
+/// A piecewise-constant 2D distribution over [0, 1)²: rows (v) by their totals, then a
+/// column (u) within the row (pbrt's marginal and conditional densities).
+#[derive(Clone, Debug, Default)]
+pub struct Distribution2D {
+    rows: Vec<Distribution1D>,
+    marginal: Distribution1D,
+}
+
+impl Distribution2D {
+    /// The distribution of a `w` × `h` grid of cells with values `f` (row-major).
+    #[must_use]
+    pub fn new(f: &[f32], w: usize, h: usize) -> Self {
+        let rows: Vec<Distribution1D> = (0..h).map(|y| Distribution1D::new(&f[y * w..(y + 1) * w])).collect();
+        let marginal = Distribution1D::new(&rows.iter().map(|r| r.integral as f32).collect::<Vec<_>>());
+        Self { rows, marginal }
+    }
+
+    /// A point in [0, 1)² for `u` and the density there.
+    #[must_use]
+    pub fn sample(&self, u: (f32, f32)) -> (Vec2, f32) {
+        let (v, pv, row) = self.marginal.sample(u.1);
+        let (x, pu, _) = self.rows[row].sample(u.0);
+        (Vec2::new(x, v), pv * pu)
+    }
+
+    /// The density at `uv`.
+    #[must_use]
+    pub fn pdf(&self, uv: Vec2) -> f32 {
+        let h = self.rows.len();
+        let row = ((uv.y * h as f32) as usize).min(h - 1);
+        self.marginal.pdf_at(uv.y) * self.rows[row].pdf_at(uv.x)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distribution_2d_density_integrates_to_one_and_matches_samples() {
+        let (w, h) = (7, 5);
+        let f: Vec<f32> = (0..w * h).map(|i| ((i * 37) % 11) as f32 + 0.5).collect();
+        let d = Distribution2D::new(&f, w, h);
+        // ∫ pdf = 1 (cells of area 1 / (w h)).
+        let s: f32 =
+            (0..w * h).map(|i| d.pdf(Vec2::new(((i % w) as f32 + 0.5) / w as f32, ((i / w) as f32 + 0.5) / h as f32))).sum::<f32>()
+                / (w * h) as f32;
+        assert!((s - 1.0).abs() < 1e-4, "{s}");
+        // A sample's density is the density at its point.
+        for k in 0..50 {
+            let u = (((k * 13) % 50) as f32 / 50.0 + 0.01, (k as f32 + 0.5) / 50.0);
+            let (p, pdf) = d.sample(u);
+            assert!((d.pdf(p) - pdf).abs() < 1e-3 * pdf, "{p} {pdf} {}", d.pdf(p));
+        }
+    }
+}

@@ -1,0 +1,350 @@
+//! The tile loop: an image region's pixels in 16 × 16 tiles on all cores (rayon), each in
+//! 8 × 8 blocks whose camera rays a [`BlockShader`] shades, sample after sample, into a
+//! [`Sink`] (a whole image's means, or a region's sums). Pixels that the frame's
+//! [`Coverage`] proves to miss everything get the background without a ray. Samples are a
+//! pure function of (pixel, sample), so images do not depend on threads or tile order.
+
+use crate::camera::Camera;
+use crate::coverage::{Coverage, CoverageBands};
+use crate::film::Region;
+use crate::sampler::CameraSamples;
+use crate::world::record::rays_traced_here;
+use crate::world::World;
+use glam::Vec3;
+use lucent_accel::Ray;
+use rayon::prelude::*;
+
+/// Tile edge in pixels.
+pub const TILE: u32 = 16;
+
+/// The image a piece of work belongs to: its size, its samples per pixel, and how rays are
+/// traced. Every integrator renders a [`Region`] of one into a [`Sink`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Job {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Samples per pixel of the image.
+    pub spp: u32,
+    /// How rays are traced.
+    pub traversal: Traversal,
+}
+
+/// What shades a block of camera rays: the integrators that work pixel by pixel (all but
+/// VPLs, which render whole frames).
+pub trait BlockShader: Sync {
+    /// Where the camera samples of an image of `spp` samples per pixel lie.
+    fn camera_samples(&self, spp: u32) -> CameraSamples;
+    /// Whether a camera ray that meets nothing shows the scene's background colour (so
+    /// the loop may skip tracing it).
+    fn misses_show_background(&self, w: &World) -> bool;
+    /// Radiance along each of a block's camera rays, into `out`.
+    fn li_block(&self, w: &World, block: &Block, rays: &[Ray], traversal: Traversal, out: &mut [Vec3]);
+}
+
+/// How rays are traced: choices that change the speed, never the image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Traversal {
+    /// Trace coherent rays (a block's camera rays, their shadow rays toward one light, a
+    /// flat mirror's reflections) as packets of up to 8×8 (the default), rather than one
+    /// by one.
+    pub packets: bool,
+}
+
+impl Default for Traversal {
+    fn default() -> Self {
+        Self { packets: true }
+    }
+}
+
+/// One block's camera rays as the tile renderer hands them to an integrator: the pixel and
+/// the sample index of each ray (so an integrator's random numbers are a pure function of
+/// pixel, sample and dimension), and the only instances the rays can meet, when known.
+#[derive(Clone, Copy, Debug)]
+pub struct Block<'a> {
+    /// Pixel of each ray.
+    pub pixels: &'a [(u32, u32)],
+    /// Sample index (the same for every ray of the block).
+    pub sample: u32,
+    /// The instances the block's camera rays can meet, when the frame's coverage lists
+    /// them (see [`crate::Coverage::candidates`]); `None`: any.
+    pub among: Option<&'a [u32]>,
+}
+
+/// A packet's ray buffer before its rays are made (PERF: a constant copied in; filling it
+/// ray by ray showed in profiles of sparse REND3R frames).
+pub(crate) const NO_RAYS: [Ray; lucent_accel::MAX_PACKET] =
+    [Ray { org: Vec3::ZERO, dir: Vec3::X, tmin: 0.0, tmax: f32::INFINITY }; lucent_accel::MAX_PACKET];
+
+/// What tracing `n` samples that miss sums to: the background, once per sample (a pixel
+/// whose rays provably miss gets it without tracing).
+pub(crate) fn background_sum(bg: Vec3, n: u32) -> Vec3 {
+    if n == 1 {
+        bg
+    } else {
+        (0..n).fold(Vec3::ZERO, |a, _| a + bg)
+    }
+}
+
+/// Where in its pixel a ray of the frame starts: decides which pixels the coverage must
+/// count.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Samples {
+    /// The centre only (one sample per pixel).
+    Centres,
+    /// Anywhere in the pixel's square (jittered samples).
+    Anywhere,
+}
+
+/// Pixels per block handed to the integrators: 8×8 (one bit each in a coverage mask), one
+/// ray packet.
+const BLOCK: usize = 64;
+const _: () = assert!(BLOCK == lucent_accel::MAX_PACKET, "a block is one packet, and NO_RAYS holds a packet");
+
+/// Where the tiles put their pixels: per pixel, the sum of `n` samples.
+pub trait Sink: Sync {
+    /// Pixel (x, y) is the sum `sum` of the region's samples (the value itself when there
+    /// is one).
+    fn put(&self, x: u32, y: u32, sum: Vec3);
+    /// Pixels `x0..x1` of row `y` show the background.
+    fn background(&self, y: u32, x0: u32, x1: u32);
+}
+
+/// [`crate::render()`]'s sink: the mean of each pixel's samples, straight into a
+/// whole-image film.
+pub(crate) struct MeanSink {
+    pub(crate) out: FilmPtr,
+    pub(crate) width: u32,
+    /// A block's row of background. PERF: made once (made per row on the stack, its
+    /// 4-byte stores then read as 16-byte loads stalled store forwarding: 60% of a
+    /// one-sphere REND3R frame).
+    pub(crate) bg: [Vec3; 8],
+    /// Samples per pixel.
+    pub(crate) n: u32,
+}
+
+/// [`crate::render_region`]'s sink: sums and weights into a [`crate::RegionFilm`].
+pub(crate) struct SumSink {
+    pub(crate) sum: FilmPtr,
+    pub(crate) weight: WeightPtr,
+    pub(crate) region: Region,
+    pub(crate) bg_sum: Vec3,
+    pub(crate) n: u32,
+}
+
+impl Sink for MeanSink {
+    #[inline(always)]
+    fn put(&self, x: u32, y: u32, sum: Vec3) {
+        let mean = if self.n == 1 { sum } else { sum / self.n as f32 };
+        // SAFETY: (x, y) lies inside the image (the film's allocation is `width × height`
+        // long), and only the tile that holds (x, y) writes it; the buffer outlives the
+        // parallel loop.
+        unsafe { self.out.get().add((y * self.width + x) as usize).write(mean) };
+    }
+    #[inline(always)]
+    fn background(&self, y: u32, x0: u32, x1: u32) {
+        // PERF: the background a row at a time (pixel by pixel, the background of sparse
+        // REND3R frames was a tenth of their time); traced pixels overwrite it.
+        let dst = self.out.get().wrapping_add((y * self.width + x0) as usize);
+        // SAFETY: the row's pixels x0..x1 (at most 8, one block's) lie inside the image and
+        // the film's allocation, and no other tile writes them. PERF: a whole row of a
+        // block as a copy of known size, which compiles to a few vector stores (not a call
+        // to `memcpy`).
+        unsafe {
+            if x1 - x0 == 8 {
+                dst.cast::<[Vec3; 8]>().write_unaligned(self.bg);
+            } else {
+                // PERF: pixel by pixel (at most 7): as a copy of variable length, both cases
+                // became calls to `memcpy`, 40% of a one-sphere frame.
+                for k in 0..(x1 - x0) as usize {
+                    dst.add(k).write(self.bg[0]);
+                }
+            }
+        }
+    }
+}
+
+impl SumSink {
+    #[inline(always)]
+    fn index(&self, x: u32, y: u32) -> usize {
+        let r = &self.region;
+        ((y - r.y0) * (r.x1 - r.x0) + (x - r.x0)) as usize
+    }
+}
+
+impl Sink for SumSink {
+    #[inline(always)]
+    fn put(&self, x: u32, y: u32, sum: Vec3) {
+        let i = self.index(x, y);
+        // SAFETY: (x, y) lies inside the region, whose film holds one sum and one weight per
+        // pixel; only the tile that holds (x, y) writes them, and the buffers outlive the
+        // parallel loop.
+        unsafe {
+            self.sum.0.add(i).write(sum);
+            self.weight.0.add(i).write(self.n as f32);
+        }
+    }
+    #[inline(always)]
+    fn background(&self, y: u32, x0: u32, x1: u32) {
+        for x in x0..x1 {
+            let i = self.index(x, y);
+            // SAFETY: as in `put`.
+            unsafe {
+                self.sum.0.add(i).write(self.bg_sum);
+                self.weight.0.add(i).write(self.n as f32);
+            }
+        }
+    }
+}
+
+/// The 8×8 block mask (bit `8·row + column`) of columns `c0..c1` and rows `r0..r1`.
+#[inline]
+fn block_mask(c0: u32, c1: u32, r0: u32, r1: u32) -> u64 {
+    let cols = ((0xffu64 >> (8 - (c1 - c0))) << c0) * 0x0101_0101_0101_0101;
+    let rows = (u64::MAX >> (64 - 8 * (r1 - r0))) << (8 * r0);
+    cols & rows
+}
+
+/// The tile loop of every [`BlockShader`]: the tiles that meet `region`
+/// on rayon; the pixels of each 8×8 block (clipped to the region) that the frame's
+/// [`Coverage`] says may meet something are traced together, sample after sample, by the
+/// integrator, and the others show the background. Returns the rays traced.
+pub fn render_blocks(
+    w: &World,
+    cam: &Camera,
+    job: &Job,
+    shader: &impl BlockShader,
+    region: Region,
+    progress: &(dyn Fn(u64) + Sync),
+    sink: &impl Sink,
+) -> u64 {
+    let (width, height) = (job.width, job.height);
+    let spp = job.spp.max(1);
+    let cs = shader.camera_samples(spp);
+    let samples = if cs.centred { Samples::Centres } else { Samples::Anywhere };
+    let (s0, s1) = (region.s0, region.s1);
+    // Which pixels can meet anything, by projecting the instances (object order): a sparse
+    // scene, such as REND3R's 256 small spheres, traces a third of its pixels. `None`
+    // (something covers the whole image, or reaches around the eye) traces them all.
+    let prep = match samples {
+        _ if cam.size() != (width, height) => None,
+        // (Rays from a lens, and misses that are not the background colour, need tracing.)
+        _ if cam.has_lens() || !shader.misses_show_background(w) => None,
+        Samples::Centres => CoverageBands::new(w, cam, true),
+        Samples::Anywhere => CoverageBands::new(w, cam, false),
+    };
+    // PERF: a band of tiles fills its coverage in the task that renders it, so a frame has
+    // one parallel step (with the fill as a step of its own, and its hand-off to the
+    // workers, REND3R's 16-sphere frame took 0.17 ms, now 0.13).
+    const _: () = assert!(TILE == CoverageBands::BAND_ROWS, "a row of tiles is one band of the coverage");
+    // PERF: every tile writes its pixels straight into the film (tiles are disjoint);
+    // gathering per-tile buffers and copying them in afterwards, one thread, took half of a
+    // one-sphere REND3R frame.
+    let tile = |tx: u32, ty: u32, cover: Option<&Coverage>| -> u64 {
+        let (x0, y0) = ((tx * TILE).max(region.x0), (ty * TILE).max(region.y0));
+        let (x1, y1) = ((tx * TILE + TILE).min(region.x1), (ty * TILE + TILE).min(region.y1));
+        let before = rays_traced_here();
+        // Blocks are aligned to the image's 8-pixel grid (the coverage's), clipped to the
+        // tile's part of the region.
+        for by in (y0 & !7..y1).step_by(8) {
+            for bx in (x0 & !7..x1).step_by(8) {
+                let (cx0, cy0) = (bx.max(x0), by.max(y0));
+                let (cx1, cy1) = ((bx + 8).min(x1), (by + 8).min(y1));
+                let mask = cover.map_or(u64::MAX, |c| c.block(bx / 8, by / 8));
+                // The block's pixels inside the tile and the region.
+                let inside = block_mask(cx0 - bx, cx1 - bx, cy0 - by, cy1 - by);
+                let trace = mask & inside;
+                if trace != inside {
+                    for y in cy0..cy1 {
+                        sink.background(y, cx0, cx1);
+                    }
+                }
+                if trace == 0 {
+                    continue;
+                }
+                // PERF: the block's buffers only for traced blocks (made per tile, they were 3 KB
+                // to initialise per tile of a sparse REND3R frame).
+                let mut coords = [(0u32, 0u32); BLOCK];
+                let mut sum = [Vec3::ZERO; BLOCK];
+                let mut rays = NO_RAYS;
+                let mut pts = [(0f32, 0f32); BLOCK];
+                let mut c = [Vec3::ZERO; BLOCK];
+                // (`trace` is not zero, so `n` is at least one below.)
+                let mut n = 0;
+                let mut b = trace;
+                while b != 0 {
+                    let i = b.trailing_zeros();
+                    b &= b - 1;
+                    coords[n] = (bx + i % 8, by + i / 8);
+                    n += 1;
+                }
+                let among = cover.and_then(|c| c.candidates(bx / 8, by / 8));
+                for k in s0..s1 {
+                    for (p, &(x, y)) in pts.iter_mut().zip(&coords[..n]) {
+                        let (jx, jy) = cs.pixel(x, y, k);
+                        *p = (x as f32 + jx, y as f32 + jy);
+                    }
+                    cam.rays_at(&pts[..n], &mut rays[..n]);
+                    if cam.has_lens() {
+                        for (r, &(x, y)) in rays[..n].iter_mut().zip(&coords[..n]) {
+                            *r = cam.through_lens(r, cs.lens(x, y, k));
+                        }
+                    }
+                    let block = Block { pixels: &coords[..n], sample: k, among };
+                    if s1 - s0 == 1 {
+                        // One sample: straight into the sums.
+                        shader.li_block(w, &block, &rays[..n], job.traversal, &mut sum[..n]);
+                    } else {
+                        if k == s0 {
+                            sum[..n].fill(Vec3::ZERO);
+                        }
+                        shader.li_block(w, &block, &rays[..n], job.traversal, &mut c[..n]);
+                        for (o, v) in sum[..n].iter_mut().zip(&c) {
+                            *o += *v;
+                        }
+                    }
+                }
+                for (&(x, y), v) in coords[..n].iter().zip(&sum) {
+                    sink.put(x, y, *v);
+                }
+            }
+        }
+        progress(1);
+        rays_traced_here() - before
+    };
+    if region.is_empty() {
+        return 0;
+    }
+    let (tx0, tx1) = (region.x0 / TILE, region.x1.div_ceil(TILE));
+    let (ty0, ty1) = (region.y0 / TILE, region.y1.div_ceil(TILE));
+    (ty0..ty1)
+        .into_par_iter()
+        .map(|ty| {
+            let cover = prep.as_ref().map(|p| p.band(ty as usize));
+            (tx0..tx1).into_par_iter().map(|tx| tile(tx, ty, cover.as_ref())).sum::<u64>()
+        })
+        .sum()
+}
+
+/// A film's pixels or sums, shared by the tile tasks (each writes only its own tile).
+#[derive(Clone, Copy)]
+pub(crate) struct FilmPtr(pub(crate) *mut Vec3);
+// SAFETY: the tasks write disjoint pixels (see `render_tiles`), so sharing the pointer
+// between threads cannot race.
+unsafe impl Send for FilmPtr {}
+// SAFETY: as above.
+unsafe impl Sync for FilmPtr {}
+impl FilmPtr {
+    fn get(self) -> *mut Vec3 {
+        self.0
+    }
+}
+
+/// A region film's weights, shared as [`FilmPtr`].
+#[derive(Clone, Copy)]
+pub(crate) struct WeightPtr(pub(crate) *mut f32);
+// SAFETY: as for `FilmPtr`.
+unsafe impl Send for WeightPtr {}
+// SAFETY: as above.
+unsafe impl Sync for WeightPtr {}
