@@ -458,15 +458,6 @@ enum BenchCmd {
     },
 }
 
-/// The build quality named on the command line (clap allows only these names).
-fn quality_of(name: &str) -> lucent_accel::Quality {
-    match name {
-        "sah" => lucent_accel::Quality::Sah,
-        "spatial" => lucent_accel::Quality::Spatial,
-        _ => lucent_accel::Quality::High,
-    }
-}
-
 fn main() -> std::process::ExitCode {
     // A panic inside an image decoder is contained by `lucent_scene::decode_image` (the
     // image is skipped with a warning that gives the decoder's message): not a crash report.
@@ -610,7 +601,7 @@ fn run() -> Result<()> {
                 kernel: if scalar { lucent_accel::Kernel::Scalar } else { lucent_accel::Kernel::detect() },
                 dump_ids,
                 apis: api,
-                quality: quality_of(&quality),
+                quality: render_cmd::quality_of(&quality),
                 pin: !pin.no_pin,
                 kd: index == "kd",
             },

@@ -309,7 +309,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let t1 = Instant::now();
     let opts = MeshOptions {
         test: if a.watertight { TriangleTest::Watertight } else { TriangleTest::UnitTriangle },
-        quality: crate::quality_of(&a.quality),
+        quality: quality_of(&a.quality),
         ..MeshOptions::default()
     };
     let mut world = World::new(scene, opts)?;
@@ -500,4 +500,13 @@ pub fn info(path: Option<&Path>, demo: DemoArg) -> Result<()> {
         t.elapsed().as_secs_f64() * 1e3
     );
     Ok(())
+}
+
+/// The build quality named on the command line (clap allows only these names).
+pub fn quality_of(name: &str) -> lucent_accel::Quality {
+    match name {
+        "sah" => lucent_accel::Quality::Sah,
+        "spatial" => lucent_accel::Quality::Spatial,
+        _ => lucent_accel::Quality::High,
+    }
 }

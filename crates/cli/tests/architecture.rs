@@ -316,6 +316,51 @@ fn names_child(code: &str, child: &str) -> bool {
     false
 }
 
+/// A file's code cut by its inline modules (`mod name { ... }`): each part with the module
+/// path its paths are written in (the file's own module for what is outside them).
+fn inline_modules(module: &str, code: &str) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    let mut outside = String::new();
+    let mut rest = code;
+    loop {
+        // The next `mod NAME {` (not `mod NAME;`).
+        let found = rest.match_indices("mod ").find_map(|(k, _)| {
+            let before = rest[..k].chars().next_back();
+            if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
+                return None;
+            }
+            let after = &rest[k + 4..];
+            let name_len = after.find(|c: char| !(c.is_alphanumeric() || c == '_'))?;
+            let (name, tail) = after.split_at(name_len);
+            let brace = tail.trim_start().starts_with('{').then(|| k + 4 + name_len + tail.find('{').unwrap_or(0))?;
+            (!name.is_empty()).then(|| (k, name.to_string(), brace))
+        });
+        let Some((k, name, brace)) = found else { break };
+        outside.push_str(&rest[..k]);
+        let mut depth = 0;
+        let mut end = rest.len();
+        for (j, ch) in rest[brace..].char_indices() {
+            match ch {
+                '{' => depth += 1,
+                '}' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        end = brace + j + 1;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        let inner = if module.is_empty() { name } else { format!("{module}::{name}") };
+        out.extend(inline_modules(&inner, &rest[brace + 1..end.saturating_sub(1).max(brace + 1)]));
+        rest = &rest[end..];
+    }
+    outside.push_str(rest);
+    out.push((module.to_string(), outside));
+    out
+}
+
 /// Module paths and what each re-exports.
 struct Crate {
     mods: BTreeMap<String, PathBuf>,
@@ -409,14 +454,18 @@ fn graph(src: &Path) -> BTreeMap<String, BTreeSet<String>> {
                 to.insert(format!("{prefix}{child}"));
             }
         }
-        let mut paths = paths_in(code);
-        for (_, tree) in uses(code) {
-            paths.extend(expand(&tree).into_iter().map(|(p, _)| p));
-        }
-        for p in paths {
-            if let Some(t) = krate.resolve(m, &p) {
-                if &t != m {
-                    to.insert(t);
+        // Each inline module's paths from where they stand (`super::` in `mod imp { }` of
+        // `a.rs` is `a`).
+        for (inner, part) in inline_modules(m, code) {
+            let mut paths = paths_in(&part);
+            for (_, tree) in uses(&part) {
+                paths.extend(expand(&tree).into_iter().map(|(p, _)| p));
+            }
+            for p in paths {
+                if let Some(t) = krate.resolve(&inner, &p) {
+                    if &t != m {
+                        to.insert(t);
+                    }
                 }
             }
         }
@@ -578,6 +627,11 @@ fn the_checker_reads_paths_as_rust_does() {
     let e: Vec<(String, String)> = expand("crate::a::{b, c::{d, e as f}, has_alpha}");
     let want = [("crate::a::b", "b"), ("crate::a::c::d", "d"), ("crate::a::c::e", "f"), ("crate::a::has_alpha", "has_alpha")];
     assert_eq!(e, want.map(|(a, b)| (a.to_string(), b.to_string())));
+    let parts = inline_modules("a", "use super::x; mod imp { use super::y; mod deep { use super::z; } } fn f() {}");
+    assert_eq!(parts.len(), 3, "{parts:?}");
+    assert!(parts.iter().any(|(m, c)| m == "a::imp::deep" && c.contains("super::z")));
+    assert!(parts.iter().any(|(m, c)| m == "a::imp" && c.contains("super::y") && !c.contains("super::z")));
+    assert!(parts.iter().any(|(m, c)| m == "a" && c.contains("super::x") && c.contains("fn f")));
     let code = code_of("// use crate::x;\nuse crate::y::Z; let s = \"crate::q\"; fn f<'a>(c: char) { super::w::g(); }\n#[cfg(test)]\nmod tests { use crate::t; }");
     let p = paths_in(&code);
     assert!(p.contains(&"crate::y::Z".to_string()) && p.contains(&"super::w::g".to_string()), "{p:?}");

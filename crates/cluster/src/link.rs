@@ -2,7 +2,7 @@
 //! ([`Link`]). Ranks below [`Hub::attach_local`]'s count are threads of this process
 //! (channels); the others are reached through a [`Remote`] (MPI).
 
-use crate::ClusterError;
+use crate::error::ClusterError;
 use std::sync::mpsc::{channel, Receiver, Sender, TryRecvError};
 
 /// Ranks of another process (MPI): the master's side.

@@ -2,9 +2,9 @@
 //! time, enough to cover the round trip: fast ranks take more), hears every rank, and
 //! ends the run with a clear error when one fails or falls silent.
 
+use crate::error::ClusterError;
 use crate::link::Hub;
 use crate::wire::{FrameSpec, Msg};
-use crate::ClusterError;
 use lucent_render::{Region, RegionFilm};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
@@ -235,7 +235,7 @@ impl Master {
                 }
                 let now = Instant::now();
                 if let (Some(f), true) = (self.observer.as_mut(), changed && now.duration_since(told) > Duration::from_millis(20)) {
-                    f(&crate::inflight_text(&held_regions(&held, work)));
+                    f(&crate::error::inflight_text(&held_regions(&held, work)));
                     (changed, told) = (false, now);
                 }
                 if let Some(r) = (0..n).find(|&r| now.duration_since(heard[r]) > self.opts.timeout) {

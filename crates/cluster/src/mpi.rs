@@ -2,8 +2,8 @@
 //! (and renders too, on a thread of its own through a local rank); the others are workers.
 //! Only the thread that initialised MPI calls it (`MPI_THREAD_FUNNELED`).
 
+use crate::error::ClusterError;
 use crate::link::{Link, Remote};
-use crate::ClusterError;
 use mpi::point_to_point::MatchedReceiveVec;
 use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::traits::{Destination, Source};

@@ -2,9 +2,9 @@
 //! their own while this one keeps talking (results, and a heartbeat four times a second,
 //! so the master can tell a busy rank from a dead one).
 
+use crate::error::ClusterError;
 use crate::link::Link;
 use crate::wire::{FrameSpec, Msg};
-use crate::ClusterError;
 use lucent_render::{Region, RegionFilm};
 use std::panic::AssertUnwindSafe;
 use std::sync::mpsc::{channel, RecvTimeoutError};

@@ -352,38 +352,43 @@ pub fn phong_to_alpha(n: f32) -> f32 {
     (2.0 / (n.max(0.0) + 2.0)).sqrt()
 }
 
-impl Bsdf {
-    /// The BSDF of a material that has only Phong/Whitted terms (built-in and REND3R
-    /// scenes, PLY), by the same reading as MTL: transmission makes a smooth dielectric of
-    /// index `ior` (a thin sheet when `ior` ≤ 1); mirror reflection without a diffuse term
-    /// a smooth conductor of reflectance `reflect`, with one a [`Bsdf::DiffuseGlossy`] of
-    /// reflectance `reflect` and nearly no roughness (α = 10⁻³); otherwise the diffuse
-    /// and specular terms as [`Bsdf::DiffuseGlossy`] with α from the exponent.
-    #[must_use]
-    pub fn from_phong(m: &crate::Material) -> Self {
-        let kd = match m.diffuse_tex {
-            Some(tex) => ColorTex::Image { tex, scale: m.diffuse, to_uv: Affine2::IDENTITY },
-            None => ColorTex::Const(m.diffuse),
-        };
-        if m.transmit.max_element() > 0.0 {
-            return if m.ior > 1.0 {
-                Self::Dielectric { eta: m.ior, reflectance: ColorTex::grey(1.0), transmittance: ColorTex::Const(m.transmit), rough: None }
-            } else {
-                Self::ThinDielectric { eta: 1.5, reflectance: ColorTex::grey(1.0), transmittance: ColorTex::Const(m.transmit) }
-            };
-        }
-        if m.reflect.max_element() > 0.0 {
-            if m.diffuse.max_element() <= 0.0 {
-                return Self::Conductor { eta: Vec3::ZERO, k: Vec3::ONE, specular: ColorTex::Const(m.reflect), rough: None };
-            }
-            return Self::DiffuseGlossy { diffuse: kd, specular: m.reflect, alpha: 1e-3 };
-        }
-        if m.specular.max_element() > 0.0 {
-            return Self::DiffuseGlossy { diffuse: kd, specular: m.specular, alpha: phong_to_alpha(m.shininess) };
-        }
-        Self::Diffuse { reflectance: kd }
-    }
+/// What Whitted's shading reads of a material (see [`Bsdf::whitted_terms`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WhittedTerms {
+    /// Diffuse colour.
+    pub diffuse: Vec3,
+    /// Diffuse texture.
+    pub diffuse_tex: Option<u32>,
+    /// Highlight colour.
+    pub specular: Vec3,
+    /// Phong exponent.
+    pub shininess: f32,
+    /// Mirror reflectance.
+    pub reflect: Vec3,
+    /// Transmittance.
+    pub transmit: Vec3,
+    /// Index of refraction.
+    pub ior: f32,
+    /// Fresnel-weighted.
+    pub fresnel: bool,
+}
 
+impl Default for WhittedTerms {
+    fn default() -> Self {
+        Self {
+            diffuse: Vec3::ZERO,
+            diffuse_tex: None,
+            specular: Vec3::ZERO,
+            shininess: 32.0,
+            reflect: Vec3::ZERO,
+            transmit: Vec3::ZERO,
+            ior: 1.5,
+            fresnel: false,
+        }
+    }
+}
+
+impl Bsdf {
     /// A rough Phong-like reading for Whitted's fields from this BSDF (the inverse
     /// direction, for scenes whose materials are physically based, e.g. Mitsuba's): the
     /// diffuse colour, mirror reflectance, transmittance, index and Phong exponent that
@@ -441,42 +446,6 @@ impl Bsdf {
             Self::DiffuseGlossy { diffuse, specular, alpha } => {
                 WhittedTerms { diffuse: mean(diffuse), diffuse_tex: tex(diffuse), specular: *specular, shininess: alpha_exp(*alpha), ..w }
             }
-        }
-    }
-}
-
-/// What Whitted's shading reads of a material (see [`Bsdf::whitted_terms`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct WhittedTerms {
-    /// Diffuse colour.
-    pub diffuse: Vec3,
-    /// Diffuse texture.
-    pub diffuse_tex: Option<u32>,
-    /// Highlight colour.
-    pub specular: Vec3,
-    /// Phong exponent.
-    pub shininess: f32,
-    /// Mirror reflectance.
-    pub reflect: Vec3,
-    /// Transmittance.
-    pub transmit: Vec3,
-    /// Index of refraction.
-    pub ior: f32,
-    /// Fresnel-weighted.
-    pub fresnel: bool,
-}
-
-impl Default for WhittedTerms {
-    fn default() -> Self {
-        Self {
-            diffuse: Vec3::ZERO,
-            diffuse_tex: None,
-            specular: Vec3::ZERO,
-            shininess: 32.0,
-            reflect: Vec3::ZERO,
-            transmit: Vec3::ZERO,
-            ior: 1.5,
-            fresnel: false,
         }
     }
 }

@@ -1,7 +1,9 @@
 //! The built-in demo scene (compiled in): a checkered floor texture, a mirror sphere, a
 //! glass sphere, a capped cylinder and cone, a triangle mesh (a torus) and two lights.
 
-use crate::model::{Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene, ShapeKind, Texture, Wrap};
+use crate::model::{Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene, ShapeKind};
+use crate::texture::Texture;
+use crate::texture::Wrap;
 use glam::{Affine3A, Quat, Vec2, Vec3};
 
 /// Builds the demo scene.

@@ -9,41 +9,35 @@
 
 pub mod anim;
 pub mod bsdf;
+mod camera;
 mod demo;
 mod error;
 mod gltf;
 mod mitsuba;
 mod model;
 mod obj;
+mod options;
 mod ply;
 mod sunflowers;
 mod texture;
 
 pub use bsdf::{Alpha, Bsdf, ColorTex, Distribution, FloatTex, NormalMap, Rough, Sides};
+pub use camera::CameraDesc;
 pub use demo::{demo_scene, studio_scene, torus};
 pub use error::ImportError;
 pub use gltf::{load_gltf, load_gltf_with, parse_gltf, parse_gltf_with};
 pub use mitsuba::{load_hdr, load_mitsuba, load_mitsuba_with, parse_mitsuba, parse_mitsuba_with};
 pub use model::*;
 pub use obj::{load_obj, parse_obj, parse_obj_with};
+pub use options::LoadOptions;
 pub use ply::{load_ply, parse_ply};
 pub use sunflowers::{sunflower_mesh, sunflower_scene, FLOWERS};
 pub use texture::{
-    contain_decoder_panics, decode_image, decoder_panic, open_image, srgb_to_linear, texture_from_image, FREE_TEXEL_BYTES, MAX_EXPANSION,
-    MAX_TEXTURE_BYTES, MAX_TEXTURE_SIDE,
+    contain_decoder_panics, decode_image, decoder_panic, open_image, srgb_to_linear, texture_from_image, Texture, Wrap, FREE_TEXEL_BYTES,
+    MAX_EXPANSION, MAX_TEXTURE_BYTES, MAX_TEXTURE_SIDE,
 };
 
 use std::path::Path;
-
-/// How scene files are read.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct LoadOptions {
-    /// Refuse a glTF file that breaks any rule of the specification (what the Khronos
-    /// validator calls an error), naming the JSON pointer. Off: lucent warns about the
-    /// first broken rule and reads what it can (it still refuses what it cannot read
-    /// safely: bad references, sizes, formats, containers).
-    pub strict: bool,
-}
 
 /// Loads a scene file, choosing the importer by extension.
 pub fn load(path: &Path) -> Result<Scene, ImportError> {

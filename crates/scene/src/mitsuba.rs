@@ -25,10 +25,8 @@
 
 use crate::bsdf::{named_conductor, named_ior, Alpha, Bsdf, ColorTex, Distribution, FloatTex, Rough, Sides};
 use crate::error::ImportError;
-use crate::model::{
-    CameraDesc, Environment, Geom, HdrImage, Instance, Light, LightKind, Material, Mesh, RenderHints, Scene, ShapeKind, Wrap,
-};
-use crate::texture::TextureCache;
+use crate::model::{CameraDesc, Environment, Geom, HdrImage, Instance, Light, LightKind, Material, Mesh, RenderHints, Scene, ShapeKind};
+use crate::texture::{TextureCache, Wrap};
 use glam::{Affine2, Affine3A, Mat3, Mat4, Vec2, Vec3};
 use roxmltree::{Document, Node};
 use std::collections::{HashMap, HashSet};
@@ -1142,7 +1140,10 @@ fn cube(mat: u32) -> Mesh {
 pub fn load_hdr(path: &Path) -> Result<HdrImage, String> {
     let img = image::ImageReader::open(path).map_err(|e| e.to_string())?.with_guessed_format().map_err(|e| e.to_string())?;
     let (w, h) = img.into_dimensions().map_err(|e| e.to_string())?;
-    if u64::from(w) * u64::from(h) > crate::MAX_TEXTURE_BYTES / 16 || w > crate::MAX_TEXTURE_SIDE || h > crate::MAX_TEXTURE_SIDE {
+    if u64::from(w) * u64::from(h) > crate::texture::MAX_TEXTURE_BYTES / 16
+        || w > crate::texture::MAX_TEXTURE_SIDE
+        || h > crate::texture::MAX_TEXTURE_SIDE
+    {
         return Err(format!("{w} × {h} is larger than lucent reads"));
     }
     let img = image::ImageReader::open(path).map_err(|e| e.to_string())?.with_guessed_format().map_err(|e| e.to_string())?;
@@ -1151,7 +1152,7 @@ pub fn load_hdr(path: &Path) -> Result<HdrImage, String> {
     let texels: Vec<Vec3> = if linear {
         img.to_rgb32f().pixels().map(|p| Vec3::from(p.0)).collect()
     } else {
-        img.to_rgb8().pixels().map(|p| Vec3::from(p.0.map(|c| crate::srgb_to_linear(f32::from(c) / 255.0)))).collect()
+        img.to_rgb8().pixels().map(|p| Vec3::from(p.0.map(|c| crate::texture::srgb_to_linear(f32::from(c) / 255.0)))).collect()
     };
     Ok(HdrImage { width: img.width(), height: img.height(), texels })
 }

@@ -1,7 +1,9 @@
 //! The scene as plain data: meshes, instances, materials, textures, lights, camera.
 
-use crate::bsdf::{Alpha, Bsdf, NormalMap, Sides};
-use glam::{Affine3A, Vec2, Vec3};
+use crate::bsdf::{phong_to_alpha, Alpha, Bsdf, ColorTex, NormalMap, Sides};
+pub use crate::camera::CameraDesc;
+use crate::texture::Texture;
+use glam::{Affine2, Affine3A, Vec2, Vec3};
 
 /// A per-corner attribute: values, and per-triangle indices into them (`None`: the
 /// triangle's position indices are used).
@@ -182,91 +184,6 @@ impl Default for Material {
     }
 }
 
-/// How texture coordinates outside [0, 1] are treated.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Wrap {
-    /// Tile.
-    #[default]
-    Repeat,
-    /// Clamp to the edge.
-    Clamp,
-    /// Tile, mirrored every other time.
-    Mirror,
-}
-
-/// An RGBA texture: 8-bit codes as the image stored them, decoded to linear values when
-/// sampled (through `lut`, the sRGB curve for colour images).
-///
-/// PERF: four bytes a texel, not four floats: the BART kitchen's textures went from 40 to
-/// 10 MB, and their sampling (random accesses into far-away floors) was a sixth of a frame.
-#[derive(Clone, Debug)]
-pub struct Texture {
-    /// Name or path.
-    pub name: String,
-    /// Width in texels.
-    pub width: u32,
-    /// Height in texels.
-    pub height: u32,
-    /// Texels in 4×4 blocks (one 64-byte cache line each, blocks row by row; see
-    /// [`Texture::texel_at`]): red, green, blue codes (through `lut`) and a linear alpha
-    /// code. PERF: a bilinear lookup's four texels share one line most of the time, where
-    /// rows in order always needed two.
-    texels: Vec<[u8; 4]>,
-    /// Blocks per row.
-    blocks_x: usize,
-    /// Linear value of each colour code.
-    pub lut: [f32; 256],
-    /// Wrap mode in u.
-    pub wrap_u: Wrap,
-    /// Wrap mode in v.
-    pub wrap_v: Wrap,
-}
-
-impl Texture {
-    /// A texture over 8-bit texels; `srgb`: the colour codes are sRGB-encoded (colour
-    /// images), else linear (data such as roughness, or made-up textures).
-    ///
-    /// `texels` are row-major, row 0 at the top; missing ones (fewer than `width ×
-    /// height`) are white.
-    #[must_use]
-    pub fn new(name: String, width: u32, height: u32, texels: Vec<[u8; 4]>, srgb: bool, wrap_u: Wrap, wrap_v: Wrap) -> Self {
-        let mut lut = [0.0f32; 256];
-        for (i, v) in lut.iter_mut().enumerate() {
-            let c = i as f32 / 255.0;
-            *v = if srgb { crate::texture::srgb_to_linear(c) } else { c };
-        }
-        let (w, h) = (width as usize, height as usize);
-        let blocks_x = w.div_ceil(4);
-        let mut tiled = vec![[255u8; 4]; blocks_x * 4 * h.div_ceil(4) * 4];
-        for y in 0..h {
-            for x in 0..w {
-                if let (Some(t), Some(&c)) = (tiled.get_mut(Self::index(blocks_x, x, y)), texels.get(y * w + x)) {
-                    *t = c;
-                }
-            }
-        }
-        Self { name, width, height, texels: tiled, blocks_x, lut, wrap_u, wrap_v }
-    }
-
-    #[inline(always)]
-    fn index(blocks_x: usize, x: usize, y: usize) -> usize {
-        (((y >> 2) * blocks_x + (x >> 2)) << 4) | ((y & 3) << 2) | (x & 3)
-    }
-
-    /// The texel at column `x`, row `y` (row 0 at the top) in linear RGBA; white outside
-    /// the image.
-    #[inline(always)]
-    #[must_use]
-    pub fn texel_at(&self, x: usize, y: usize) -> glam::Vec4 {
-        if x >= self.width as usize || y >= self.height as usize {
-            return glam::Vec4::ONE;
-        }
-        self.texels.get(Self::index(self.blocks_x, x, y)).map_or(glam::Vec4::ONE, |p| {
-            glam::Vec4::new(self.lut[p[0] as usize], self.lut[p[1] as usize], self.lut[p[2] as usize], f32::from(p[3]) / 255.0)
-        })
-    }
-}
-
 /// A light's shape.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LightKind {
@@ -302,36 +219,6 @@ pub struct Light {
     pub color: Vec3,
     /// Intensity falls with the squared distance.
     pub inverse_square: bool,
-}
-
-/// A camera description.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CameraDesc {
-    /// Eye position.
-    pub eye: Vec3,
-    /// Point looked at.
-    pub look_at: Vec3,
-    /// Up hint.
-    pub up: Vec3,
-    /// Vertical field of view in degrees (perspective).
-    pub vfov_deg: f32,
-    /// Orthographic: full height of the view in world units.
-    pub ortho_height: Option<f32>,
-}
-
-impl CameraDesc {
-    /// A perspective camera from the ten numbers `--camera` and the scene README use:
-    /// eye (3), look-at point (3), up vector (3), vertical field of view in degrees.
-    #[must_use]
-    pub fn from_view(c: &[f32; 10]) -> Self {
-        Self {
-            eye: Vec3::new(c[0], c[1], c[2]),
-            look_at: Vec3::new(c[3], c[4], c[5]),
-            up: Vec3::new(c[6], c[7], c[8]),
-            vfov_deg: c[9],
-            ortho_height: None,
-        }
-    }
 }
 
 /// Everything a renderer needs.
@@ -637,5 +524,38 @@ impl Scene {
             }
         }
         merged
+    }
+}
+
+impl Bsdf {
+    /// The BSDF of a material that has only Phong/Whitted terms (built-in and REND3R
+    /// scenes, PLY), by the same reading as MTL: transmission makes a smooth dielectric of
+    /// index `ior` (a thin sheet when `ior` ≤ 1); mirror reflection without a diffuse term
+    /// a smooth conductor of reflectance `reflect`, with one a [`Bsdf::DiffuseGlossy`] of
+    /// reflectance `reflect` and nearly no roughness (α = 10⁻³); otherwise the diffuse
+    /// and specular terms as [`Bsdf::DiffuseGlossy`] with α from the exponent.
+    #[must_use]
+    pub fn from_phong(m: &Material) -> Self {
+        let kd = match m.diffuse_tex {
+            Some(tex) => ColorTex::Image { tex, scale: m.diffuse, to_uv: Affine2::IDENTITY },
+            None => ColorTex::Const(m.diffuse),
+        };
+        if m.transmit.max_element() > 0.0 {
+            return if m.ior > 1.0 {
+                Self::Dielectric { eta: m.ior, reflectance: ColorTex::grey(1.0), transmittance: ColorTex::Const(m.transmit), rough: None }
+            } else {
+                Self::ThinDielectric { eta: 1.5, reflectance: ColorTex::grey(1.0), transmittance: ColorTex::Const(m.transmit) }
+            };
+        }
+        if m.reflect.max_element() > 0.0 {
+            if m.diffuse.max_element() <= 0.0 {
+                return Self::Conductor { eta: Vec3::ZERO, k: Vec3::ONE, specular: ColorTex::Const(m.reflect), rough: None };
+            }
+            return Self::DiffuseGlossy { diffuse: kd, specular: m.reflect, alpha: 1e-3 };
+        }
+        if m.specular.max_element() > 0.0 {
+            return Self::DiffuseGlossy { diffuse: kd, specular: m.specular, alpha: phong_to_alpha(m.shininess) };
+        }
+        Self::Diffuse { reflectance: kd }
     }
 }

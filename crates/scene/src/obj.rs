@@ -5,8 +5,9 @@
 
 use crate::bsdf::{Bsdf, ColorTex, FloatTex};
 use crate::error::ImportError;
-use crate::model::{Attr, Material, Mesh, Scene, Wrap};
+use crate::model::{Attr, Material, Mesh, Scene};
 use crate::texture::TextureCache;
+use crate::texture::Wrap;
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

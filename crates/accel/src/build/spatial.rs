@@ -23,7 +23,7 @@
 //! its children in proportion to their references. What a leaf does not use stays a gap in
 //! [`super::BinaryBvh::prims`].
 
-use super::{block_partition, blocks, Box4, BuildConfig, PrimRef, PARALLEL_BIN_MIN};
+use super::prim::{block_partition, blocks, Box4, BuildConfig, PrimRef, PARALLEL_BIN_MIN};
 use glam::{BVec4A, Vec3, Vec4};
 
 /// Bins per axis of the spatial search.

@@ -1,6 +1,6 @@
 //! AVX2 versions of the hot loops: the same operations in the same order as the
 //! portable ones (so the same answers), one instruction per eight lanes.
-use super::{Interval, Packet, PacketHits, RayBlock, F8, FAR_SCALE, LANES, M8};
+use super::core::{Interval, Packet, PacketHits, RayBlock, F8, FAR_SCALE, LANES, M8};
 use crate::geom::Ray;
 
 /// Up to eight rays into the SoA block `b` (lanes past `rays.len()` get
@@ -50,7 +50,7 @@ pub(super) fn transpose_rays(rays: &[Ray], b: &mut RayBlock) {
     }
     *b = RayBlock { org: [out[0], out[1], out[2]], dir: [out[3], out[4], out[5]], tmin: out[6], tmax: out[7] };
 }
-use super::cyclic;
+use super::core::cyclic;
 use crate::triangle::Tri4;
 use crate::wide::WideNode;
 use std::arch::x86_64::*;
@@ -139,7 +139,7 @@ pub(super) fn interval_test(node: &WideNode<8>, iv: &Interval, tmax: f32, dist: 
 /// `PacketHits::max_t`.
 #[inline]
 #[target_feature(enable = "avx2,fma")]
-pub(super) fn max_t(h: &PacketHits, groups: usize, active: &super::Masks) -> f32 {
+pub(super) fn max_t(h: &PacketHits, groups: usize, active: &super::core::Masks) -> f32 {
     let ninf = _mm256_set1_ps(f32::NEG_INFINITY);
     let mut m = ninf;
     for g in 0..groups {
@@ -253,7 +253,7 @@ fn rotated(t4: &Tri4, v: __m128) -> [__m128; 3] {
 /// test, so no lane that test would hit is dropped.
 #[inline]
 #[target_feature(enable = "avx2,fma")]
-pub(super) fn frustum_keep(t4: &Tri4, org: &[[f32; 4]; 3], c: &super::DirBounds) -> i32 {
+pub(super) fn frustum_keep(t4: &Tri4, org: &[[f32; 4]; 3], c: &super::core::DirBounds) -> i32 {
     // SAFETY: `Tri4` rows and `org` rows are 16-byte aligned / 16-byte `[f32; 4]`s.
     let row = |r: usize| unsafe { _mm_load_ps(t4.m[r].as_ptr()) };
     let o = |k: usize| unsafe { _mm_loadu_ps(org[k].as_ptr()) };

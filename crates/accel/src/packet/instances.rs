@@ -1,7 +1,12 @@
 //! The two-level index's packets: instance leaves (rays carried into each instance,
 //! spheres eight rays at a time) and the entry points.
 
-use super::*;
+use super::core::*;
+use super::leaves::*;
+use super::mesh::*;
+use super::rays::*;
+use super::single::*;
+use super::walk::*;
 
 /// Instance leaves for packets.
 pub(super) struct InstPacketLeaves<'a, K> {
@@ -9,7 +14,7 @@ pub(super) struct InstPacketLeaves<'a, K> {
     k: std::marker::PhantomData<K>,
 }
 
-impl<K: KernelSet> InstPacketLeaves<'_, K> {
+impl<K: SingleRay> InstPacketLeaves<'_, K> {
     /// The lanes `m` against instance `id`, closest hits into `h`.
     #[inline(always)]
     pub(super) fn hit_instance<C: Counters>(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
@@ -161,7 +166,7 @@ pub(super) fn avx2_occludes<C: Counters>(tl: &TwoLevel, id: u32, p: &Packet, m: 
 #[inline(always)]
 pub(super) unsafe fn sphere_group(p: &Packet, g: usize, inst: &crate::tlas::Instance, m: M8, limit: &F8) -> (M8, F8) {
     // SAFETY: the caller guarantees AVX2 and FMA.
-    let (bits, mut t, odd) = unsafe { avx::sphere8(p, g, &inst.object_from_world, limit, m.bits()) };
+    let (bits, mut t, odd) = unsafe { super::avx::sphere8(p, g, &inst.object_from_world, limit, m.bits()) };
     let mut hit = bits & m.bits();
     let mut b = odd & m.bits();
     while b != 0 {
@@ -176,7 +181,7 @@ pub(super) unsafe fn sphere_group(p: &Packet, g: usize, inst: &crate::tlas::Inst
     (M8::from_bits(hit), t)
 }
 
-impl<K: KernelSet> PacketLeaves for InstPacketLeaves<'_, K> {
+impl<K: SingleRay> PacketLeaves for InstPacketLeaves<'_, K> {
     #[inline(always)]
     fn intersect<C: Counters>(&self, first: u32, count: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
         for i in first..first + count {
@@ -203,7 +208,7 @@ impl<K: KernelSet> PacketLeaves for InstPacketLeaves<'_, K> {
 
 impl TwoLevel {
     #[inline(always)]
-    pub(super) fn packet_intersect_k<K: KernelSet, C: Counters>(&self, p: &Packet, h: &mut PacketHits, c: &mut C) {
+    pub(super) fn packet_intersect_k<K: SingleRay, C: Counters>(&self, p: &Packet, h: &mut PacketHits, c: &mut C) {
         let active = p.valid;
         if let Some(mesh) = self.only_mesh() {
             c.enter(Level::Bottom);
@@ -236,7 +241,7 @@ impl TwoLevel {
     }
 
     #[inline(always)]
-    pub(super) fn packet_among_k<K: KernelSet>(&self, ids: &[u32], p: &Packet, h: &mut PacketHits) {
+    pub(super) fn packet_among_k<K: SingleRay>(&self, ids: &[u32], p: &Packet, h: &mut PacketHits) {
         let leaves = InstPacketLeaves::<K> { tl: self, k: std::marker::PhantomData };
         let n = self.instances().len();
         for &i in ids.iter().filter(|&&i| (i as usize) < n).chain(&self.unbounded) {
@@ -245,7 +250,7 @@ impl TwoLevel {
     }
 
     #[inline(always)]
-    pub(super) fn packet_occluded_k<K: KernelSet, C: Counters>(&self, p: &Packet, h: &mut PacketHits, c: &mut C) {
+    pub(super) fn packet_occluded_k<K: SingleRay, C: Counters>(&self, p: &Packet, h: &mut PacketHits, c: &mut C) {
         let active = p.valid;
         if let Some(mesh) = self.only_mesh() {
             c.enter(Level::Bottom);
@@ -402,7 +407,7 @@ impl TwoLevel {
     }
 }
 
-impl<K: KernelSet> InstPacketLeaves<'_, K> {
+impl<K: SingleRay> InstPacketLeaves<'_, K> {
     #[inline(always)]
     pub(super) fn occluded_one<C: Counters>(&self, id: u32, p: &Packet, m: &Masks, h: &mut PacketHits, c: &mut C) {
         let live: Masks = std::array::from_fn(|g| h.t[g].ge(F8::splat(f32::MIN)).and(m[g]));

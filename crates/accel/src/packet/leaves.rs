@@ -1,7 +1,8 @@
 //! Triangle leaves for packets: eight rays against one triangle at a time, with the
 //! single-ray test's arithmetic, and the leaf-level frustum cull for common origins.
 
-use super::*;
+use super::core::*;
+use super::walk::*;
 
 /// The unit-triangle test of one group of rays against lane `lane` of `t4`, exactly as
 /// [`crate::triangle::unit_triangle_hit`] computes it: the hit mask and scaled `T, U, V, |D'z|`.
@@ -23,17 +24,6 @@ pub(super) fn tri_eval(t4: &Tri4, lane: usize, p: &Packet, g: usize, tmax: F8) -
     let z = F8::splat(0.0);
     let ok = uu.ge(z).and(vv.ge(z)).and(uu.add(vv).le(adz)).and(tt.ge(p.tmin[g].mul(adz))).and(tt.lt(tmax.mul(adz)));
     (ok, [tt, uu, vv, adz])
-}
-
-/// Components `k, k+1, k+2` (mod 3) of a [`CYCLIC`] vector, for a map of axis `k` (not a
-/// padding lane's).
-#[inline(always)]
-pub(super) fn cyclic(v: &[F8; CYCLIC], k: usize) -> &[F8; 3] {
-    debug_assert!(k < 3, "a padding lane");
-    // PERF: three consecutive entries from `k` (one address), not indices through
-    // `triangle::ROTATION` (callgrind: 4.7% more instructions for primary packets).
-    let k = k.min(2);
-    v[k..].first_chunk::<3>().expect("k <= 2 leaves three of five entries")
 }
 
 /// Unit-triangle leaves for packets.
@@ -78,13 +68,13 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
             let t4 = unsafe { self.tris.get_unchecked(gi as usize) };
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
-            let org = if K::SIMD { p.common.map(|o| unsafe { avx::origin_terms(t4, &o) }) } else { None };
+            let org = if K::SIMD { p.common.map(|o| unsafe { super::avx::origin_terms(t4, &o) }) } else { None };
             // Triangles that no ray of the packet can hit are dropped for all groups at once.
             #[cfg(target_arch = "x86_64")]
             let keep = match (&org, cull) {
                 (Some(o), Some(c)) => {
                     // SAFETY: as above.
-                    let keep = unsafe { avx::frustum_keep(t4, o, c) };
+                    let keep = unsafe { super::avx::frustum_keep(t4, o, c) };
                     tried += 4;
                     dropped += 4 - keep.count_ones();
                     keep
@@ -109,7 +99,7 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
                 #[cfg(target_arch = "x86_64")]
                 if K::SIMD {
                     // SAFETY: as above.
-                    unsafe { avx::tri4_intersect(t4, p, g, &m[g], h, self.inst, org.as_ref(), keep) };
+                    unsafe { super::avx::tri4_intersect(t4, p, g, &m[g], h, self.inst, org.as_ref(), keep) };
                     continue;
                 }
                 // As the four-lane single-ray test: all lanes against the same limit, then
@@ -167,7 +157,7 @@ impl<K: KernelSet> PacketLeaves for UnitPacketLeaves<'_, K> {
                 #[cfg(target_arch = "x86_64")]
                 if K::SIMD {
                     // SAFETY: as above.
-                    hit = unsafe { avx::tri4_any(t4, p, g, &limit, &m[g]) };
+                    hit = unsafe { super::avx::tri4_any(t4, p, g, &limit, &m[g]) };
                 }
                 if !K::SIMD {
                     for lane in 0..4 {

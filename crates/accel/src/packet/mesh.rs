@@ -1,7 +1,11 @@
 //! Entry points for one mesh: rays in chunks of up to [`MAX_PACKET`], split into coherent
 //! packets, with the AVX2 builds of the kernels.
 
-use super::*;
+use super::core::*;
+use super::leaves::*;
+use super::rays::*;
+use super::single::*;
+use super::walk::*;
 
 /// Runs `body` on every chunk of at most [`MAX_PACKET`] rays, with the packet loaded.
 #[inline(always)]
@@ -206,7 +210,7 @@ impl MeshBvh {
     /// Closest hits of the lanes of `active` (packet traversal when the mesh has 8-wide
     /// unit-triangle nodes and the rays agree on direction signs; else ray by ray).
     #[inline(always)]
-    pub(crate) fn packet_intersect_k<K: KernelSet, C: Counters>(
+    pub(crate) fn packet_intersect_k<K: SingleRay, C: Counters>(
         &self,
         p: &Packet,
         active: &Masks,
@@ -243,7 +247,7 @@ impl MeshBvh {
 
     /// Occlusion of the lanes of `active` (occluded lanes get `t = -inf`).
     #[inline(always)]
-    pub(crate) fn packet_occluded_k<K: KernelSet, C: Counters>(
+    pub(crate) fn packet_occluded_k<K: SingleRay, C: Counters>(
         &self,
         p: &Packet,
         active: &Masks,
@@ -380,7 +384,7 @@ impl Rays<'_> {
             Rays::Aos(rays) => aos_chunks(
                 rays,
                 // SAFETY: the caller guarantees AVX2.
-                |eight, b| unsafe { avx::transpose_rays(eight, b) },
+                |eight, b| unsafe { super::avx::transpose_rays(eight, b) },
                 body,
             ),
             Rays::Soa(b) => block_chunks(b, body),

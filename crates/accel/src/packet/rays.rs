@@ -2,7 +2,7 @@
 //! direction and origin bounds, splitting by direction spread, the interval of the live
 //! rays, and the hit records.
 
-use super::*;
+use super::core::*;
 
 impl Packet {
     /// A packet with no rays, and its hits.
@@ -460,7 +460,7 @@ impl PacketHits {
         #[cfg(target_arch = "x86_64")]
         if K::SIMD {
             // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
-            return unsafe { avx::max_t(self, groups, active) };
+            return unsafe { super::avx::max_t(self, groups, active) };
         }
         let mut m = F8::splat(f32::NEG_INFINITY);
         for g in 0..groups {

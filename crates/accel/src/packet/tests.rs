@@ -1,4 +1,6 @@
-use super::*;
+use super::core::*;
+use super::mesh::*;
+use super::rays::*;
 
 /// The AVX2 transpose puts every ray of a partial or full group where `RayBlock::set`
 /// does, and empties the other lanes.
@@ -19,7 +21,7 @@ fn transposed_rays_match_lane_by_lane_loads() {
             }
             let mut got = RayBlock::EMPTY;
             // SAFETY: AVX2 was detected above.
-            unsafe { avx::transpose_rays(&rays[..n], &mut got) };
+            unsafe { super::avx::transpose_rays(&rays[..n], &mut got) };
             assert_eq!(got, want, "{n} rays");
         }
     }

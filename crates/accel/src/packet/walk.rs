@@ -1,7 +1,7 @@
 //! The packet walk over 8-wide nodes: interval culling of inner nodes, each group's exact
 //! box test at leaves, and the traversal loop shared by closest and any hit.
 
-use super::*;
+use super::core::*;
 
 /// All eight children of `node` against the packet's intervals: the mask of children some
 /// ray may enter before `tmax`, and lower bounds of their entry distances.
@@ -32,7 +32,7 @@ pub(super) fn node_test<K: KernelSet>(node: &WideNode<8>, iv: &Interval, tmax: f
     if K::SIMD {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
-        return unsafe { avx::interval_test(node, iv, tmax, dist) };
+        return unsafe { super::avx::interval_test(node, iv, tmax, dist) };
     }
     interval_test(node, iv, tmax, dist)
 }
@@ -98,7 +98,7 @@ pub(super) fn leaf_masks<K: KernelSet>(
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `K::SIMD` kernels run only where AVX2 and FMA were detected.
             unsafe {
-                avx::group_box(&rows, p, iv, g, &h.t[g])
+                super::avx::group_box(&rows, p, iv, g, &h.t[g])
             }
             #[cfg(not(target_arch = "x86_64"))]
             group_box(&rows, p, iv, g, h.t[g])

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 fn programs() -> PathBuf {
     let d = std::env::var("LUCENT_REND3R")
         .map(PathBuf::from)
-        .unwrap_or_else(|_| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/rend3r/programs"));
+        .unwrap_or_else(|_| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../../shared/rend3r/programs"));
     assert!(d.is_dir(), "REND3R programs not found at {} (set LUCENT_REND3R)", d.display());
     d
 }

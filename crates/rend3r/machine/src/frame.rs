@@ -21,8 +21,7 @@
 
 use crate::processor::{DeviceState, Record};
 use glam::{Affine3A, Quat, Vec3};
-use lucent_accel::MeshOptions;
-use lucent_render::{render, Camera, Film, Integrator, RenderSettings, WhittedSettings, World, WorldError};
+use lucent_render::Camera;
 use lucent_scene::{Attr, Geom, Instance, Light, LightKind, Material, Mesh, Scene, ShapeKind};
 use rend3r_isa::CameraTable;
 
@@ -308,26 +307,6 @@ pub fn scene(state: &DeviceState, sets: SetKind) -> (Scene, usize) {
         }
     }
     (s, skipped)
-}
-
-/// Renders one frame of the state.
-pub fn render_frame(state: &DeviceState, fs: &FrameSettings) -> Result<(Film, FrameInfo), WorldError> {
-    let cam = camera(state, fs.width, fs.height);
-    match fs.mode {
-        Mode::Raytrace => {
-            let (scene, skipped) = scene(state, fs.sets);
-            let info = FrameInfo { shapes: scene.instances.len(), lights: scene.lights.len(), skipped, rays: 0 };
-            let world = World::new(scene, MeshOptions::default())?;
-            let rs = RenderSettings {
-                spp: fs.spp.max(1),
-                integrator: Integrator::Whitted(WhittedSettings { max_depth: 5, shadows: true }),
-                ..RenderSettings::new(fs.width, fs.height)
-            };
-            let (film, rays) = render(&world, &cam, &rs, &|_| {});
-            Ok((film, FrameInfo { rays, ..info }))
-        }
-        Mode::Raster => Ok(crate::raster::rasterize(state, &cam, fs)),
-    }
 }
 
 /// What a frame contained.

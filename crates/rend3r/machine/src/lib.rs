@@ -12,6 +12,8 @@ pub mod cycles;
 pub mod frame;
 mod processor;
 pub mod raster;
+mod render;
 
-pub use frame::{camera, render_frame, rgb565, scene, set_kind_of_source, FrameInfo, FrameSettings, Mode, SetKind};
+pub use frame::{camera, rgb565, scene, set_kind_of_source, FrameInfo, FrameSettings, Mode, SetKind};
 pub use processor::{DeviceState, Processor, Record, Sets, Step, LIGHTS, MAX_SETS};
+pub use render::render_frame;

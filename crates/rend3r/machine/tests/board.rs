@@ -6,7 +6,7 @@ use rend3r_machine::Step;
 use std::path::PathBuf;
 
 fn words(rel: &str, table: CameraTable) -> Vec<u32> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/rend3r/programs").join(rel);
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../../shared/rend3r/programs").join(rel);
     assemble_words(&std::fs::read_to_string(p).expect("read"), AsmOptions { camera_table: table }).expect("asm")
 }
 

@@ -7,7 +7,7 @@ use rend3r_machine::*;
 use std::path::PathBuf;
 
 fn rend3r(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/rend3r").join(rel)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../../shared/rend3r").join(rel)
 }
 
 fn program(src: &str) -> Processor {

@@ -3,9 +3,10 @@
 //! WebSocket: text messages are assembly to run, or JSON status from the server; binary
 //! messages are instruction words from the client, or PNG frames from the server).
 
+use crate::context::{Activity, ConnGuard, Ctx, HELLO_TIMEOUT};
 use crate::device::{In, Out};
+use crate::encode::png;
 use crate::protocol::{ErrorCode, ErrorMessage, Input, Location};
-use crate::server::{png, Activity, ConnGuard, Ctx};
 use std::io::{self, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
@@ -93,7 +94,7 @@ fn read_head(s: &mut TcpStream, act: &Activity) -> io::Result<Option<Request>> {
                 act.touch();
             }
             Err(e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
-                if act.idle() > crate::server::HELLO_TIMEOUT {
+                if act.idle() > HELLO_TIMEOUT {
                     return Ok(None);
                 }
             }

@@ -12,12 +12,15 @@
 #![warn(missing_docs)]
 
 pub mod client;
+mod context;
 pub mod device;
+pub mod encode;
 pub mod http;
 pub mod protocol;
 pub mod server;
 
 pub use client::{Client, Event};
+pub use context::{ServerConfig, HELLO_TIMEOUT};
 pub use device::{DeviceFrame, DeviceLimits};
 pub use protocol::{ErrorMessage, Hello, Input, PixelFormat, WireMode};
-pub use server::{Server, ServerConfig};
+pub use server::Server;

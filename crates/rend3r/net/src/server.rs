@@ -1,169 +1,25 @@
 //! `lucent serve`: the TCP and UDP device endpoints and the HTTP page, one thread per
 //! connection (bounded by `max_connections`), each guarded by its limits and timeouts.
 
-use crate::device::{self, DeviceFrame, DeviceLimits, In, Out};
+use crate::context::{frame_settings, Activity, ConnGuard, Ctx, ServerConfig, HELLO_TIMEOUT};
+use crate::device::{self, In, Out};
+use crate::encode::{chunk_frame, frame_payload};
+use crate::http::handle as handle_http;
 use crate::protocol::{
-    self, Chunk, ErrorCode, ErrorMessage, FrameHeader, Hello, Input, Location, PixelFormat, Welcome, WireMode, CHUNK_HEADER_LEN,
-    HEADER_LEN, HELLO_LEN, MSG_DATA, MSG_DONE, MSG_ERROR, MSG_FRAME, MSG_WELCOME,
+    self, ErrorCode, ErrorMessage, Hello, Input, Location, Welcome, HEADER_LEN, HELLO_LEN, MSG_DATA, MSG_DONE, MSG_ERROR, MSG_FRAME,
+    MSG_WELCOME,
 };
 use crossbeam_channel::Sender;
-use rend3r_machine::{FrameSettings, Mode, SetKind};
+use rend3r_machine::Mode;
 use std::collections::HashMap;
 use std::io::{self, Read};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream, UdpSocket};
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// How long a new connection may take to send its hello.
-pub const HELLO_TIMEOUT: Duration = Duration::from_secs(10);
 /// How often blocked reads wake up to check timeouts.
 const POLL: Duration = Duration::from_millis(250);
-
-/// Everything `lucent serve` can be told.
-#[derive(Clone, Debug)]
-pub struct ServerConfig {
-    /// TCP address of the device protocol.
-    pub listen: SocketAddr,
-    /// UDP address (fire-and-forget batches), if any.
-    pub udp: Option<SocketAddr>,
-    /// HTTP address of the page and its WebSocket, if any.
-    pub http: Option<SocketAddr>,
-    /// Default frame size.
-    pub width: u32,
-    /// Default frame height.
-    pub height: u32,
-    /// Default mode.
-    pub mode: Mode,
-    /// One device for every client, all receiving its frames.
-    pub shared: bool,
-    /// Largest message payload (bytes).
-    pub max_message: u32,
-    /// Largest frame (pixels).
-    pub max_frame_pixels: u64,
-    /// Most simultaneous connections (TCP + HTTP) and UDP sessions.
-    pub max_connections: usize,
-    /// Close a connection with no traffic either way for this long.
-    pub idle_timeout: Duration,
-    /// Close a connection that does not take a frame within this long.
-    pub write_timeout: Duration,
-    /// Payload bytes of a UDP frame chunk.
-    pub udp_chunk: usize,
-    /// Per-device limits.
-    pub device: DeviceLimits,
-    /// Folder of example `.rdr` programs listed on the page.
-    pub examples: Option<PathBuf>,
-}
-
-impl Default for ServerConfig {
-    fn default() -> Self {
-        Self {
-            listen: SocketAddr::from(([127, 0, 0, 1], 7878)),
-            udp: None,
-            http: None,
-            width: 512,
-            height: 384,
-            mode: Mode::Raytrace,
-            shared: false,
-            max_message: 1 << 20,
-            max_frame_pixels: 4096 * 4096,
-            max_connections: 256,
-            idle_timeout: Duration::from_secs(300),
-            write_timeout: Duration::from_secs(10),
-            udp_chunk: 1200,
-            device: DeviceLimits::default(),
-            examples: None,
-        }
-    }
-}
-
-/// Shared server state.
-pub(crate) struct Ctx {
-    pub(crate) cfg: ServerConfig,
-    conns: AtomicUsize,
-    next_id: AtomicU64,
-    shared: Option<Sender<In>>,
-    stop: AtomicBool,
-    epoch: Instant,
-    /// Words accepted by all devices (for `lucent bench net`).
-    pub(crate) words_in: AtomicU64,
-}
-
-/// Decrements the connection count when a connection ends.
-pub(crate) struct ConnGuard(Arc<Ctx>);
-
-impl Drop for ConnGuard {
-    fn drop(&mut self) {
-        self.0.conns.fetch_sub(1, Ordering::SeqCst);
-    }
-}
-
-impl Ctx {
-    pub(crate) fn admit(self: &Arc<Self>) -> Option<ConnGuard> {
-        let n = self.conns.fetch_add(1, Ordering::SeqCst);
-        if n >= self.cfg.max_connections {
-            self.conns.fetch_sub(1, Ordering::SeqCst);
-            return None;
-        }
-        Some(ConnGuard(Arc::clone(self)))
-    }
-    pub(crate) fn id(&self) -> u64 {
-        self.next_id.fetch_add(1, Ordering::Relaxed)
-    }
-    fn now_ms(&self) -> u64 {
-        u64::try_from(self.epoch.elapsed().as_millis()).unwrap_or(u64::MAX)
-    }
-    /// A device for a new client: the shared one, or a new one of its own.
-    pub(crate) fn device(&self, fs: FrameSettings, id: u64) -> io::Result<Sender<In>> {
-        match &self.shared {
-            Some(d) => Ok(d.clone()),
-            None => device::spawn(fs, self.cfg.device, format!("device-{id}")),
-        }
-    }
-    pub(crate) fn frame_settings(&self, width: u32, height: u32, mode: Mode) -> FrameSettings {
-        frame_settings(width, height, mode)
-    }
-    /// Resolves a requested frame size and mode against the defaults and limits.
-    pub(crate) fn resolve(&self, w: u16, h: u16, mode: WireMode) -> Result<(u32, u32, Mode), String> {
-        if self.shared.is_some() {
-            return Ok((self.cfg.width, self.cfg.height, self.cfg.mode));
-        }
-        let w = if w == 0 { self.cfg.width } else { u32::from(w) };
-        let h = if h == 0 { self.cfg.height } else { u32::from(h) };
-        if u64::from(w) * u64::from(h) > self.cfg.max_frame_pixels {
-            return Err(format!("a {w}x{h} frame is over this server's limit of {} pixels (--max-frame)", self.cfg.max_frame_pixels));
-        }
-        let mode = match mode {
-            WireMode::Default => self.cfg.mode,
-            WireMode::Raytrace => Mode::Raytrace,
-            WireMode::Raster => Mode::Raster,
-        };
-        Ok((w, h, mode))
-    }
-}
-
-/// Frame settings of a device: `lucent run`'s (words read as shapes when ray tracing, as
-/// triangles when rasterizing; one sample; z-buffer).
-fn frame_settings(width: u32, height: u32, mode: Mode) -> FrameSettings {
-    FrameSettings { width, height, mode, sets: SetKind::for_mode(mode), painter: false, spp: 1 }
-}
-
-/// Time of the last traffic on a connection, either way.
-#[derive(Clone)]
-pub(crate) struct Activity(Arc<AtomicU64>, Arc<Ctx>);
-
-impl Activity {
-    pub(crate) fn new(ctx: &Arc<Ctx>) -> Self {
-        Self(Arc::new(AtomicU64::new(ctx.now_ms())), Arc::clone(ctx))
-    }
-    pub(crate) fn touch(&self) {
-        self.0.store(self.1.now_ms(), Ordering::Relaxed);
-    }
-    pub(crate) fn idle(&self) -> Duration {
-        Duration::from_millis(self.1.now_ms().saturating_sub(self.0.load(Ordering::Relaxed)))
-    }
-}
 
 /// A running server.
 pub struct Server {
@@ -209,7 +65,7 @@ impl Server {
         }
         if let Some(h) = http {
             let c = Arc::clone(&ctx);
-            threads.push(std::thread::Builder::new().name("http-accept".into()).spawn(move || accept_loop(&c, &h, crate::http::handle))?);
+            threads.push(std::thread::Builder::new().name("http-accept".into()).spawn(move || accept_loop(&c, &h, handle_http))?);
         }
         Ok(Self { ctx, tcp_addr, udp_addr, http_addr, threads })
     }
@@ -295,54 +151,6 @@ pub(crate) fn read_full(s: &mut impl Read, buf: &mut [u8], act: &Activity, alive
         }
     }
     Ok(true)
-}
-
-/// A frame in the client's pixel format.
-#[must_use]
-pub fn encode_pixels(f: &DeviceFrame, format: PixelFormat) -> Vec<u8> {
-    match format {
-        PixelFormat::Rgb8 => f.rgb8.clone(),
-        PixelFormat::Rgb565 => f
-            .rgb8
-            .chunks_exact(3)
-            .flat_map(|p| (u16::from(p[0] >> 3) << 11 | u16::from(p[1] >> 2) << 5 | u16::from(p[2] >> 3)).to_be_bytes())
-            .collect(),
-        PixelFormat::Png => png(f),
-    }
-}
-
-/// PNG bytes of a frame.
-#[must_use]
-pub fn png(f: &DeviceFrame) -> Vec<u8> {
-    use image::ImageEncoder;
-    let mut out = Vec::new();
-    let enc = image::codecs::png::PngEncoder::new_with_quality(
-        &mut out,
-        image::codecs::png::CompressionType::Fast,
-        image::codecs::png::FilterType::Sub,
-    );
-    // Writing into a Vec fails only on a size mismatch, which `Frame` rules out.
-    if let Err(e) = enc.write_image(&f.rgb8, f.width, f.height, image::ExtendedColorType::Rgb8) {
-        tracing::error!("PNG encoding failed: {e}");
-    }
-    out
-}
-
-/// FRAME message payload.
-#[must_use]
-pub fn frame_payload(f: &DeviceFrame, format: PixelFormat) -> Vec<u8> {
-    let h = FrameHeader {
-        number: f.number,
-        width: u16::try_from(f.width).unwrap_or(u16::MAX),
-        height: u16::try_from(f.height).unwrap_or(u16::MAX),
-        format: format as u8,
-        render_us: f.render_us,
-        shapes: f.shapes,
-        lights: f.lights,
-    };
-    let mut b = h.encode().to_vec();
-    b.extend_from_slice(&encode_pixels(f, format));
-    b
 }
 
 fn fatal(s: &mut TcpStream, code: ErrorCode, message: String) {
@@ -562,29 +370,4 @@ fn new_udp_session(ctx: &Arc<Ctx>, sock: &UdpSocket, peer: SocketAddr) -> Result
         })
         .map_err(|e| (ErrorCode::Render, e.to_string()))?;
     Ok(UdpSession { dev, id, last: Instant::now(), _guard: guard })
-}
-
-/// A frame as PNG, cut into FRAME_CHUNK datagrams of at most `chunk` payload bytes.
-#[must_use]
-pub fn chunk_frame(f: &DeviceFrame, chunk: usize) -> Vec<Vec<u8>> {
-    let png = png(f);
-    let parts: Vec<&[u8]> = png.chunks(chunk.max(1)).collect();
-    let count = u16::try_from(parts.len()).unwrap_or(u16::MAX);
-    parts
-        .iter()
-        .take(usize::from(count))
-        .enumerate()
-        .map(|(i, p)| {
-            let c = Chunk {
-                frame: f.number,
-                index: u16::try_from(i).unwrap_or(u16::MAX),
-                count,
-                total: u32::try_from(png.len()).unwrap_or(u32::MAX),
-            };
-            let mut d = Vec::with_capacity(CHUNK_HEADER_LEN + p.len());
-            d.extend_from_slice(&c.encode());
-            d.extend_from_slice(p);
-            d
-        })
-        .collect()
 }

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 fn rend3r(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/rend3r/programs").join(rel)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../../shared/rend3r/programs").join(rel)
 }
 
 fn loopback() -> SocketAddr {

@@ -10,16 +10,19 @@
 //! malformed is an error naming the JSON pointer.
 
 mod json;
+mod pointer;
 mod rules;
 mod schema;
 
 use crate::anim::{Channel, Interp, Morph, Node, SceneAnimation, Skin, Target};
 use crate::bsdf::{Bsdf, ColorTex, FloatTex};
 use crate::error::ImportError;
-use crate::model::{Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene, Wrap};
+use crate::model::{Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene};
 use crate::texture::texture_from_image;
+use crate::texture::Wrap;
 use glam::{Affine2, Affine3A, Mat4, Quat, Vec2, Vec3};
-use json::{ptr, Doc, R};
+use json::{Doc, R};
+use pointer::ptr;
 use serde_json::Value;
 use std::path::Path;
 

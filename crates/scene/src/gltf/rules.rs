@@ -9,7 +9,8 @@
 //! data itself (declared bounds against the values, unit normals, weights) are in
 //! [`Doc::check_data`].
 
-use super::json::{as_uint, esc, known_layout, ptr, Doc, R};
+use super::json::{Doc, R};
+use super::pointer::{as_uint, esc, known_layout, ptr, UNIT_TOLERANCE};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 
@@ -617,9 +618,6 @@ impl Doc<'_> {
         Ok(())
     }
 }
-
-/// How far from 1 a unit vector's or quaternion's length may be (the validator's bound).
-pub(super) const UNIT_TOLERANCE: f32 = 5e-4;
 
 impl Doc<'_> {
     /// Whether accessor `i` has stored values of a known layout to check: one without a

@@ -465,7 +465,7 @@ impl Checker {
     fn extensions(&self, e: &Value, kind: &str, at: &str) -> Res {
         let Some(e) = e.as_object() else { return fail(at, format!("must be an object, is {}", kind_name(e))) };
         for (name, x) in e {
-            let here = format!("{at}/{}", super::json::esc(name));
+            let here = format!("{at}/{}", super::pointer::esc(name));
             if !x.is_object() {
                 return fail(&here, format!("an extension must be an object, is {}", kind_name(x)));
             }
@@ -580,7 +580,7 @@ impl Checker {
                 if o.len() < min {
                     return fail(&at, "must not be empty".into());
                 }
-                o.iter().try_for_each(|(k, x)| self.value(x, item, format!("{at}/{}", super::json::esc(k))))
+                o.iter().try_for_each(|(k, x)| self.value(x, item, format!("{at}/{}", super::pointer::esc(k))))
             }
             T::Obj(s) => self.object(v, s, at),
             T::Ior => match v.as_f64() {
@@ -649,7 +649,7 @@ impl Checker {
                 }
                 if let Some(Value::Array(q)) = o.get("rotation") {
                     let n2: f64 = q.iter().filter_map(Value::as_f64).map(|x| x * x).sum();
-                    if (n2.sqrt() - 1.0).abs() > f64::from(super::rules::UNIT_TOLERANCE) {
+                    if (n2.sqrt() - 1.0).abs() > f64::from(super::pointer::UNIT_TOLERANCE) {
                         return fail(
                             &format!("{at}/rotation"),
                             format!("the rotation quaternion has length {:.6}; it must be normalized", n2.sqrt()),
