@@ -9,7 +9,7 @@
 //!   test ([`triangle`]) or the watertight test.
 //! - [`Shape`]: analytic primitives in canonical space.
 //! - [`TwoLevel`]: the top-level BVH over [`Instance`]s of [`Geometry`].
-//! - [`reference`]: brute-force kernels every fast one is checked against.
+//! - [`mod@reference`]: brute-force kernels every fast one is checked against.
 //!
 //! Every query comes in two forms: `intersect` (closest [`Hit`]) and `occluded` (any hit).
 //!
@@ -22,7 +22,7 @@
 //! let hit = bvh.intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z)).unwrap();
 //! assert_eq!(hit.t, 1.0);
 //! ```
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod build;
 pub mod closed;

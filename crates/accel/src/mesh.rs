@@ -66,7 +66,7 @@ pub enum Quality {
     Sah,
     /// Binned SAH with spatial splits (Stich, Friedrich & Dietrich 2009; see
     /// `build::spatial`): a triangle may be cut between leaves, each part with its own
-    /// box, for at most [`SPATIAL_SHARE`] more references. It pays where large triangles
+    /// box, for at most `SPATIAL_SHARE` more references. It pays where large triangles
     /// overlap many small ones, and costs elsewhere. Measured on the shared scenes' single
     /// rays against `Sah` (1 thread): Sponza's primary rays 1.21×, diffuse 1.25×; the
     /// kitchen's shadow rays 0.56×; Conference and the museum 0.84–0.97×; the bunny

@@ -109,6 +109,21 @@ pub struct TwoLevel {
 
 impl TwoLevel {
     /// Builds the top level over `instances` of `geometries`.
+    ///
+    /// # Example
+    /// Two instances of one triangle and a unit sphere: a ray meets the nearest.
+    /// ```
+    /// use glam::{Affine3A, Vec3};
+    /// use lucent_accel::{Geometry, Instance, MeshBvh, MeshOptions, Ray, Shape, TwoLevel};
+    /// let tri = MeshBvh::build(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[[0, 1, 2]], MeshOptions::default()).unwrap();
+    /// let geoms = vec![Geometry::Mesh(tri), Geometry::Shape(Shape::Sphere)];
+    /// let at = |z: f32| Affine3A::from_translation(Vec3::new(0.0, 0.0, z));
+    /// let scene = TwoLevel::new(geoms, vec![Instance::new(0, at(-2.0)), Instance::new(0, at(-5.0)), Instance::new(1, at(-10.0))]).unwrap();
+    /// let down = Ray::new(Vec3::new(0.25, 0.25, 0.0), -Vec3::Z);
+    /// let hit = scene.intersect(&down).expect("a hit");
+    /// assert_eq!((hit.inst, hit.t), (0, 2.0));
+    /// assert!(scene.occluded(&down));
+    /// ```
     pub fn new(geometries: Vec<Geometry>, instances: Vec<Instance>) -> Result<Self, BuildError> {
         let mut s = Self {
             geometries,

@@ -35,7 +35,7 @@ pub struct RayPre {
     /// kernels' broadcasts spanned two stores, which defeats store forwarding (a stall in
     /// every ray).
     pub inv: Vec3A,
-    /// `inv` scaled up by [`FAR_SCALE`]: the far planes' factor.
+    /// `inv` scaled up by `FAR_SCALE`: the far planes' factor.
     pub inv_far: Vec3A,
     /// The near planes' constant term: `−org·inv` moved down by 2^-22 of itself, so that
     /// `b·inv + onear` (one FMA) is a plane's entry distance, widened by more than the

@@ -125,7 +125,7 @@ pub unsafe fn node_at<const W: usize>(nodes: &[WideNode<W>], code: u32) -> &Wide
 
 /// Collapses a binary BVH into `W`-wide nodes (root at index 0, code 0), choosing which
 /// binary nodes become wide nodes so that the wide tree's SAH cost is least (see
-/// [`WideCosts`]); a leaf costs its blocks of `leaf_block` items. `make_leaf(first, count)`
+/// `WideCosts`); a leaf costs its blocks of `leaf_block` items. `make_leaf(first, count)`
 /// receives each binary leaf's primitive range and returns its leaf code; `too_many()` is
 /// the error when the tree needs more than [`WideNode::MAX_NODES`] nodes.
 pub fn collapse<const W: usize, E>(

@@ -366,6 +366,8 @@ struct Crate {
     mods: BTreeMap<String, PathBuf>,
     /// Per module: name -> the absolute path (segments) it re-exports.
     exports: BTreeMap<String, BTreeMap<String, Vec<String>>>,
+    /// The modules that are a folder's face (`lib.rs`, `main.rs`, `mod.rs`).
+    faces: BTreeSet<String>,
 }
 
 impl Crate {
@@ -405,7 +407,9 @@ impl Crate {
     fn defining(&self, full: &[String], depth: u32) -> Option<String> {
         let n = (0..=full.len()).rev().find(|&n| self.mods.contains_key(&full[..n].join("::")))?;
         let m = full[..n].join("::");
-        if depth < 8 {
+        // (Through the re-exports of a folder's face, `lib.rs` or `mod.rs`, only: a file that
+        // hands on another's item is imported when used for it.)
+        if depth < 8 && self.faces.contains(&m) {
             if let Some(next) = full.get(n).and_then(|name| self.exports.get(&m)?.get(name)) {
                 let mut target = next.clone();
                 target.extend(full[n + 1..].iter().cloned());
@@ -427,7 +431,8 @@ fn graph(src: &Path) -> BTreeMap<String, BTreeSet<String>> {
     let mods = modules(src);
     let codes: BTreeMap<String, String> =
         mods.iter().map(|(m, f)| (m.clone(), code_of(&std::fs::read_to_string(f).expect("source")))).collect();
-    let mut krate = Crate { mods, exports: BTreeMap::new() };
+    let faces = mods.iter().filter(|(_, f)| f.file_name().is_some_and(|n| n == "lib.rs" || n == "main.rs" || n == "mod.rs")).map(|(m, _)| m.clone()).collect();
+    let mut krate = Crate { mods, exports: BTreeMap::new(), faces };
     for (m, code) in &codes {
         let mut ex = BTreeMap::new();
         for (public, tree) in uses(code) {
@@ -642,7 +647,7 @@ fn the_checker_reads_paths_as_rust_does() {
     }
     let mut exports = BTreeMap::new();
     exports.insert(String::new(), [("World".to_string(), vec!["c".to_string(), "World".to_string()])].into_iter().collect());
-    let k = Crate { mods, exports };
+    let k = Crate { mods, exports, faces: [String::new()].into_iter().collect() };
     assert_eq!(k.resolve("a::b", "super::Thing").as_deref(), Some("a"));
     assert_eq!(k.resolve("a::b", "crate::c::X").as_deref(), Some("c"));
     assert_eq!(k.resolve("a", "self::b::Y").as_deref(), Some("a::b"));

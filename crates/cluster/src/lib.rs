@@ -6,13 +6,15 @@
 //!
 //! The same master and worker run over two transports: threads of one process
 //! ([`link::Hub::attach_local`], used for rank 0's own share of the work and by the tests)
-//! and, with the `mpi` feature, the ranks of an `mpirun` ([`mpi`]; replicated data, as
+//! and, with the `mpi` feature, the ranks of an `mpirun` (`mpi`; replicated data, as
 //! OSPRay's `mpi_offload` device: every rank loads the same scene).
 //!
 //! Faults end a run, never hang it: every worker sends a heartbeat four times a second
 //! while it loads, renders or idles; a rank silent for longer than the timeout, a rank
 //! whose render failed, and a termination request (mpirun's SIGTERM when a rank died) end
 //! the run with a [`ClusterError`] that names the rank and the regions it held.
+
+#![deny(missing_docs)]
 
 mod error;
 pub mod link;

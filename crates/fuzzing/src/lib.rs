@@ -9,7 +9,7 @@
 //!
 //! Bounds the campaign enforces (libFuzzer's `-rss_limit_mb` / `-malloc_limit_mb`, and
 //! `-timeout`): [`MALLOC_LIMIT_MB`] per allocation and in all, [`TIMEOUT_S`] per input.
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 use std::io::{self, Read, Write};
 use std::path::{Path, PathBuf};

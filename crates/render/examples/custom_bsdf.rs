@@ -25,15 +25,18 @@ struct OrenNayar {
     b: f32,
 }
 
+// The same shape as a built-in BSDF's file (`crates/render/src/bsdf/diffuse.rs`): the
+// struct, its `eval`, `pdf` and `sample` in the local shading frame (z along the normal,
+// `wo` toward the viewer, `wi` toward the light, `eval` with the cosine), and its
+// closed-form tests; the seam (`BsdfModel`) only hands them on.
 impl OrenNayar {
     fn new(albedo: Vec3, sigma: f32) -> Self {
         let s2 = sigma * sigma;
         Self { albedo, a: 1.0 - s2 / (2.0 * (s2 + 0.33)), b: 0.45 * s2 / (s2 + 0.09) }
     }
-}
 
-impl BsdfModel for OrenNayar {
-    fn eval(&self, wo: Vec3, wi: Vec3, _uv: Vec2) -> Vec3 {
+    /// f(wo, wi)·cos θi.
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return Vec3::ZERO;
         }
@@ -45,7 +48,8 @@ impl BsdfModel for OrenNayar {
         self.albedo * (FRAC_1_PI * (self.a + self.b * cos_dphi * sin_a * tan_b) * wi.z)
     }
 
-    fn pdf(&self, wo: Vec3, wi: Vec3, _uv: Vec2) -> f32 {
+    /// The density of [`OrenNayar::sample`]: the cosine.
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z > 0.0 && wi.z > 0.0 {
             wi.z * FRAC_1_PI
         } else {
@@ -53,10 +57,25 @@ impl BsdfModel for OrenNayar {
         }
     }
 
-    fn sample(&self, wo: Vec3, uv: Vec2, _u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
-        let wi = lucent_render::bsdf::cosine_hemisphere(u2);
-        let pdf = self.pdf(wo, wi, uv);
-        (pdf > 0.0).then(|| BsdfSample { wi, weight: self.eval(wo, wi, uv) / pdf, pdf, delta: false, eta: 1.0 })
+    /// A cosine-distributed direction for `u2`, weighed by eval / pdf.
+    fn sample(&self, wo: Vec3, u2: (f32, f32)) -> Option<BsdfSample> {
+        let wi = lucent_render::sampling::cosine_hemisphere(u2);
+        let pdf = self.pdf(wo, wi);
+        (pdf > 0.0).then(|| BsdfSample { wi, weight: self.eval(wo, wi) / pdf, pdf, delta: false, eta: 1.0 })
+    }
+}
+
+impl BsdfModel for OrenNayar {
+    fn eval(&self, wo: Vec3, wi: Vec3, _uv: Vec2) -> Vec3 {
+        OrenNayar::eval(self, wo, wi)
+    }
+
+    fn pdf(&self, wo: Vec3, wi: Vec3, _uv: Vec2) -> f32 {
+        OrenNayar::pdf(self, wo, wi)
+    }
+
+    fn sample(&self, wo: Vec3, _uv: Vec2, _u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
+        OrenNayar::sample(self, wo, u2)
     }
 }
 
@@ -100,4 +119,40 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mean = film.pixels.iter().copied().sum::<Vec3>() / film.pixels.len() as f32;
     println!("wrote {out} ({w}x{h}, 32 spp): mean radiance {mean:.3}");
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Smooth (σ = 0), Oren-Nayar is Lambert's law: A = 1, B = 0.
+    #[test]
+    fn without_roughness_it_is_lambertian() {
+        let b = OrenNayar::new(Vec3::new(0.5, 0.6, 0.7), 0.0);
+        let (wo, wi) = (Vec3::new(0.6, 0.0, 0.8), Vec3::new(0.0, 0.28, 0.96));
+        assert!((b.eval(wo, wi) - b.albedo * (wi.z * FRAC_1_PI)).abs().max_element() < 1e-7);
+    }
+
+    /// Rough, it still loses energy, never gains it: the albedo by sampling (weights over
+    /// a stratified grid) is below the albedo's own, and above Lambert's at grazing light
+    /// and view (its retro-reflection), as Oren and Nayar's figure 11 shows.
+    #[test]
+    fn rough_it_conserves_energy() {
+        let b = OrenNayar::new(Vec3::ONE, 0.5);
+        for cos in [0.2f32, 0.7, 1.0] {
+            let wo = Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos);
+            let n = 128;
+            let mut albedo = 0.0;
+            for i in 0..n {
+                for j in 0..n {
+                    let u = ((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                    if let Some(s) = b.sample(wo, u) {
+                        assert!((s.pdf - b.pdf(wo, s.wi)).abs() < 1e-5);
+                        albedo += s.weight.x / (n * n) as f32;
+                    }
+                }
+            }
+            assert!(albedo > 0.7 && albedo <= 1.0, "cos {cos}: albedo {albedo}");
+        }
+    }
 }

@@ -79,7 +79,7 @@ impl Candidates {
 /// Which pixels' primary rays may meet an instance, as one 64-bit mask per 8×8 block (bit
 /// `8·row + column` within the block), and which instances those can be, per block (when
 /// there are few).
-/// It covers the whole image, or one band of rows ([`CoverageBands::band`]).
+/// It covers the whole image, or one band of rows (`CoverageBands::band`).
 #[derive(Clone, Debug)]
 pub struct Coverage {
     /// The first block row held (0 for the whole image).
@@ -136,7 +136,7 @@ impl Coverage {
     }
 
     /// [`Coverage::of`] for rays through pixel centres only (one sample per pixel, not
-    /// jittered): a pixel is covered when a region comes within [`MARGIN`] of its centre,
+    /// jittered): a pixel is covered when a region comes within `MARGIN` of its centre,
     /// rather than of its square, so the rim of pixels whose rays only graze a region's
     /// box goes (a quarter of the traced pixels of REND3R's 256 spheres). Boxes still cover
     /// whole squares.
@@ -175,7 +175,7 @@ impl Coverage {
     }
 
     /// The instances that block (`bx`, `by`)'s covered pixels may meet, when there are at
-    /// most [`MAX_CANDIDATES`] (in the order they were found); `None` when there are more
+    /// most `MAX_CANDIDATES` (in the order they were found); `None` when there are more
     /// (or outside the image or the band). A ray of a covered pixel meets nothing else, so
     /// its closest hit is the closest among these.
     #[must_use]

@@ -11,7 +11,7 @@
 //! albedo (and its own emission kept apart), filtered, and multiplied back, so textures
 //! stay sharp ([`crate::film::Aovs`] gives albedo, normal, distance and emission). Pixels
 //! that see no surface or an emitter pass through. Surfaces darker than
-//! [`crate::integrator::vpl::FILTER_ALBEDO_MIN`] (black glossy plastic, dark metal: their
+//! [`crate::aov::FILTER_ALBEDO_MIN`] (black glossy plastic, dark metal: their
 //! light is not proportional to their albedo) are filtered in radiance, among themselves
 //! only (they were passed through until stop 47: on the BART kitchen, a third of the
 //! pixels, and most of the denoised error).
@@ -34,7 +34,7 @@
 //! every stage is written on eight-pixel lanes ([`F8`]) compiled twice, for the baseline
 //! CPU and with AVX2 and FMA, which give the same answers (tested). A pass computes each
 //! pair's weight once (the weight is symmetric: twelve forward taps per pixel, read back
-//! for the twelve backward ones), and `exp` is a polynomial ([`exp_neg`]). The first
+//! for the twelve backward ones), and `exp` is a polynomial (`exp_neg`). The first
 //! version, pixel by pixel with `Vec3`s and the library's `exp`, is kept as the reference
 //! the tests compare with (`denoise/reference.rs`): on 2 threads at 512 × 384 it took
 //! 560-910 ms (Cornell box, Sponza, kitchen at 4 samples), of which 130-190 ms spreading

@@ -10,7 +10,7 @@
 //! 1. the floor: [`color`], [`sampling`], [`sampler`], `lanes`, [`aov`], [`texture`],
 //!    [`camera`];
 //! 2. the scene as rendered: [`bsdf`], [`lights`], [`materials`], [`world`], `coverage`,
-//!    [`film`], [`denoise`];
+//!    [`film`], [`mod@denoise`];
 //! 3. the tile loop, [`tiles`];
 //! 4. the [`integrator`]s;
 //! 5. the driver: [`render()`], [`render_region`], [`progressive`].

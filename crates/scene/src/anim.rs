@@ -4,7 +4,7 @@
 //! [`SceneAnimation`] evaluates the scene at any time into a [`Pose`]: world transforms of
 //! the instances, the camera, light positions and morphed vertex positions.
 
-use crate::model::CameraDesc;
+use crate::camera::CameraDesc;
 use glam::{Affine3A, Mat4, Quat, Vec3};
 
 /// How a sampler interpolates between keys.

@@ -1,7 +1,8 @@
 //! The built-in demo scene (compiled in): a checkered floor texture, a mirror sphere, a
 //! glass sphere, a capped cylinder and cone, a triangle mesh (a torus) and two lights.
 
-use crate::model::{Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene, ShapeKind};
+use crate::camera::CameraDesc;
+use crate::model::{Attr, Geom, Instance, Light, LightKind, Material, Mesh, Scene, ShapeKind};
 use crate::texture::Texture;
 use crate::texture::Wrap;
 use glam::{Affine3A, Quat, Vec2, Vec3};

@@ -5,7 +5,7 @@
 //! (`.gltf` + `.bin`, `.glb`) and Mitsuba 3 XML scenes. Every error names the file and the
 //! line (and column) or glTF path.
 //! Missing textures give a warning and the plain colour.
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod anim;
 pub mod bsdf;

@@ -24,8 +24,9 @@
 //! lucent's box filter).
 
 use crate::bsdf::{named_conductor, named_ior, Alpha, Bsdf, ColorTex, Distribution, FloatTex, Rough, Sides};
+use crate::camera::CameraDesc;
 use crate::error::ImportError;
-use crate::model::{CameraDesc, Environment, Geom, HdrImage, Instance, Light, LightKind, Material, Mesh, RenderHints, Scene, ShapeKind};
+use crate::model::{Environment, Geom, HdrImage, Instance, Light, LightKind, Material, Mesh, RenderHints, Scene, ShapeKind};
 use crate::texture::{TextureCache, Wrap};
 use glam::{Affine2, Affine3A, Mat3, Mat4, Vec2, Vec3};
 use roxmltree::{Document, Node};

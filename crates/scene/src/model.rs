@@ -1,7 +1,7 @@
 //! The scene as plain data: meshes, instances, materials, textures, lights, camera.
 
 use crate::bsdf::{phong_to_alpha, Alpha, Bsdf, ColorTex, NormalMap, Sides};
-pub use crate::camera::CameraDesc;
+use crate::camera::CameraDesc;
 use crate::texture::Texture;
 use glam::{Affine2, Affine3A, Vec2, Vec3};
 

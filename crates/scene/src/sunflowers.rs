@@ -8,7 +8,8 @@
 //! `i` at radius `c·√i` and angle `i·137.508°`.
 
 use crate::anim::{Channel, Interp, Node, SceneAnimation, Target};
-use crate::model::{CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene};
+use crate::camera::CameraDesc;
+use crate::model::{Geom, Instance, Light, LightKind, Material, Mesh, Scene};
 use glam::{Affine3A, Quat, Vec3};
 use std::sync::Arc;
 

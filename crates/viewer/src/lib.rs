@@ -9,7 +9,7 @@
 //! This is the only crate with display dependencies (winit + softbuffer, X11 loaded at
 //! run time), so nothing else in lucent needs a display. [`control`] holds the logic that
 //! is tested without a window.
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 mod app;
 pub mod control;

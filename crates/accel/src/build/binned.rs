@@ -1,7 +1,7 @@
 //! Binned SAH construction (Wald, "On fast Construction of SAH-based Bounding Volume
 //! Hierarchies", RT 2007): primitive centroids are binned along each axis, the surface area
 //! heuristic is evaluated at every bin boundary, and primitives are partitioned in place;
-//! spatial splits where they pay ([`super::spatial`]).
+//! spatial splits where they pay (`super::spatial`).
 
 use super::prim::*;
 use super::spatial::{self, Clipper, NoClip};

@@ -8,7 +8,7 @@
 //! primitives are tested at once), as Embree's builders do.
 //!
 //! - [`prim`]: settings, primitive references, the binary BVH, partitions;
-//! - [`binned`]: the binned SAH builder, with [`spatial`] splits;
+//! - [`binned`]: the binned SAH builder, with `spatial` splits;
 //! - [`morton`]: clustered and linear builders by Morton order.
 
 pub mod binned;

@@ -1,5 +1,5 @@
 //! The parts of a build: its settings ([`BuildConfig`]), the primitive references it
-//! sorts ([`PrimRef`]), boxes four floats wide ([`Box4`]), the canonical binary BVH it makes
+//! sorts ([`PrimRef`]), boxes four floats wide (`Box4`), the canonical binary BVH it makes
 //! ([`BinaryBvh`]), and the in-place partition of references the builders share.
 
 use crate::geom::Aabb;
@@ -52,7 +52,7 @@ impl Default for BuildConfig {
 ///
 /// PERF: the id rides in the w lane of `lo` (as bits), so box unions are plain SIMD
 /// min/max; the w lanes of unions are garbage and never read. The bits are offset by
-/// [`ID_BIAS`] so that w always holds a *normal* float: raw small ids would be denormals,
+/// `ID_BIAS` so that w always holds a *normal* float: raw small ids would be denormals,
 /// and every SIMD operation touching them would take a slow microcode assist.
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]

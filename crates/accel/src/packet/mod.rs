@@ -22,7 +22,7 @@
 //! ("Combining Single and Packet Ray Tracing for Arbitrary Ray Distributions on the Intel
 //! MIC Architecture", IEEE TVCG 2012).
 //!
-//! The code is written on 8-lane arrays ([`F8`], [`M8`]) and compiled twice, once for the
+//! The code is written on 8-lane arrays ([`crate::simd::F8`], [`crate::simd::M8`]) and compiled twice, once for the
 //! baseline CPU and once with AVX2 and FMA enabled, where each array operation becomes one
 //! AVX instruction. No multiply-add is fused (Rust never contracts), so both builds give
 //! identical answers; tests check both against the single-ray and the reference kernels.

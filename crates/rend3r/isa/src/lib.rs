@@ -13,7 +13,7 @@
 //! let words = assemble_words("nr\nsp 0, zloc, type, -2, 1\nnf\ner\ner\n", AsmOptions::default()).unwrap();
 //! assert_eq!(words, [0x200, 0x1B45, 0xC000_0001, 0x400, 0, 0]);
 //! ```
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 mod asm;
 mod disasm;

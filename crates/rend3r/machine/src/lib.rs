@@ -5,7 +5,7 @@
 //! frame, ray traced by lucent's engine ([`Mode::Raytrace`]) or rasterized
 //! ([`Mode::Raster`]). `frame` documents every decision lucent takes where REND3R's paper
 //! is silent.
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod board;
 pub mod cycles;

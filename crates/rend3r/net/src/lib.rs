@@ -9,7 +9,7 @@
 //! Threads, not async: one reader and one writer per TCP connection, one thread per
 //! WebSocket, one per device, all bounded by `--max-connections`; frames are rendered on
 //! the shared rayon pool.
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod client;
 mod context;

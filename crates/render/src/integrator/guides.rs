@@ -19,7 +19,7 @@ use rayon::prelude::*;
 const QUARTER_NORMAL: f32 = 0.25;
 
 /// The guide layers of a denoiser for every pixel: the shading normal (the centre's and
-/// the quarter points' blended, see [`QUARTER_NORMAL`]) and the distance of the first
+/// the quarter points' blended, see `QUARTER_NORMAL`) and the distance of the first
 /// surface the ray through its centre sees; the albedo, as the mean over four points
 /// of the pixel's quarters (a pixel's colour mixes what its samples see, so a texture's
 /// edges demodulate and remodulate with the pixel's mean albedo: on Sponza at 4 samples,

@@ -46,7 +46,7 @@ pub enum Integrator {
     /// ([`path`]).
     Path(PathSettings),
     /// Direct light plus indirect light from virtual point lights ([`vpl`]): the
-    /// renderer traces whole frames ([`vpl::render_region`]); [`Integrator::li`] is the
+    /// renderer traces whole frames ([`vpl::render`]); [`Integrator::li`] is the
     /// ray-by-ray reference (it makes the frame's VPLs on every call).
     Vpl(VplSettings),
     /// A light at the eye, no shadows, no secondary rays: the fastest preview.

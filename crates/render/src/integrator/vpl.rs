@@ -31,7 +31,7 @@
 //! Shadow rays leave the VPL: the rays toward one VPL from one tile's pixels of its set
 //! are grouped and share their origin (the packet kernels cull whole triangles for rays
 //! of a common origin). They are traced as a packet when there are at least
-//! [`SHADOW_PACKET_MIN`] (interleaving 1 or 2), else one by one, which measured faster
+//! `SHADOW_PACKET_MIN` (interleaving 1 or 2), else one by one, which measured faster
 //! for 4 × 4 interleaving's 16 (SaarCOR's "shadow rays toward a point light are
 //! coherent" does not make these long, mostly unoccluded rays cheap here: `bench vpl`).
 //!
@@ -569,7 +569,7 @@ pub const OUTLIER_RADIUS: u32 = 6;
 /// the (m + 1)-wide window with half weights on its outer rows and columns, so that each
 /// set counts once), over the neighbours whose surface lies within 5% of the pixel's
 /// distance, whose normal is within 25° of its normal, and which are dark (see
-/// [`FILTER_ALBEDO_MIN`]: their light is kept in radiance) when it is. Pixels that see no
+/// [`crate::aov::FILTER_ALBEDO_MIN`]: their light is kept in radiance) when it is. Pixels that see no
 /// surface keep their own value.
 #[must_use]
 pub fn discontinuity(layers: &[Layers], r: Region, m: u32, x: u32, y: u32) -> Vec3 {

@@ -1,15 +1,15 @@
 //! The lights the path tracer samples (next-event estimation), one chosen uniformly among
 //! the light objects and, within an emitting mesh, a triangle in proportion to its power
-//! (see [`LightSet::of`]): area lights ([`area`]: emitting triangles, spheres and disks),
-//! the scene's point, spot and directional lights ([`delta`]), the environment
-//! ([`environment`]: constant, or an equirectangular map sampled by its luminance), and
+//! (see `LightSet::of`): area lights (`area`: emitting triangles, spheres and disks),
+//! the scene's point, spot and directional lights (`delta`), the environment
+//! (`environment`: constant, or an equirectangular map sampled by its luminance), and
 //! lights of the library user's own ([`LightModel`]).
 //!
 //! Densities are per solid angle at the shading point, the choice among lights included;
 //! a delta light's "density" is the probability of choosing it.
 //!
 //! Adding a kind of light: a file beside these with its construction, `sample`, `pdf`
-//! (if rays can meet it) and `emit`, and one arm in each of [`LightSet`]'s matches.
+//! (if rays can meet it) and `emit`, and one arm in each of `LightSet`'s matches.
 
 pub(crate) mod area;
 pub(crate) mod delta;

@@ -136,6 +136,20 @@ fn face_normals(positions: &[Vec3], indices: &[[u32; 3]]) -> Vec<Vec3> {
 
 impl World {
     /// Builds BLASes (in parallel) and the TLAS.
+    ///
+    /// # Example
+    /// The built-in demo scene: a ray from its camera through the middle of the image meets
+    /// a surface, which [`World::surface`] rebuilds.
+    /// ```
+    /// use lucent_render::{Camera, World};
+    /// let scene = lucent_scene::demo_scene();
+    /// let camera = Camera::new(&scene.camera.expect("the demo has a camera"), 64, 48);
+    /// let world = World::new(scene, lucent_accel::MeshOptions::default()).unwrap();
+    /// let ray = camera.ray(32.0, 24.0);
+    /// let hit = world.intersect(&ray).expect("something in the middle");
+    /// let surf = world.surface(&ray, &hit);
+    /// assert!((surf.ng.length() - 1.0).abs() < 1e-5 && surf.ng.dot(ray.dir) < 0.0);
+    /// ```
     pub fn new(scene: Scene, opts: MeshOptions) -> Result<Self, WorldError> {
         // Meshes that deform (morph targets, skins) keep zero-area triangles so refits stay exact.
         let deforming: Vec<u32> = scene

@@ -16,8 +16,9 @@ mod schema;
 
 use crate::anim::{Channel, Interp, Morph, Node, SceneAnimation, Skin, Target};
 use crate::bsdf::{Bsdf, ColorTex, FloatTex};
+use crate::camera::CameraDesc;
 use crate::error::ImportError;
-use crate::model::{Attr, CameraDesc, Geom, Instance, Light, LightKind, Material, Mesh, Scene};
+use crate::model::{Attr, Geom, Instance, Light, LightKind, Material, Mesh, Scene};
 use crate::texture::texture_from_image;
 use crate::texture::Wrap;
 use glam::{Affine2, Affine3A, Mat4, Quat, Vec2, Vec3};
