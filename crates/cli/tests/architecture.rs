@@ -431,7 +431,11 @@ fn graph(src: &Path) -> BTreeMap<String, BTreeSet<String>> {
     let mods = modules(src);
     let codes: BTreeMap<String, String> =
         mods.iter().map(|(m, f)| (m.clone(), code_of(&std::fs::read_to_string(f).expect("source")))).collect();
-    let faces = mods.iter().filter(|(_, f)| f.file_name().is_some_and(|n| n == "lib.rs" || n == "main.rs" || n == "mod.rs")).map(|(m, _)| m.clone()).collect();
+    let faces = mods
+        .iter()
+        .filter(|(_, f)| f.file_name().is_some_and(|n| n == "lib.rs" || n == "main.rs" || n == "mod.rs"))
+        .map(|(m, _)| m.clone())
+        .collect();
     let mut krate = Crate { mods, exports: BTreeMap::new(), faces };
     for (m, code) in &codes {
         let mut ex = BTreeMap::new();

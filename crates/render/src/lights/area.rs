@@ -56,13 +56,20 @@ pub(crate) enum AreaLight {
 
 /// Triangle `t` of `mesh` (corners `idx`), placed by `to_world`, as a light of material
 /// `mat` (which emits), with its power (`None` when it has none).
-pub(crate) fn triangle(mesh: &Mesh, idx: &[u32; 3], to_world: &Affine3A, mat: &Material, textures: &[Texture]) -> Option<(AreaLight, f32)> {
+pub(crate) fn triangle(
+    mesh: &Mesh,
+    t: usize,
+    idx: &[u32; 3],
+    to_world: &Affine3A,
+    mat: &Material,
+    textures: &[Texture],
+) -> Option<(AreaLight, f32)> {
     let [a, b, c] = idx.map(|i| to_world.transform_point3(mesh.positions.get(i as usize).copied().unwrap_or(Vec3::NAN)));
     let (e1, e2) = (b - a, c - a);
     let cross = e1.cross(e2);
     let area = 0.5 * cross.length();
-    let tex = mat.emission_tex.filter(|&t| (t as usize) < textures.len()).map(|tx| {
-        let uv = mesh.uvs.corners(tx as usize, idx).unwrap_or([Vec2::ZERO, Vec2::X, Vec2::Y]);
+    let tex = mat.emission_tex.filter(|&tx| (tx as usize) < textures.len()).map(|tx| {
+        let uv = mesh.uvs.corners(t, idx).unwrap_or([Vec2::ZERO, Vec2::X, Vec2::Y]);
         (tx, uv)
     });
     let tex_mean = tex.map_or(1.0, |(t, uv)| {
@@ -234,4 +241,33 @@ fn sphere_pdf(p: Vec3, c: Vec3, r: f32, q: Vec3, dir: Vec3) -> f32 {
     }
     let cos_max = (1.0 - (r * r / d2).min(1.0)).max(0.0).sqrt();
     1.0 / (2.0 * PI * (1.0 - cos_max))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lucent_scene::Attr;
+
+    /// An emission texture is read at the triangle's own texture coordinates, also where
+    /// they have index triples of their own (OBJ's `f v/vt`): triangle 1's light samples
+    /// its uvs, not triangle 0's (the texture's index once stood in for the triangle's).
+    #[test]
+    fn an_emission_texture_is_read_at_the_triangles_own_uvs() {
+        let mesh = Mesh {
+            name: "lamp".into(),
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::ONE],
+            indices: vec![[0, 1, 2], [1, 3, 2]],
+            uvs: Attr {
+                values: vec![Vec2::ZERO, Vec2::X, Vec2::Y, Vec2::ONE, Vec2::splat(0.5)],
+                indices: Some(vec![[0, 1, 2], [3, 4, 3]]),
+            },
+            material: vec![0, 0],
+            ..Mesh::default()
+        };
+        let tex = Texture::new("white".into(), 1, 1, vec![[255; 4]], false, Default::default(), Default::default());
+        let mat = Material { emission: Vec3::ONE, emission_tex: Some(0), ..Material::default() };
+        let (light, _) = triangle(&mesh, 1, &mesh.indices[1], &Affine3A::IDENTITY, &mat, &[tex]).expect("a light");
+        let AreaLight::Tri(t) = light else { panic!("a triangle") };
+        assert_eq!(t.tex.map(|(_, uv)| uv), Some([Vec2::ONE, Vec2::splat(0.5), Vec2::ONE]));
+    }
 }

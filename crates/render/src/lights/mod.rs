@@ -105,7 +105,7 @@ impl LightSet {
                         if mat.emission.max_element() <= 0.0 || !mat.emission.is_finite() {
                             continue;
                         }
-                        let Some((light, p)) = area::triangle(mesh, idx, &inst.world_from_object, mat, textures) else { continue };
+                        let Some((light, p)) = area::triangle(mesh, t, idx, &inst.world_from_object, mat, textures) else { continue };
                         let tris = s.index[ii].get_or_insert_with(|| vec![NONE; mesh.indices.len()].into_boxed_slice());
                         tris[t] = s.entries.len() as u32;
                         s.entries.push(Entry::Area(light));
