@@ -17,6 +17,7 @@ import sys
 import time
 
 import mitsuba as mi
+import plain
 
 mi.set_variant("llvm_ad_rgb")
 import drjit as dr  # noqa: E402
@@ -25,7 +26,7 @@ import numpy as np  # noqa: E402
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, "..", ".."))
 OUT = os.path.join(ROOT, "crates", "render", "tests", "data", "mitsuba")
-SCENES = ["cornell_box", "materials", "envmap", "bunny"]
+SCENES = ["cornell_box", "materials", "envmap", "bunny", "sponza"]
 # Files a scene reads beside it.
 EXTRA = {"envmap": ["sky.exr"]}
 
@@ -46,7 +47,7 @@ def main():
     names = sys.argv[1:] or SCENES
     for name in names:
         src = os.path.join(HERE, "scenes", name + ".xml")
-        scene = mi.load_file(src)
+        scene = mi.load_file(src, **plain.defines(src, {}))
         ref, t_ref = render(scene, 4096, 100)
         out = {"scene": name, "reference_spp": 4096, "reference_seed": 100}
         for spp, seeds in ((64, 16), (1024, 4)):

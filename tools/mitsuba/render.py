@@ -10,6 +10,7 @@ import argparse
 import time
 
 import mitsuba as mi
+import plain
 
 mi.set_variant("llvm_ad_rgb")
 import drjit as dr  # noqa: E402  (after the variant is chosen)
@@ -24,7 +25,7 @@ def main():
     ap.add_argument("-D", dest="defines", action="append", default=[], help="a scene parameter NAME=VALUE")
     a = ap.parse_args()
     defines = dict(d.split("=", 1) for d in a.defines)
-    scene = mi.load_dict(mi.cornell_box()) if a.scene == "cornell" else mi.load_file(a.scene, **defines)
+    scene = mi.load_dict(mi.cornell_box()) if a.scene == "cornell" else mi.load_file(a.scene, **plain.defines(a.scene, defines))
     times = []
     for run in range(2):
         t = time.time()

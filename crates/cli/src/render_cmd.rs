@@ -58,7 +58,9 @@ pub struct RenderArgs {
     /// SaarCOR: a smooth approximation of the path tracer's image in one sample per
     /// pixel; see --vpls), `whitted` (point lights, hard shadows, mirror and glass),
     /// `eye-light` (a light at the eye, no shadows: the fastest preview) or `normals`
-    /// (shading normals as colours).
+    /// (shading normals as colours). `path-scalar` is the path tracer one path after
+    /// another (the reference the default, which traces many paths at once on SIMD lanes,
+    /// is tested against).
     #[arg(long, value_parser = INTEGRATORS)]
     pub integrator: Option<String>,
     /// Whitted: most reflection/refraction generations (default 6). Path and VPL: most
@@ -118,7 +120,7 @@ pub struct RenderArgs {
 }
 
 /// The integrators `--integrator` names.
-pub const INTEGRATORS: [&str; 5] = ["whitted", "path", "vpl", "eye-light", "normals"];
+pub const INTEGRATORS: [&str; 6] = ["whitted", "path", "path-scalar", "vpl", "eye-light", "normals"];
 
 /// The integrator `--integrator NAME` (one of [`INTEGRATORS`]) names, with the settings of
 /// `--max-depth` and `--no-shadows` (Whitted) or `--max-depth`, `--rr-depth` and
@@ -129,9 +131,13 @@ pub fn integrator_of(name: &str, max_depth: Option<u32>, no_shadows: bool, rr_de
         "eye-light" => Integrator::EyeLight,
         "vpl" => Integrator::Vpl(VplSettings { max_depth: max_depth.unwrap_or(u32::MAX), ..VplSettings::default() }),
         "normals" => Integrator::Normals,
-        "path" => {
-            Integrator::Path(PathSettings { max_depth: max_depth.unwrap_or(u32::MAX), rr_depth, hide_emitters, ..PathSettings::default() })
-        }
+        "path" | "path-scalar" => Integrator::Path(PathSettings {
+            max_depth: max_depth.unwrap_or(u32::MAX),
+            rr_depth,
+            hide_emitters,
+            lanes: name == "path",
+            ..PathSettings::default()
+        }),
         _ => Integrator::Whitted(WhittedSettings {
             max_depth: max_depth.unwrap_or(WhittedSettings::default().max_depth),
             shadows: !no_shadows,
@@ -261,7 +267,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let name = a.integrator.clone().unwrap_or_else(|| "path".into());
     // Without a scene, the path tracer shows its studio and the others the feature demo.
     let demo = match (a.scene.as_ref(), a.demo.demo, name.as_str()) {
-        (None, None, "path" | "vpl") => DemoArg { demo: Some(Demo::Studio), ..a.demo },
+        (None, None, "path" | "path-scalar" | "vpl") => DemoArg { demo: Some(Demo::Studio), ..a.demo },
         _ => a.demo,
     };
     let mut scene = load_scene(a.scene.as_deref(), &demo)?;

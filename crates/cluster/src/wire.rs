@@ -210,6 +210,7 @@ fn put_settings(o: &mut Out, s: &RenderSettings) {
                 LightSampling::Nee => 2,
             });
             o.u32(p.seed);
+            o.u8(u8::from(p.lanes));
         }
         Integrator::Vpl(v) => {
             o.u8(2);
@@ -244,7 +245,8 @@ fn get_settings(i: &mut In) -> Result<RenderSettings, DecodeError> {
                 2 => LightSampling::Nee,
                 v => return Err(invalid(at, format!("light sampling {v} does not exist"))),
             };
-            Integrator::Path(PathSettings { max_depth, rr_depth, hide_emitters, sampling, seed: i.u32("the seed")? })
+            let seed = i.u32("the seed")?;
+            Integrator::Path(PathSettings { max_depth, rr_depth, hide_emitters, sampling, seed, lanes: i.flag("the lanes flag")? })
         }
         2 => {
             let (count, max_depth) = (i.u32("the VPL count")?, i.u32("max_depth")?);
@@ -418,7 +420,7 @@ mod tests {
         film.add(4, 5, Vec3::new(0.1, -2.0, f32::MAX), 3.0);
         let settings = [
             Integrator::default(),
-            Integrator::Path(PathSettings { max_depth: 7, rr_depth: 2, hide_emitters: true, sampling: LightSampling::Nee, seed: 99 }),
+            Integrator::Path(PathSettings { max_depth: 7, rr_depth: 2, hide_emitters: true, sampling: LightSampling::Nee, seed: 99, lanes: false }),
             Integrator::Vpl(VplSettings { count: 17, clamp: 0.5, interleave: 3, discontinuity: false, ..VplSettings::default() }),
             Integrator::EyeLight,
             Integrator::Normals,

@@ -36,7 +36,7 @@ mod coverage;
 pub mod denoise;
 pub mod film;
 pub mod integrator;
-pub(crate) mod lanes;
+pub mod lanes;
 pub mod lights;
 pub mod materials;
 pub mod progressive;

@@ -210,7 +210,7 @@ impl Sampler {
 }
 
 /// One pixel's samples (see [`Sampler::pixel`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PixelSampler {
     key: u32,
 }

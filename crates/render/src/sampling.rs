@@ -1,7 +1,10 @@
 //! Sampling: warps of the unit square onto disks, hemispheres, spheres and cones, shading
 //! frames, piecewise-constant 1D and 2D distributions (pbrt-v4's `PiecewiseConstant1D`
-//! and `2D`), and the power heuristic of multiple importance sampling.
+//! and `2D`), and the power heuristic of multiple importance sampling. The warps take their
+//! sines and cosines from [`crate::lanes::sin_cos`], so that a loop over lanes that calls
+//! them vectorizes and gives the same bits as one call.
 
+use crate::lanes::sin_cos;
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
@@ -18,7 +21,8 @@ pub fn concentric_disk(u: (f32, f32)) -> Vec2 {
     } else {
         (b, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (a / b))
     };
-    Vec2::new(r * phi.cos(), r * phi.sin())
+    let (sp, cp) = sin_cos(phi);
+    Vec2::new(r * cp, r * sp)
 }
 
 /// Cosine-weighted hemisphere sampling (Malley's method over Shirley and Chiu's concentric
@@ -35,7 +39,7 @@ pub fn cosine_hemisphere(u: (f32, f32)) -> Vec3 {
 pub fn uniform_sphere(u: (f32, f32)) -> Vec3 {
     let z = 1.0 - 2.0 * u.0;
     let s = (1.0 - z * z).max(0.0).sqrt();
-    let (sp, cp) = (2.0 * PI * u.1).sin_cos();
+    let (sp, cp) = sin_cos(2.0 * PI * u.1);
     Vec3::new(s * cp, s * sp, z)
 }
 
@@ -46,7 +50,7 @@ pub fn uniform_sphere(u: (f32, f32)) -> Vec3 {
 pub fn uniform_cone(axis: Vec3, cos_max: f32, u: (f32, f32)) -> Vec3 {
     let cos_t = 1.0 - u.0 * (1.0 - cos_max);
     let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-    let (sp, cp) = (2.0 * PI * u.1).sin_cos();
+    let (sp, cp) = sin_cos(2.0 * PI * u.1);
     let (t, b) = axis.any_orthonormal_pair();
     (t * (sin_t * cp) + b * (sin_t * sp) + axis * cos_t).normalize_or_zero()
 }

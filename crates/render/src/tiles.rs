@@ -41,6 +41,80 @@ pub trait BlockShader: Sync {
     fn misses_show_background(&self, w: &World) -> bool;
     /// Radiance along each of a block's camera rays, into `out`.
     fn li_block(&self, w: &World, block: &Block, rays: &[Ray], traversal: Traversal, out: &mut [Vec3]);
+    /// Each pixel's sum over samples `samples` (in order of the sample index) into `sums`,
+    /// for the block's pixels (`block.sample` unused). By default sample after sample
+    /// through [`BlockShader::li_block`] ([`shade_samples`]); an integrator may take the
+    /// samples in any order of its own, as long as each sample's value is what it would be
+    /// alone and the sums add them in order.
+    fn shade_samples(&self, s: &SampleBlock, block: &Block, sums: &mut [Vec3]) {
+        shade_samples(self, s, block, sums);
+    }
+}
+
+/// What a block's samples need besides its pixels: the world, the camera, where samples
+/// lie, which samples, and how rays are traced.
+#[derive(Clone)]
+pub struct SampleBlock<'a> {
+    /// The world.
+    pub world: &'a World,
+    /// The camera.
+    pub camera: &'a Camera,
+    /// Where the samples lie in their pixels and on the lens.
+    pub samples: CameraSamples,
+    /// The sample indices.
+    pub range: std::ops::Range<u32>,
+    /// How rays are traced.
+    pub traversal: Traversal,
+}
+
+impl SampleBlock<'_> {
+    /// The camera ray of sample `k` of pixel (x, y).
+    #[inline]
+    #[must_use]
+    pub fn camera_ray(&self, x: u32, y: u32, k: u32) -> Ray {
+        let (jx, jy) = self.samples.pixel(x, y, k);
+        let r = self.camera.ray(x as f32 + jx, y as f32 + jy);
+        if self.camera.has_lens() {
+            self.camera.through_lens(&r, self.samples.lens(x, y, k))
+        } else {
+            r
+        }
+    }
+}
+
+/// [`BlockShader::shade_samples`] sample after sample: the block's camera rays of each
+/// sample made together, shaded by [`BlockShader::li_block`], added to the sums.
+pub fn shade_samples(shader: &(impl BlockShader + ?Sized), s: &SampleBlock, block: &Block, sums: &mut [Vec3]) {
+    let n = block.pixels.len();
+    let mut rays = NO_RAYS;
+    let mut pts = [(0f32, 0f32); BLOCK];
+    let mut c = [Vec3::ZERO; BLOCK];
+    let (w, cam, cs) = (s.world, s.camera, s.samples);
+    for k in s.range.clone() {
+        for (p, &(x, y)) in pts.iter_mut().zip(block.pixels) {
+            let (jx, jy) = cs.pixel(x, y, k);
+            *p = (x as f32 + jx, y as f32 + jy);
+        }
+        cam.rays_at(&pts[..n], &mut rays[..n]);
+        if cam.has_lens() {
+            for (r, &(x, y)) in rays[..n].iter_mut().zip(block.pixels) {
+                *r = cam.through_lens(r, cs.lens(x, y, k));
+            }
+        }
+        let one = Block { sample: k, ..*block };
+        if s.range.len() == 1 {
+            // One sample: straight into the sums.
+            shader.li_block(w, &one, &rays[..n], s.traversal, &mut sums[..n]);
+        } else {
+            if k == s.range.start {
+                sums[..n].fill(Vec3::ZERO);
+            }
+            shader.li_block(w, &one, &rays[..n], s.traversal, &mut c[..n]);
+            for (o, v) in sums[..n].iter_mut().zip(&c) {
+                *o += *v;
+            }
+        }
+    }
 }
 
 /// How rays are traced: choices that change the speed, never the image.
@@ -241,6 +315,7 @@ pub fn render_blocks(
     // PERF: every tile writes its pixels straight into the film (tiles are disjoint);
     // gathering per-tile buffers and copying them in afterwards, one thread, took half of a
     // one-sphere REND3R frame.
+    let samples_of = SampleBlock { world: w, camera: cam, samples: cs, range: s0..s1, traversal: job.traversal };
     let tile = |tx: u32, ty: u32, cover: Option<&Coverage>| -> u64 {
         let (x0, y0) = ((tx * TILE).max(region.x0), (ty * TILE).max(region.y0));
         let (x1, y1) = ((tx * TILE + TILE).min(region.x1), (ty * TILE + TILE).min(region.y1));
@@ -267,9 +342,6 @@ pub fn render_blocks(
                 // to initialise per tile of a sparse REND3R frame).
                 let mut coords = [(0u32, 0u32); BLOCK];
                 let mut sum = [Vec3::ZERO; BLOCK];
-                let mut rays = NO_RAYS;
-                let mut pts = [(0f32, 0f32); BLOCK];
-                let mut c = [Vec3::ZERO; BLOCK];
                 // (`trace` is not zero, so `n` is at least one below.)
                 let mut n = 0;
                 let mut b = trace;
@@ -280,31 +352,8 @@ pub fn render_blocks(
                     n += 1;
                 }
                 let among = cover.and_then(|c| c.candidates(bx / 8, by / 8));
-                for k in s0..s1 {
-                    for (p, &(x, y)) in pts.iter_mut().zip(&coords[..n]) {
-                        let (jx, jy) = cs.pixel(x, y, k);
-                        *p = (x as f32 + jx, y as f32 + jy);
-                    }
-                    cam.rays_at(&pts[..n], &mut rays[..n]);
-                    if cam.has_lens() {
-                        for (r, &(x, y)) in rays[..n].iter_mut().zip(&coords[..n]) {
-                            *r = cam.through_lens(r, cs.lens(x, y, k));
-                        }
-                    }
-                    let block = Block { pixels: &coords[..n], sample: k, among };
-                    if s1 - s0 == 1 {
-                        // One sample: straight into the sums.
-                        shader.li_block(w, &block, &rays[..n], job.traversal, &mut sum[..n]);
-                    } else {
-                        if k == s0 {
-                            sum[..n].fill(Vec3::ZERO);
-                        }
-                        shader.li_block(w, &block, &rays[..n], job.traversal, &mut c[..n]);
-                        for (o, v) in sum[..n].iter_mut().zip(&c) {
-                            *o += *v;
-                        }
-                    }
-                }
+                let block = Block { pixels: &coords[..n], sample: s0, among };
+                shader.shade_samples(&samples_of, &block, &mut sum[..n]);
                 for (&(x, y), v) in coords[..n].iter().zip(&sum) {
                     sink.put(x, y, *v);
                 }

@@ -22,6 +22,7 @@ pub mod guides;
 pub(crate) mod hit;
 pub mod path;
 pub mod vpl;
+pub mod wave;
 pub mod whitted;
 
 pub use path::{LightSampling, PathSettings};
@@ -31,7 +32,7 @@ pub use whitted::{fresnel_dielectric, li_packet, refract, WhittedSettings};
 use crate::camera::Camera;
 use crate::film::Region;
 use crate::sampler::CameraSamples;
-use crate::tiles::{render_blocks, Block, BlockShader, Job, Sink, Traversal};
+use crate::tiles::{render_blocks, shade_samples, Block, BlockShader, Job, SampleBlock, Sink, Traversal};
 use crate::world::World;
 use glam::Vec3;
 use hit::{material, packet_first_hits, textured_kd};
@@ -169,5 +170,12 @@ impl BlockShader for Integrator {
 
     fn li_block(&self, w: &World, block: &Block, rays: &[Ray], traversal: Traversal, out: &mut [Vec3]) {
         Integrator::li_block(self, w, block, rays, traversal, out);
+    }
+
+    fn shade_samples(&self, s: &SampleBlock, block: &Block, sums: &mut [Vec3]) {
+        match self {
+            Self::Path(p) if p.lanes => wave::shade_samples(p, s, block, sums),
+            _ => shade_samples(self, s, block, sums),
+        }
     }
 }

@@ -58,6 +58,9 @@ pub struct PathSettings {
     pub sampling: LightSampling,
     /// The sampler's seed: another seed, another (equally good) set of samples.
     pub seed: u32,
+    /// Trace many paths at once on lanes ([`super::wave`], the default); off: one path after
+    /// another ([`li`], the reference). The same estimator either way.
+    pub lanes: bool,
 }
 
 impl PathSettings {
@@ -71,15 +74,15 @@ impl PathSettings {
 
 impl Default for PathSettings {
     fn default() -> Self {
-        Self { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false, sampling: LightSampling::Mis, seed: DEFAULT_SEED }
+        Self { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false, sampling: LightSampling::Mis, seed: DEFAULT_SEED, lanes: true }
     }
 }
 
 /// Sampler pairs per bounce, after pair 0 (the pixel position).
-const PAIRS: u32 = 2;
+pub(crate) const PAIRS: u32 = 2;
 
 /// Hashed numbers per bounce.
-const CHOICES: u32 = 4;
+pub(crate) const CHOICES: u32 = 4;
 
 /// Radiance along a camera ray through pixel (x, y), sample `index`; `first`, when given,
 /// is the camera ray's closest hit, already found (by a packet of the block's camera rays).

@@ -1,0 +1,429 @@
+//! The path tracer on lanes: a small wavefront inside each thread (issue 58).
+//!
+//! [`super::path::li`] follows one path to its end before it starts the next. Here a block's
+//! samples (its pixels × the sample range, pixel by pixel) are a queue, and up to
+//! [`CAP`] paths of it are in flight at once, as lanes of a structure of arrays
+//! ([`Wave`]): every step runs one stage for every lane that is at it, and a lane whose
+//! path ended takes the next sample of the queue at once (path regeneration), so the lanes
+//! stay full until the queue runs dry. The stages:
+//!
+//! 1. trace the closest hits (the camera rays of new lanes as packets, the others one by
+//!    one) and rebuild the surfaces, their BSDFs and shading frames, lane by lane;
+//! 2. on lanes: the sampler's numbers of the bounce, the directions in the shading
+//!    frame ([`crate::lanes`] compiles each loop for AVX-512, AVX2 and the baseline, with
+//!    the same bits);
+//! 3. a light sample per lane, the BSDF toward it, multiple importance sampling, the
+//!    shadow rays (traced one by one);
+//! 4. the BSDF's sample, the throughput, roulette and the next ray, on lanes.
+//!
+//! The estimator is the path tracer's own, number for number: the same sampler dimensions
+//! per (pixel, sample, bounce), the same BSDFs, lights, MIS and roulette, so a sample's
+//! value is the scalar path tracer's bit for bit (`tests/image_bits.rs` checks both
+//! kernels), whatever its lane, its wave or its neighbours: images do not depend on
+//! threads, tiles or regions.
+//!
+//! Camera rays of one pixel's samples lie in one pixel's footprint: they are traced as one
+//! packet (up to 64 rays), where the packet kernels cull almost every node for all of them
+//! at once (Mitsuba's lanes are pixel-major for the same reason).
+
+// Lane loops index several arrays by the lane number; written so, they vectorize.
+#![allow(clippy::needless_range_loop)]
+
+use super::hit::{bsdf_frame, coherent, emitted, material, shading_normal};
+use super::path::{LightSampling, PathSettings, CHOICES, PAIRS};
+use crate::bsdf::Bsdf;
+use crate::lanes::on_lanes;
+use crate::sampler::PixelSampler;
+use crate::sampling::{power_heuristic, ShadingFrame};
+use crate::tiles::{Block, SampleBlock, NO_RAYS};
+use crate::world::surface::Surface;
+use crate::world::World;
+use glam::Vec3;
+use lucent_accel::{Hit, Ray, MAX_PACKET};
+
+/// Paths in flight per thread.
+pub const CAP: usize = 64;
+
+/// Queue entries rendered before their values are added to the pixels' sums: the values
+/// wait in a buffer until every path of the chunk has ended, so that each pixel's samples
+/// are added in order of their index.
+const CHUNK: usize = 1024;
+
+/// Three rows of lanes (a vector per lane).
+type Rows = [[f32; CAP]; 3];
+
+/// Lane `i` of three rows.
+#[inline(always)]
+fn get3(r: &Rows, i: usize) -> Vec3 {
+    Vec3::new(r[0][i], r[1][i], r[2][i])
+}
+
+/// Sets lane `i` of three rows.
+#[inline(always)]
+fn put3(r: &mut Rows, i: usize, v: Vec3) {
+    r[0][i] = v.x;
+    r[1][i] = v.y;
+    r[2][i] = v.z;
+}
+
+/// Adds `v` to lane `i` of three rows.
+#[inline(always)]
+fn add3(r: &mut Rows, i: usize, v: Vec3) {
+    r[0][i] += v.x;
+    r[1][i] += v.y;
+    r[2][i] += v.z;
+}
+
+/// The paths in flight, as lanes: lane `i` of every field is path `i`.
+struct Wave<'w> {
+    /// Lanes in use.
+    n: usize,
+    /// Each path's entry in the chunk (where its value goes), sample index and pixel
+    /// sampler.
+    slot: [u32; CAP],
+    k: [u32; CAP],
+    px: [PixelSampler; CAP],
+    /// The ray to trace next (as the world takes it).
+    ray: [Ray; CAP],
+    /// The camera ray's closest hit, found by a packet (`Some`), or to find (`None`).
+    first: [Option<Option<Hit>>; CAP],
+    radiance: Rows,
+    beta: Rows,
+    /// The previous bounce: its BSDF pdf, whether it was a delta lobe, where it was.
+    prev_pdf: [f32; CAP],
+    prev_delta: [bool; CAP],
+    prev_p: Rows,
+    depth: [u32; CAP],
+    eta: [f32; CAP],
+    /// This bounce (stage 1): whether the path scatters here, its surface, BSDF, frame
+    /// and the direction toward the viewer in it.
+    scatter: [bool; CAP],
+    surf: [Surface; CAP],
+    bsdf: [Option<Bsdf<'w>>; CAP],
+    frame: [ShadingFrame; CAP],
+    wo: Rows,
+    /// This bounce's numbers (stage 2): the light choice and point, the lobe choice and
+    /// direction.
+    u_light: [f32; CAP],
+    u2_light: [[f32; CAP]; 2],
+    u_bsdf: [f32; CAP],
+    u2_bsdf: [[f32; CAP]; 2],
+    u_rr: [f32; CAP],
+    /// The path ended (its value is written when it leaves).
+    done: [bool; CAP],
+}
+
+impl<'w> Wave<'w> {
+    fn new() -> Box<Self> {
+        let zero = [[0.0; CAP]; 3];
+        let surf = Surface { p: Vec3::ZERO, ng: Vec3::Z, ns: Vec3::Z, uv: glam::Vec2::ZERO, material: 0, p_err: Vec3::ZERO };
+        Box::new(Self {
+            n: 0,
+            slot: [0; CAP],
+            k: [0; CAP],
+            px: [PixelSampler::default(); CAP],
+            ray: NO_RAYS,
+            first: [None; CAP],
+            radiance: zero,
+            beta: zero,
+            prev_pdf: [0.0; CAP],
+            prev_delta: [true; CAP],
+            prev_p: zero,
+            depth: [0; CAP],
+            eta: [1.0; CAP],
+            scatter: [false; CAP],
+            surf: [surf; CAP],
+            bsdf: [None; CAP],
+            frame: [ShadingFrame::new(Vec3::Z); CAP],
+            wo: zero,
+            u_light: [0.0; CAP],
+            u2_light: [[0.0; CAP]; 2],
+            u_bsdf: [0.0; CAP],
+            u2_bsdf: [[0.0; CAP]; 2],
+            u_rr: [0.0; CAP],
+            done: [false; CAP],
+        })
+    }
+
+    /// A new path in lane `i`: sample `k` of the pixel of sampler `px`, along `ray`.
+    fn start(&mut self, i: usize, slot: u32, k: u32, px: PixelSampler, ray: Ray) {
+        self.slot[i] = slot;
+        self.k[i] = k;
+        self.px[i] = px;
+        self.ray[i] = ray;
+        self.first[i] = None;
+        put3(&mut self.radiance, i, Vec3::ZERO);
+        put3(&mut self.beta, i, Vec3::ONE);
+        self.prev_pdf[i] = 0.0;
+        self.prev_delta[i] = true;
+        put3(&mut self.prev_p, i, ray.org);
+        self.depth[i] = 0;
+        self.eta[i] = 1.0;
+        self.done[i] = false;
+    }
+
+    /// Moves the path of lane `from` into lane `to` (what a path carries between bounces).
+    fn relocate(&mut self, from: usize, to: usize) {
+        self.slot[to] = self.slot[from];
+        self.k[to] = self.k[from];
+        self.px[to] = self.px[from];
+        self.ray[to] = self.ray[from];
+        self.first[to] = self.first[from];
+        for c in 0..3 {
+            self.radiance[c][to] = self.radiance[c][from];
+            self.beta[c][to] = self.beta[c][from];
+            self.prev_p[c][to] = self.prev_p[c][from];
+        }
+        self.prev_pdf[to] = self.prev_pdf[from];
+        self.prev_delta[to] = self.prev_delta[from];
+        self.depth[to] = self.depth[from];
+        self.eta[to] = self.eta[from];
+        self.done[to] = self.done[from];
+    }
+}
+
+/// Renders the samples `s.range` of `block`'s pixels with `settings`, each pixel's sum (in
+/// order of the sample index) into `sums`.
+pub(crate) fn shade_samples(settings: &PathSettings, s: &SampleBlock, block: &Block, sums: &mut [Vec3]) {
+    let w = s.world;
+    let samples = s.range.len();
+    let total = block.pixels.len() * samples;
+    let sampler = settings.sampler();
+    let mut vals = vec![Vec3::ZERO; CHUNK.min(total)];
+    let mut wave = Wave::new();
+    let mut next = 0usize;
+    while next < total {
+        let end = (next + CHUNK).min(total);
+        let chunk = next..end;
+        let mut queue = chunk.clone();
+        wave.n = 0;
+        while wave.n > 0 || !queue.is_empty() {
+            // Refill: the next entries of the queue take the free lanes; their camera rays,
+            // made together, go out as packets when they are coherent.
+            let fresh = wave.n;
+            while wave.n < CAP {
+                let Some(e) = queue.next() else { break };
+                let (j, k) = (e / samples, s.range.start + (e % samples) as u32);
+                let (x, y) = block.pixels[j];
+                let i = wave.n;
+                wave.start(i, (e - chunk.start) as u32, k, sampler.pixel(x, y), s.camera_ray(x, y, k));
+                wave.n += 1;
+            }
+            camera_packets(w, &mut wave, fresh, block.among, s.traversal.packets);
+            step(w, settings, &mut wave, &mut vals);
+        }
+        // The chunk's values, pixel by pixel in order of the sample index.
+        for e in chunk.clone() {
+            let (j, kk) = (e / samples, e % samples);
+            let v = vals[e - chunk.start];
+            if samples == 1 {
+                sums[j] = v;
+            } else {
+                if kk == 0 {
+                    sums[j] = Vec3::ZERO;
+                }
+                sums[j] += v;
+            }
+        }
+        next = end;
+    }
+}
+
+/// The closest hits of the camera rays of lanes `fresh..`, as packets of up to
+/// [`MAX_PACKET`] where they are coherent (as the scalar path tracer's blocks: the same
+/// hits as single rays).
+fn camera_packets(w: &World, wave: &mut Wave, fresh: usize, among: Option<&[u32]>, packets: bool) {
+    if !packets || w.has_alpha() {
+        return;
+    }
+    let mut at = fresh;
+    while at < wave.n {
+        let m = (wave.n - at).min(MAX_PACKET);
+        let rays = &wave.ray[at..at + m];
+        if coherent(rays) {
+            let mut hits = [None; MAX_PACKET];
+            match among {
+                Some(ids) => w.intersect_packet_among(rays, ids, &mut hits[..m]),
+                None => w.intersect_packet(rays, &mut hits[..m]),
+            }
+            for (f, h) in wave.first[at..at + m].iter_mut().zip(hits) {
+                *f = Some(h);
+            }
+        }
+        at += m;
+    }
+}
+
+/// One bounce of every lane; ended paths write their values and leave.
+fn step<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, vals: &mut [Vec3]) {
+    trace(w, s, wave);
+    numbers(wave);
+    light(w, s, wave);
+    scatter(s, wave);
+    // Ended paths leave (their order among the lanes does not matter): from the back, so
+    // the lane each removal moves in has been looked at already.
+    for i in (0..wave.n).rev() {
+        if wave.done[i] {
+            let r = get3(&wave.radiance, i);
+            vals[wave.slot[i] as usize] = if r.is_finite() { r } else { Vec3::ZERO };
+            wave.n -= 1;
+            if i != wave.n {
+                wave.relocate(wave.n, i);
+            }
+        }
+    }
+}
+
+/// Stage 1, lane by lane: the closest hits, the light of what they meet (or of the
+/// environment), and where paths go on, the surface's BSDF and shading frame.
+fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>) {
+    let lights = &w.light_set;
+    let hidden = |depth: u32| depth == 0 && s.hide_emitters;
+    for i in 0..wave.n {
+        wave.scatter[i] = false;
+        let depth = wave.depth[i];
+        let beta = get3(&wave.beta, i);
+        let found = w.first_hit(&wave.ray[i], wave.first[i].take());
+        let Some((hit_ray, hit)) = found else {
+            if !hidden(depth) {
+                let d = wave.ray[i].dir.normalize();
+                let add = match lights.env_radiance(d) {
+                    Some(le) => {
+                        let weight = if wave.prev_delta[i] {
+                            1.0
+                        } else {
+                            match s.sampling {
+                                LightSampling::Bsdf => 1.0,
+                                LightSampling::Nee => 0.0,
+                                LightSampling::Mis => power_heuristic(wave.prev_pdf[i], lights.env_pdf(d)),
+                            }
+                        };
+                        beta * le * weight
+                    }
+                    None => beta * w.scene.background,
+                };
+                add3(&mut wave.radiance, i, add);
+            }
+            wave.done[i] = true;
+            continue;
+        };
+        wave.ray[i] = hit_ray;
+        let surf = w.surface(&hit_ray, &hit);
+        let d = hit_ray.dir.normalize();
+        let mat = material(w, surf.material);
+        if mat.emission.max_element() > 0.0 && d.dot(surf.ng) < 0.0 && !hidden(depth) {
+            let le = emitted(w, mat, surf.uv);
+            let weight = if wave.prev_delta[i] {
+                1.0
+            } else {
+                match (s.sampling, lights.pdf_hit(hit.inst, hit.prim, get3(&wave.prev_p, i), surf.p, d)) {
+                    (LightSampling::Bsdf, _) | (_, None) => 1.0,
+                    (LightSampling::Nee, Some(_)) => 0.0,
+                    (LightSampling::Mis, Some(light_pdf)) => power_heuristic(wave.prev_pdf[i], light_pdf),
+                }
+            };
+            add3(&mut wave.radiance, i, beta * le * weight);
+        }
+        if depth.saturating_add(1) >= s.max_depth {
+            wave.done[i] = true;
+            continue;
+        }
+        let ns = shading_normal(w, &hit_ray, &hit, &surf);
+        let (bsdf, frame) = bsdf_frame(w, &surf, ns, d);
+        wave.surf[i] = surf;
+        wave.bsdf[i] = Some(bsdf);
+        wave.frame[i] = frame;
+        put3(&mut wave.wo, i, frame.to_local(-d));
+        wave.scatter[i] = true;
+    }
+}
+
+/// Stage 2, on lanes: the bounce's sampler numbers (for every lane: those of lanes that
+/// do not scatter go unused).
+fn numbers(wave: &mut Wave) {
+    let n = wave.n;
+    on_lanes!(|wv: &mut Wave, n: usize| {
+        for i in 0..n {
+            let (px, k, depth) = (wv.px[i], wv.k[i], wv.depth[i]);
+            let base = 1 + depth.saturating_mul(PAIRS);
+            let choices = depth.saturating_mul(CHOICES);
+            wv.u_light[i] = px.get1_hashed(k, choices);
+            (wv.u2_light[0][i], wv.u2_light[1][i]) = px.get2(k, base);
+            wv.u_bsdf[i] = px.get1_hashed(k, choices + 1);
+            (wv.u2_bsdf[0][i], wv.u2_bsdf[1][i]) = px.get2(k, base + 1);
+            wv.u_rr[i] = px.get1_hashed(k, choices + 3);
+        }
+    })(wave, n);
+}
+
+/// Stage 3: next-event estimation, a light sample per lane that scatters (lane by lane),
+/// then every shadow ray.
+fn light(w: &World, s: &PathSettings, wave: &mut Wave) {
+    let lights = &w.light_set;
+    if lights.is_empty() || s.sampling == LightSampling::Bsdf {
+        return;
+    }
+    let textures = &w.scene.textures;
+    let mut pending: [(u8, Ray, Vec3); CAP] = [(0, NO_RAYS[0], Vec3::ZERO); CAP];
+    let mut count = 0;
+    for i in 0..wave.n {
+        let Some(bsdf) = wave.bsdf[i].filter(|_| wave.scatter[i]) else { continue };
+        if bsdf.is_delta() {
+            continue;
+        }
+        let surf = &wave.surf[i];
+        let Some(ls) = lights.sample(surf.p, wave.u_light[i], (wave.u2_light[0][i], wave.u2_light[1][i]), textures) else { continue };
+        let wo = get3(&wave.wo, i);
+        let wi = wave.frame[i].to_local(ls.dir);
+        let f = bsdf.eval(wo, wi);
+        if f.max_element() <= 0.0 {
+            continue;
+        }
+        let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
+        let weight = if ls.delta || s.sampling == LightSampling::Nee { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo, wi)) };
+        pending[count] = (i as u8, surf.spawn(ls.dir).with_range(0.0, tmax), get3(&wave.beta, i) * f * ls.li * (weight / ls.pdf));
+        count += 1;
+    }
+    for &(i, ray, c) in &pending[..count] {
+        if !w.occluded_solid(&ray) {
+            let i = usize::from(i);
+            add3(&mut wave.radiance, i, c);
+        }
+    }
+}
+
+/// Stage 4: the BSDF's sample (lane by lane), then on lanes the throughput, roulette and
+/// the next ray.
+fn scatter(s: &PathSettings, wave: &mut Wave) {
+    for i in 0..wave.n {
+        if !wave.scatter[i] {
+            continue;
+        }
+        let Some(bsdf) = wave.bsdf[i] else { continue };
+        let Some(bs) = bsdf.sample(get3(&wave.wo, i), wave.u_bsdf[i], (wave.u2_bsdf[0][i], wave.u2_bsdf[1][i])) else {
+            wave.done[i] = true;
+            continue;
+        };
+        let beta = get3(&wave.beta, i) * bs.weight;
+        put3(&mut wave.beta, i, beta);
+        if !beta.is_finite() || beta.max_element() <= 0.0 {
+            wave.done[i] = true;
+            continue;
+        }
+        wave.eta[i] *= bs.eta;
+        wave.prev_pdf[i] = bs.pdf;
+        wave.prev_delta[i] = bs.delta;
+        put3(&mut wave.prev_p, i, wave.surf[i].p);
+        wave.ray[i] = wave.surf[i].spawn(wave.frame[i].to_world(bs.wi));
+        wave.depth[i] += 1;
+        if wave.depth[i] >= s.rr_depth {
+            let q = (beta.max_element() * wave.eta[i] * wave.eta[i]).min(0.95);
+            // (The bounce's own numbers: drawn before `depth` moved on.)
+            if wave.u_rr[i] >= q {
+                wave.done[i] = true;
+                continue;
+            }
+            put3(&mut wave.beta, i, beta / q);
+        }
+    }
+}
