@@ -83,8 +83,8 @@ fn frame(n: Vec3) -> (Vec3, Vec3) {
 /// normal, as the BSDFs see them) and back.
 #[derive(Clone, Copy, Debug)]
 pub struct ShadingFrame {
-    t: Vec3,
-    b: Vec3,
+    pub(crate) t: Vec3,
+    pub(crate) b: Vec3,
     /// The normal (local z).
     pub n: Vec3,
 }

@@ -59,7 +59,7 @@ fn mitsuba_relmse(dir: &str, spp: u32) -> f64 {
 fn converges_to_mitsuba(dir: &str) {
     let path = data(&format!("{dir}/scene.xml"));
     let defines = [("scenes".to_string(), common::scenes_dir().display().to_string())];
-    let scene = lucent_scene::load_mitsuba_with(&path, if dir == "bunny" { &defines[..] } else { &[] }).expect("scene");
+    let scene = lucent_scene::load_mitsuba_with(&path, if matches!(dir, "bunny" | "sponza") { &defines[..] } else { &[] }).expect("scene");
     let hints = scene.hints.expect("a Mitsuba scene has render hints");
     let cam_desc = scene.camera.expect("camera");
     let reference = Film::load(&data(&format!("{dir}/reference_4096spp.exr"))).expect("reference EXR");
@@ -114,4 +114,11 @@ fn environment_map() {
 #[test]
 fn bunny_mesh() {
     converges_to_mitsuba("bunny");
+}
+
+/// A large interior with delta lights and paths of six segments: Sponza under a point and a
+/// spot light (face normals).
+#[test]
+fn sponza_interior() {
+    converges_to_mitsuba("sponza");
 }

@@ -31,7 +31,7 @@
 
 use super::hit::{bsdf_frame, coherent, emitted, material, shading_normal};
 use super::path::{LightSampling, PathSettings, CHOICES, PAIRS};
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughPlastic};
 use crate::lanes::on_lanes;
 use crate::sampler::PixelSampler;
 use crate::sampling::{power_heuristic, ShadingFrame};
@@ -182,6 +182,237 @@ impl<'w> Wave<'w> {
     }
 }
 
+/// A BSDF model whose `sample`, `eval` and `pdf` run on lanes: called in a loop over lanes
+/// of one model (their parameters packed), written branch-free enough that LLVM vectorizes
+/// the loop, and the same code as one call (the same bits).
+trait Model: Copy {
+    fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample>;
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3;
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32;
+}
+
+macro_rules! model {
+    ($ty:ty, |$b:ident, $wo:ident, $u:ident, $u2:ident| $sample:expr) => {
+        impl Model for $ty {
+            #[inline(always)]
+            fn sample(&self, $wo: Vec3, $u: f32, $u2: (f32, f32)) -> Option<BsdfSample> {
+                let $b = self;
+                $sample
+            }
+            #[inline(always)]
+            fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+                <$ty>::eval(self, wo, wi)
+            }
+            #[inline(always)]
+            fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+                <$ty>::pdf(self, wo, wi)
+            }
+        }
+    };
+}
+model!(Diffuse, |b, wo, _u, u2| b.sample(wo, u2));
+model!(Conductor, |b, wo, _u, u2| b.sample(wo, u2));
+model!(Dielectric, |b, wo, u, u2| b.sample(wo, u, u2));
+model!(Plastic, |b, wo, u, u2| b.sample(wo, u, u2));
+model!(RoughPlastic<'_>, |b, wo, u, u2| b.sample(wo, u, u2));
+model!(MetallicRoughness, |b, wo, u, u2| b.sample(wo, u, u2));
+model!(DiffuseGlossy, |b, wo, u, u2| b.sample(wo, u, u2));
+
+/// The lanes of one model, packed: which lanes, their BSDFs and directions; the sample's
+/// results, or `eval` and `pdf` toward `wi`.
+struct Packed<B> {
+    lane: Vec<u8>,
+    bsdf: Vec<B>,
+    wo: Rows,
+    /// In: the direction toward the light (eval); out: the sampled direction.
+    wi: Rows,
+    u: [f32; CAP],
+    u2: [[f32; CAP]; 2],
+    /// Out: `eval` (or the sample's weight), `pdf` (or the sample's), and the sample's
+    /// delta flag, relative index and whether there is one.
+    f: Rows,
+    pdf: [f32; CAP],
+    delta: [bool; CAP],
+    eta: [f32; CAP],
+    ok: [bool; CAP],
+}
+
+impl<B: Model> Packed<B> {
+    fn new() -> Box<Self> {
+        let z = [[0.0; CAP]; 3];
+        Box::new(Self {
+            lane: Vec::with_capacity(CAP),
+            bsdf: Vec::with_capacity(CAP),
+            wo: z,
+            wi: z,
+            u: [0.0; CAP],
+            u2: [[0.0; CAP]; 2],
+            f: z,
+            pdf: [0.0; CAP],
+            delta: [false; CAP],
+            eta: [1.0; CAP],
+            ok: [false; CAP],
+        })
+    }
+
+    fn clear(&mut self) {
+        self.lane.clear();
+        self.bsdf.clear();
+    }
+
+    /// Lane `i` of the wave, of BSDF `b`, seen from `wo`, toward `wi` (eval) or with the
+    /// numbers `u`, `u2` (sample).
+    #[inline(always)]
+    fn push(&mut self, i: usize, b: B, wo: Vec3, wi: Vec3, u: f32, u2: (f32, f32)) {
+        let j = self.lane.len();
+        self.lane.push(i as u8);
+        self.bsdf.push(b);
+        put3(&mut self.wo, j, wo);
+        put3(&mut self.wi, j, wi);
+        self.u[j] = u;
+        (self.u2[0][j], self.u2[1][j]) = u2;
+    }
+
+    /// The sample of every packed lane.
+    #[inline(always)]
+    fn sample_all(&mut self) {
+        let n = self.bsdf.len();
+        let bsdf = &self.bsdf[..n];
+        for j in 0..n {
+            let s = bsdf[j].sample(get3(&self.wo, j), self.u[j], (self.u2[0][j], self.u2[1][j]));
+            self.ok[j] = s.is_some();
+            let s = s.unwrap_or(BsdfSample { wi: Vec3::Z, weight: Vec3::ZERO, pdf: 0.0, delta: false, eta: 1.0 });
+            put3(&mut self.wi, j, s.wi);
+            put3(&mut self.f, j, s.weight);
+            self.pdf[j] = s.pdf;
+            self.delta[j] = s.delta;
+            self.eta[j] = s.eta;
+        }
+    }
+
+    /// `eval` and `pdf` of every packed lane toward its `wi`.
+    #[inline(always)]
+    fn eval_all(&mut self) {
+        let n = self.bsdf.len();
+        let bsdf = &self.bsdf[..n];
+        for j in 0..n {
+            let (wo, wi) = (get3(&self.wo, j), get3(&self.wi, j));
+            put3(&mut self.f, j, bsdf[j].eval(wo, wi));
+            self.pdf[j] = bsdf[j].pdf(wo, wi);
+        }
+    }
+}
+
+/// Runs `$method` (`sample_all` or `eval_all`) on the packed lanes of every model, each loop
+/// on lanes.
+macro_rules! run_models {
+    ($models:expr, $method:ident) => {{
+        let m = $models;
+        if !m.diffuse.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<Diffuse>| p.$method())(&mut m.diffuse);
+        }
+        if !m.conductor.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<Conductor>| p.$method())(&mut m.conductor);
+        }
+        if !m.dielectric.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<Dielectric>| p.$method())(&mut m.dielectric);
+        }
+        if !m.plastic.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<Plastic>| p.$method())(&mut m.plastic);
+        }
+        if !m.rough_plastic.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<RoughPlastic<'_>>| p.$method())(&mut m.rough_plastic);
+        }
+        if !m.metallic_roughness.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<MetallicRoughness>| p.$method())(&mut m.metallic_roughness);
+        }
+        if !m.diffuse_glossy.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<DiffuseGlossy>| p.$method())(&mut m.diffuse_glossy);
+        }
+    }};
+}
+
+/// Calls `$f(packed)` for every model's packed lanes.
+macro_rules! each_model {
+    ($models:expr, |$p:ident| $body:expr) => {{
+        let m = $models;
+        {
+            let $p = &mut m.diffuse;
+            $body
+        }
+        {
+            let $p = &mut m.conductor;
+            $body
+        }
+        {
+            let $p = &mut m.dielectric;
+            $body
+        }
+        {
+            let $p = &mut m.plastic;
+            $body
+        }
+        {
+            let $p = &mut m.rough_plastic;
+            $body
+        }
+        {
+            let $p = &mut m.metallic_roughness;
+            $body
+        }
+        {
+            let $p = &mut m.diffuse_glossy;
+            $body
+        }
+    }};
+}
+
+/// One packed set per model, made once per thread's wave.
+struct Models<'w> {
+    diffuse: Box<Packed<Diffuse>>,
+    conductor: Box<Packed<Conductor>>,
+    dielectric: Box<Packed<Dielectric>>,
+    plastic: Box<Packed<Plastic>>,
+    rough_plastic: Box<Packed<RoughPlastic<'w>>>,
+    metallic_roughness: Box<Packed<MetallicRoughness>>,
+    diffuse_glossy: Box<Packed<DiffuseGlossy>>,
+}
+
+impl<'w> Models<'w> {
+    fn new() -> Self {
+        Self {
+            diffuse: Packed::new(),
+            conductor: Packed::new(),
+            dielectric: Packed::new(),
+            plastic: Packed::new(),
+            rough_plastic: Packed::new(),
+            metallic_roughness: Packed::new(),
+            diffuse_glossy: Packed::new(),
+        }
+    }
+
+    fn clear(&mut self) {
+        each_model!(self, |p| p.clear());
+    }
+
+    /// Packs lane `i` (BSDF `b`) with its model's lanes; `false` for a BSDF without a lane
+    /// form (the thin sheet, the user's), which the caller takes lane by lane.
+    #[inline(always)]
+    fn push(&mut self, i: usize, b: Bsdf<'w>, wo: Vec3, wi: Vec3, u: f32, u2: (f32, f32)) -> bool {
+        match b {
+            Bsdf::Diffuse(b) => self.diffuse.push(i, b, wo, wi, u, u2),
+            Bsdf::Conductor(b) => self.conductor.push(i, b, wo, wi, u, u2),
+            Bsdf::Dielectric(b) => self.dielectric.push(i, b, wo, wi, u, u2),
+            Bsdf::Plastic(b) => self.plastic.push(i, b, wo, wi, u, u2),
+            Bsdf::RoughPlastic(b) => self.rough_plastic.push(i, b, wo, wi, u, u2),
+            Bsdf::MetallicRoughness(b) => self.metallic_roughness.push(i, b, wo, wi, u, u2),
+            Bsdf::DiffuseGlossy(b) => self.diffuse_glossy.push(i, b, wo, wi, u, u2),
+            Bsdf::Thin(_) | Bsdf::Custom(..) => return false,
+        }
+        true
+    }
+}
+
 /// Renders the samples `s.range` of `block`'s pixels with `settings`, each pixel's sum (in
 /// order of the sample index) into `sums`.
 pub(crate) fn shade_samples(settings: &PathSettings, s: &SampleBlock, block: &Block, sums: &mut [Vec3]) {
@@ -191,6 +422,7 @@ pub(crate) fn shade_samples(settings: &PathSettings, s: &SampleBlock, block: &Bl
     let sampler = settings.sampler();
     let mut vals = vec![Vec3::ZERO; CHUNK.min(total)];
     let mut wave = Wave::new();
+    let mut models = Models::new();
     let mut next = 0usize;
     while next < total {
         let end = (next + CHUNK).min(total);
@@ -210,7 +442,7 @@ pub(crate) fn shade_samples(settings: &PathSettings, s: &SampleBlock, block: &Bl
                 wave.n += 1;
             }
             camera_packets(w, &mut wave, fresh, block.among, s.traversal.packets);
-            step(w, settings, &mut wave, &mut vals);
+            step(w, settings, &mut wave, &mut models, &mut vals);
         }
         // The chunk's values, pixel by pixel in order of the sample index.
         for e in chunk.clone() {
@@ -255,11 +487,11 @@ fn camera_packets(w: &World, wave: &mut Wave, fresh: usize, among: Option<&[u32]
 }
 
 /// One bounce of every lane; ended paths write their values and leave.
-fn step<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, vals: &mut [Vec3]) {
+fn step<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, vals: &mut [Vec3]) {
     trace(w, s, wave);
     numbers(wave);
-    light(w, s, wave);
-    scatter(s, wave);
+    light(w, s, wave, models);
+    scatter(s, wave, models);
     // Ended paths leave (their order among the lanes does not matter): from the back, so
     // the lane each removal moves in has been looked at already.
     for i in (0..wave.n).rev() {
@@ -356,65 +588,136 @@ fn numbers(wave: &mut Wave) {
     })(wave, n);
 }
 
-/// Stage 3: next-event estimation, a light sample per lane that scatters (lane by lane),
-/// then every shadow ray.
-fn light(w: &World, s: &PathSettings, wave: &mut Wave) {
+/// Stage 3: next-event estimation. A light sample per lane that scatters (lane by lane),
+/// the BSDF toward it on lanes (packed by model), then every shadow ray.
+fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>) {
     let lights = &w.light_set;
     if lights.is_empty() || s.sampling == LightSampling::Bsdf {
         return;
     }
     let textures = &w.scene.textures;
-    let mut pending: [(u8, Ray, Vec3); CAP] = [(0, NO_RAYS[0], Vec3::ZERO); CAP];
-    let mut count = 0;
+    models.clear();
+    let mut sampled = [false; CAP];
+    let mut dir: Rows = [[0.0; CAP]; 3];
+    let mut li: Rows = [[0.0; CAP]; 3];
+    let mut pdf = [0.0f32; CAP];
+    let mut delta = [false; CAP];
+    let mut dist = [0.0f32; CAP];
+    let mut alone = [0u8; CAP];
+    let mut n_alone = 0;
     for i in 0..wave.n {
         let Some(bsdf) = wave.bsdf[i].filter(|_| wave.scatter[i]) else { continue };
         if bsdf.is_delta() {
             continue;
         }
-        let surf = &wave.surf[i];
-        let Some(ls) = lights.sample(surf.p, wave.u_light[i], (wave.u2_light[0][i], wave.u2_light[1][i]), textures) else { continue };
-        let wo = get3(&wave.wo, i);
+        let Some(ls) = lights.sample(wave.surf[i].p, wave.u_light[i], (wave.u2_light[0][i], wave.u2_light[1][i]), textures) else { continue };
+        sampled[i] = true;
+        put3(&mut dir, i, ls.dir);
+        put3(&mut li, i, ls.li);
+        (pdf[i], delta[i], dist[i]) = (ls.pdf, ls.delta, ls.dist);
         let wi = wave.frame[i].to_local(ls.dir);
-        let f = bsdf.eval(wo, wi);
-        if f.max_element() <= 0.0 {
+        if !models.push(i, bsdf, get3(&wave.wo, i), wi, 0.0, (0.0, 0.0)) {
+            alone[n_alone] = i as u8;
+            n_alone += 1;
+        }
+    }
+    run_models!(&mut *models, eval_all);
+    let mut f: Rows = [[0.0; CAP]; 3];
+    let mut bsdf_pdf = [0.0f32; CAP];
+    each_model!(&mut *models, |p| {
+        for (j, &i) in p.lane.iter().enumerate() {
+            put3(&mut f, usize::from(i), get3(&p.f, j));
+            bsdf_pdf[usize::from(i)] = p.pdf[j];
+        }
+    });
+    for &i in &alone[..n_alone] {
+        let i = usize::from(i);
+        let Some(bsdf) = wave.bsdf[i] else { continue };
+        let (wo, wi) = (get3(&wave.wo, i), wave.frame[i].to_local(get3(&dir, i)));
+        put3(&mut f, i, bsdf.eval(wo, wi));
+        bsdf_pdf[i] = bsdf.pdf(wo, wi);
+    }
+    let mut pending: [(u8, Ray, Vec3); CAP] = [(0, NO_RAYS[0], Vec3::ZERO); CAP];
+    let mut count = 0;
+    for i in 0..wave.n {
+        let fi = get3(&f, i);
+        if !sampled[i] || fi.max_element() <= 0.0 {
             continue;
         }
-        let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
-        let weight = if ls.delta || s.sampling == LightSampling::Nee { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo, wi)) };
-        pending[count] = (i as u8, surf.spawn(ls.dir).with_range(0.0, tmax), get3(&wave.beta, i) * f * ls.li * (weight / ls.pdf));
+        let tmax = if dist[i].is_finite() { dist[i] * (1.0 - 1e-4) } else { f32::INFINITY };
+        let weight = if delta[i] || s.sampling == LightSampling::Nee { 1.0 } else { power_heuristic(pdf[i], bsdf_pdf[i]) };
+        let ray = wave.surf[i].spawn(get3(&dir, i)).with_range(0.0, tmax);
+        pending[count] = (i as u8, ray, get3(&wave.beta, i) * fi * get3(&li, i) * (weight / pdf[i]));
         count += 1;
     }
     for &(i, ray, c) in &pending[..count] {
         if !w.occluded_solid(&ray) {
-            let i = usize::from(i);
-            add3(&mut wave.radiance, i, c);
+            add3(&mut wave.radiance, usize::from(i), c);
         }
     }
 }
 
-/// Stage 4: the BSDF's sample (lane by lane), then on lanes the throughput, roulette and
-/// the next ray.
-fn scatter(s: &PathSettings, wave: &mut Wave) {
+/// Stage 4: the BSDF's sample (on lanes, packed by model), then the throughput, roulette
+/// and the next ray.
+fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>) {
+    models.clear();
+    let mut alone = [0u8; CAP];
+    let mut n_alone = 0;
     for i in 0..wave.n {
         if !wave.scatter[i] {
             continue;
         }
         let Some(bsdf) = wave.bsdf[i] else { continue };
-        let Some(bs) = bsdf.sample(get3(&wave.wo, i), wave.u_bsdf[i], (wave.u2_bsdf[0][i], wave.u2_bsdf[1][i])) else {
+        if !models.push(i, bsdf, get3(&wave.wo, i), Vec3::ZERO, wave.u_bsdf[i], (wave.u2_bsdf[0][i], wave.u2_bsdf[1][i])) {
+            alone[n_alone] = i as u8;
+            n_alone += 1;
+        }
+    }
+    run_models!(&mut *models, sample_all);
+    let mut ok = [false; CAP];
+    let mut wi: Rows = [[0.0; CAP]; 3];
+    let mut weight: Rows = [[0.0; CAP]; 3];
+    let mut pdf = [0.0f32; CAP];
+    let mut delta = [false; CAP];
+    let mut eta = [1.0f32; CAP];
+    each_model!(&mut *models, |p| {
+        for (j, &i) in p.lane.iter().enumerate() {
+            let i = usize::from(i);
+            ok[i] = p.ok[j];
+            put3(&mut wi, i, get3(&p.wi, j));
+            put3(&mut weight, i, get3(&p.f, j));
+            (pdf[i], delta[i], eta[i]) = (p.pdf[j], p.delta[j], p.eta[j]);
+        }
+    });
+    for &i in &alone[..n_alone] {
+        let i = usize::from(i);
+        let Some(bsdf) = wave.bsdf[i] else { continue };
+        if let Some(bs) = bsdf.sample(get3(&wave.wo, i), wave.u_bsdf[i], (wave.u2_bsdf[0][i], wave.u2_bsdf[1][i])) {
+            ok[i] = true;
+            put3(&mut wi, i, bs.wi);
+            put3(&mut weight, i, bs.weight);
+            (pdf[i], delta[i], eta[i]) = (bs.pdf, bs.delta, bs.eta);
+        }
+    }
+    for i in 0..wave.n {
+        if !wave.scatter[i] {
+            continue;
+        }
+        if !ok[i] {
             wave.done[i] = true;
             continue;
-        };
-        let beta = get3(&wave.beta, i) * bs.weight;
+        }
+        let beta = get3(&wave.beta, i) * get3(&weight, i);
         put3(&mut wave.beta, i, beta);
         if !beta.is_finite() || beta.max_element() <= 0.0 {
             wave.done[i] = true;
             continue;
         }
-        wave.eta[i] *= bs.eta;
-        wave.prev_pdf[i] = bs.pdf;
-        wave.prev_delta[i] = bs.delta;
+        wave.eta[i] *= eta[i];
+        wave.prev_pdf[i] = pdf[i];
+        wave.prev_delta[i] = delta[i];
         put3(&mut wave.prev_p, i, wave.surf[i].p);
-        wave.ray[i] = wave.surf[i].spawn(wave.frame[i].to_world(bs.wi));
+        wave.ray[i] = wave.surf[i].spawn(wave.frame[i].to_world(get3(&wi, i)));
         wave.depth[i] += 1;
         if wave.depth[i] >= s.rr_depth {
             let q = (beta.max_element() * wave.eta[i] * wave.eta[i]).min(0.95);
