@@ -28,6 +28,7 @@ pub mod build;
 pub mod closed;
 mod geom;
 mod kernel;
+pub mod math;
 mod mesh;
 pub mod packet;
 pub mod reference;

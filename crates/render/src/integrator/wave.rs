@@ -508,6 +508,7 @@ fn step<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Mo
 
 /// Stage 1, lane by lane: the closest hits, the light of what they meet (or of the
 /// environment), and where paths go on, the surface's BSDF and shading frame.
+#[inline(never)]
 fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>) {
     let lights = &w.light_set;
     let hidden = |depth: u32| depth == 0 && s.hide_emitters;
@@ -590,6 +591,7 @@ fn numbers(wave: &mut Wave) {
 
 /// Stage 3: next-event estimation. A light sample per lane that scatters (lane by lane),
 /// the BSDF toward it on lanes (packed by model), then every shadow ray.
+#[inline(never)]
 fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>) {
     let lights = &w.light_set;
     if lights.is_empty() || s.sampling == LightSampling::Bsdf {
@@ -650,6 +652,9 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         pending[count] = (i as u8, ray, get3(&wave.beta, i) * fi * get3(&li, i) * (weight / pdf[i]));
         count += 1;
     }
+    // (Measured: the first bounce's shadow rays of one pixel toward one light, sorted
+    // together and traced as packets where coherent, made the bunny 3% and Sponza 1%
+    // slower; the Cornell box's area light spreads them past a packet's cone.)
     for &(i, ray, c) in &pending[..count] {
         if !w.occluded_solid(&ray) {
             add3(&mut wave.radiance, usize::from(i), c);
@@ -659,6 +664,7 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
 
 /// Stage 4: the BSDF's sample (on lanes, packed by model), then the throughput, roulette
 /// and the next ray.
+#[inline(never)]
 fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>) {
     models.clear();
     let mut alone = [0u8; CAP];

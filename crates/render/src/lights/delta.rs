@@ -66,7 +66,7 @@ pub(crate) fn sample(l: &Light, p: Vec3) -> Option<LightSample> {
                 LightKind::Spot { direction, inner, outer, .. } => {
                     // Mitsuba's spot falloff: full inside `inner`, then linear in the angle
                     // down to zero at `outer`.
-                    let angle = (-dir).dot(direction.normalize_or_zero()).clamp(-1.0, 1.0).acos();
+                    let angle = lucent_accel::math::acos((-dir).dot(direction.normalize_or_zero()));
                     if angle <= inner {
                         1.0
                     } else if angle >= outer || outer <= inner {

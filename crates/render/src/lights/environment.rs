@@ -3,8 +3,10 @@
 
 use super::sample::LightSample;
 use crate::color::luminance;
+use crate::lanes::sin_cos;
 use crate::sampling::{uniform_sphere, Distribution2D};
 use glam::{Affine3A, Vec2, Vec3};
+use lucent_accel::math::{acos, atan2};
 use lucent_scene::{Environment, HdrImage};
 use std::f32::consts::PI;
 use std::sync::Arc;
@@ -94,8 +96,8 @@ impl EnvLight {
     pub(crate) fn eval(&self, dir: Vec3) -> Vec3 {
         let Some((img, _)) = &self.map else { return self.scale };
         let d = self.to_local.transform_vector3(dir).normalize_or_zero();
-        let u = d.x.atan2(-d.z) * (0.5 / PI);
-        let v = d.y.clamp(-1.0, 1.0).acos() / PI;
+        let u = atan2(d.x, -d.z) * (0.5 / PI);
+        let v = acos(d.y) / PI;
         self.lookup(img, u, v) * self.scale
     }
 
@@ -116,24 +118,25 @@ impl EnvLight {
 
     /// A direction (unit, world) and its density per solid angle.
     pub(crate) fn sample(&self, u: (f32, f32)) -> Option<LightSample> {
-        let (local, pdf) = match &self.map {
-            None => (uniform_sphere(u), 1.0 / (4.0 * PI)),
-            Some((_, dist)) => {
+        let (local, pdf, li) = match &self.map {
+            None => (uniform_sphere(u), 1.0 / (4.0 * PI), self.scale),
+            Some((img, dist)) => {
                 let (uv, p) = dist.sample(u);
-                let (theta, phi) = (uv.y * PI, uv.x * 2.0 * PI);
-                let (st, ct) = theta.sin_cos();
-                let (sp, cp) = phi.sin_cos();
+                let (st, ct) = sin_cos(uv.y * PI);
+                let (sp, cp) = sin_cos(uv.x * (2.0 * PI));
                 if st <= 0.0 {
                     return None;
                 }
-                (Vec3::new(sp * st, ct, -cp * st), p / (2.0 * PI * PI * st))
+                // (The radiance where the sample is, read at its (u, v): no way back from
+                // the direction.)
+                (Vec3::new(sp * st, ct, -cp * st), p / (2.0 * PI * PI * st), self.lookup(img, uv.x, uv.y) * self.scale)
             }
         };
         let dir = self.to_world.transform_vector3(local).normalize_or_zero();
         if dir == Vec3::ZERO {
             return None;
         }
-        Some(LightSample { dir, dist: f32::INFINITY, li: self.eval(dir), pdf, delta: false })
+        Some(LightSample { dir, dist: f32::INFINITY, li, pdf, delta: false })
     }
 
     /// The density of [`EnvLight::sample`] for world direction `dir`.
@@ -142,9 +145,9 @@ impl EnvLight {
             None => 1.0 / (4.0 * PI),
             Some((_, dist)) => {
                 let d = self.to_local.transform_vector3(dir).normalize_or_zero();
-                let u = d.x.atan2(-d.z) * (0.5 / PI);
+                let u = atan2(d.x, -d.z) * (0.5 / PI);
                 let u = u - u.floor();
-                let v = d.y.clamp(-1.0, 1.0).acos() / PI;
+                let v = acos(d.y) / PI;
                 let st = (1.0 - d.y * d.y).max(0.0).sqrt();
                 if st <= 0.0 {
                     return 0.0;
