@@ -95,7 +95,10 @@ pub fn run(a: AnimateArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
     println!("{name}: built in {:.1} ms; {frames} frames from {from:.3} s to {to:.3} s at {} fps", t0.elapsed().as_secs_f64() * 1e3, a.fps);
-    let integrator = crate::render_cmd::integrator_of(&a.integrator, a.max_depth, a.no_shadows, 5, false);
+    let Some(integrator) = lucent_render::setup::integrator_named(&a.integrator, world.scene(), a.max_depth, Some(5), false, a.no_shadows)
+    else {
+        bail!("--integrator {}: not one of {}", a.integrator, crate::render_cmd::INTEGRATORS.join(", "));
+    };
     let settings = RenderSettings { spp: a.spp.max(1), integrator, ..RenderSettings::new(a.size.0, a.size.1) };
     let bar = if std::io::stderr().is_terminal() { ProgressBar::new(frames) } else { ProgressBar::hidden() };
     bar.set_style(

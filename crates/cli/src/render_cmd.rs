@@ -4,10 +4,7 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_accel::{MeshOptions, TriangleTest};
 use lucent_render::progressive::{Passes, Progressive};
-use lucent_render::{
-    framing_camera, render, render_region, Camera, Integrator, PathSettings, Region, RenderSettings, Traversal, VplSettings,
-    WhittedSettings, World,
-};
+use lucent_render::{render, render_region, Camera, Integrator, PathSettings, Region, RenderSettings, VplSettings, World};
 use lucent_scene::{CameraDesc, Scene};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -120,30 +117,7 @@ pub struct RenderArgs {
 }
 
 /// The integrators `--integrator` names.
-pub const INTEGRATORS: [&str; 6] = ["whitted", "path", "path-scalar", "vpl", "eye-light", "normals"];
-
-/// The integrator `--integrator NAME` (one of [`INTEGRATORS`]) names, with the settings of
-/// `--max-depth` and `--no-shadows` (Whitted) or `--max-depth`, `--rr-depth` and
-/// `--hide-emitters` (path), or `--max-depth` (VPL, counted as the path tracer counts;
-/// its other options are set by the caller).
-pub fn integrator_of(name: &str, max_depth: Option<u32>, no_shadows: bool, rr_depth: u32, hide_emitters: bool) -> Integrator {
-    match name {
-        "eye-light" => Integrator::EyeLight,
-        "vpl" => Integrator::Vpl(VplSettings { max_depth: max_depth.unwrap_or(u32::MAX), ..VplSettings::default() }),
-        "normals" => Integrator::Normals,
-        "path" | "path-scalar" => Integrator::Path(PathSettings {
-            max_depth: max_depth.unwrap_or(u32::MAX),
-            rr_depth,
-            hide_emitters,
-            lanes: name == "path",
-            ..PathSettings::default()
-        }),
-        _ => Integrator::Whitted(WhittedSettings {
-            max_depth: max_depth.unwrap_or(WhittedSettings::default().max_depth),
-            shadows: !no_shadows,
-        }),
-    }
-}
+pub use lucent_render::setup::INTEGRATORS;
 
 /// Parses "WxH".
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -154,11 +128,6 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
         return Err(format!("{w}x{h}: each side must be 1..=16384"));
     }
     Ok((w, h))
-}
-
-/// Whether some material of the scene emits light.
-fn has_emitters(s: &Scene) -> bool {
-    s.materials.iter().any(|m| m.emission.max_element() > 0.0)
 }
 
 /// The built-in scenes.
@@ -235,22 +204,17 @@ pub fn load_scene(path: Option<&Path>, demo: &DemoArg) -> Result<Scene> {
 
 /// The camera to use: `--camera`, else the scene's, else one framing the bounds.
 pub fn choose_camera(scene: &Scene, camera: Option<&[f32]>, ortho: bool) -> Result<CameraDesc> {
-    let mut desc = match camera {
+    let view = match camera {
         Some(c) => match <&[f32; 10]>::try_from(c) {
-            Ok(v) if v.iter().all(|x| x.is_finite()) => CameraDesc::from_view(v),
+            Ok(v) => Some(v),
             _ => bail!("--camera needs 10 finite numbers EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV (got {})", c.len()),
         },
-        None => match (scene.camera, scene.bounds()) {
-            (Some(c), _) => c,
-            (None, Some((lo, hi))) => framing_camera(lo, hi),
-            (None, None) => bail!("the scene is empty: nothing to frame"),
-        },
+        None => None,
     };
-    if ortho {
-        let dist = (desc.look_at - desc.eye).length();
-        desc.ortho_height = Some(2.0 * dist * (desc.vfov_deg.to_radians() * 0.5).tan());
-    }
-    Ok(desc)
+    lucent_render::setup::camera_desc(scene, view, ortho).map_err(|e| match e {
+        lucent_render::setup::SetupError::Camera => anyhow::anyhow!("--camera needs 10 finite numbers EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV"),
+        e => e.into(),
+    })
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
@@ -270,16 +234,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
         (None, None, "path" | "path-scalar" | "vpl") => DemoArg { demo: Some(Demo::Studio), ..a.demo },
         _ => a.demo,
     };
-    let mut scene = load_scene(a.scene.as_deref(), &demo)?;
+    let scene = load_scene(a.scene.as_deref(), &demo)?;
     let load_s = t0.elapsed().as_secs_f64();
-    let hints = scene.hints;
-    let integrator = integrator_of(
-        &name,
-        a.max_depth.or(hints.and_then(|h| h.max_depth)),
-        a.no_shadows,
-        a.rr_depth.or(hints.map(|h| h.rr_depth)).unwrap_or(5),
-        a.hide_emitters || hints.is_some_and(|h| h.hide_emitters),
-    );
+    let Some(integrator) = lucent_render::setup::integrator_named(&name, &scene, a.max_depth, a.rr_depth, a.hide_emitters, a.no_shadows)
+    else {
+        bail!("--integrator {name}: not one of {}", INTEGRATORS.join(", "));
+    };
     let integrator = match (integrator, a.seed) {
         (Integrator::Path(p), Some(seed)) => Integrator::Path(PathSettings { seed, ..p }),
         (Integrator::Vpl(v), seed) => {
@@ -300,41 +260,38 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
         (i, _) => i,
     };
-    if matches!(integrator, Integrator::Path(_) | Integrator::Vpl(_))
-        && scene.lights.is_empty()
-        && scene.environment.is_none()
-        && !has_emitters(&scene)
-    {
-        tracing::warn!("the scene has no lights: lit by a white sky (a constant environment of radiance 1)");
-        scene.environment = Some(lucent_scene::Environment { scale: glam::Vec3::ONE, image: None, to_world: glam::Affine3A::IDENTITY });
-    }
-    let size = a.size.or(hints.map(|h| (h.width, h.height))).unwrap_or((1024, 768));
-    let spp = a.spp.or(hints.map(|h| h.spp)).unwrap_or(if matches!(integrator, Integrator::Path(_)) { 16 } else { 1 });
-    let desc = choose_camera(&scene, a.camera.as_deref(), a.ortho)?;
+    let view = match a.camera.as_deref() {
+        Some(c) => match <[f32; 10]>::try_from(c) {
+            Ok(v) if v.iter().all(|x| x.is_finite()) => Some(v),
+            _ => bail!("--camera needs 10 finite numbers EX,EY,EZ,LX,LY,LZ,UX,UY,UZ,FOV (got {})", c.len()),
+        },
+        None => None,
+    };
     let st = scene.stats();
     let t1 = Instant::now();
-    let opts = MeshOptions {
-        test: if a.watertight { TriangleTest::Watertight } else { TriangleTest::UnitTriangle },
-        quality: quality_of(&a.quality),
-        ..MeshOptions::default()
+    let recipe = lucent_render::setup::Recipe {
+        integrator,
+        size: a.size,
+        spp: a.spp,
+        view,
+        ortho: a.ortho,
+        mesh: MeshOptions {
+            test: if a.watertight { TriangleTest::Watertight } else { TriangleTest::UnitTriangle },
+            quality: quality_of(&a.quality),
+            ..MeshOptions::default()
+        },
+        packets: !a.single_rays,
     };
-    let mut world = World::new(scene, opts)?;
-    if world.ensure_light(desc.eye) {
+    let prepared = lucent_render::setup::prepare(scene, &recipe)?;
+    if prepared.sky {
+        tracing::warn!("the scene has no lights: lit by a white sky (a constant environment of radiance 1)");
+    }
+    if prepared.headlight {
         tracing::info!("the scene has no lights: using a headlight at the camera");
     }
+    let lucent_render::setup::Prepared { mut world, desc, camera: cam, settings, .. } = prepared;
+    let (w, h) = (settings.width, settings.height);
     let build_s = t1.elapsed().as_secs_f64();
-    let (w, h) = size;
-    let settings =
-        RenderSettings { spp: spp.max(1), integrator, traversal: Traversal { packets: !a.single_rays }, ..RenderSettings::new(w, h) };
-    let mut cam = Camera::new(&desc, w, h);
-    if a.camera.is_none() {
-        if let Some(h) = hints {
-            cam = cam.with_clip(h.clip.0, h.clip.1);
-            if let Some((r, f)) = h.lens {
-                cam = cam.with_lens(r, f);
-            }
-        }
-    }
     if let Some(s) = session.as_ref().filter(|s| s.rank() != 0) {
         return s.serve(&mut world, None, desc);
     }

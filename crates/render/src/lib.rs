@@ -13,7 +13,7 @@
 //!    [`film`], [`mod@denoise`];
 //! 3. the tile loop, [`tiles`];
 //! 4. the [`integrator`]s;
-//! 5. the driver: [`render()`], [`render_region`], [`progressive`].
+//! 5. the driver: [`render()`], [`render_region`], [`progressive`], [`setup`].
 //!
 //! # Example
 //! ```
@@ -43,6 +43,7 @@ pub mod progressive;
 mod render;
 pub mod sampler;
 pub mod sampling;
+pub mod setup;
 pub mod texture;
 pub mod tiles;
 pub mod world;
