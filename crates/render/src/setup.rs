@@ -195,7 +195,7 @@ mod tests {
             packets: true,
         };
         let p = prepare(scene.clone(), &recipe("path")).expect("prepared");
-        assert!(p.sky && !p.headlight && p.settings.spp == 16);
+        assert!(p.sky && p.settings.spp == 16);
         let w = prepare(scene.clone(), &recipe("whitted")).expect("prepared");
         assert!(!w.sky && w.headlight && w.settings.spp == 1);
         let empty = prepare(Scene::default(), &recipe("path"));
