@@ -420,7 +420,14 @@ mod tests {
         film.add(4, 5, Vec3::new(0.1, -2.0, f32::MAX), 3.0);
         let settings = [
             Integrator::default(),
-            Integrator::Path(PathSettings { max_depth: 7, rr_depth: 2, hide_emitters: true, sampling: LightSampling::Nee, seed: 99, lanes: false }),
+            Integrator::Path(PathSettings {
+                max_depth: 7,
+                rr_depth: 2,
+                hide_emitters: true,
+                sampling: LightSampling::Nee,
+                seed: 99,
+                lanes: false,
+            }),
             Integrator::Vpl(VplSettings { count: 17, clamp: 0.5, interleave: 3, discontinuity: false, ..VplSettings::default() }),
             Integrator::EyeLight,
             Integrator::Normals,

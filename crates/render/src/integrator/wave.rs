@@ -612,7 +612,9 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         if bsdf.is_delta() {
             continue;
         }
-        let Some(ls) = lights.sample(wave.surf[i].p, wave.u_light[i], (wave.u2_light[0][i], wave.u2_light[1][i]), textures) else { continue };
+        let Some(ls) = lights.sample(wave.surf[i].p, wave.u_light[i], (wave.u2_light[0][i], wave.u2_light[1][i]), textures) else {
+            continue;
+        };
         sampled[i] = true;
         put3(&mut dir, i, ls.dir);
         put3(&mut li, i, ls.li);

@@ -31,6 +31,9 @@ pub enum WorldError {
     /// The top level failed.
     #[error("instances: {0}")]
     Top(lucent_accel::BuildError),
+    /// An edit that does not fit the world (an index out of range, a count that differs).
+    #[error("{0}")]
+    Edit(String),
 }
 
 /// Maps a scene shape kind to the accel one.

@@ -41,31 +41,8 @@ impl World {
         let mut emitters_moved = false;
         for (m, positions) in pose.meshes {
             emitters_moved |= self.emissive.get(m as usize).is_some_and(|e| !e.is_empty());
-            let Some(mesh) = self.scene.meshes.get_mut(m as usize) else { continue };
-            mesh.positions = positions;
-            if let Some(f) = self.faces.get_mut(m as usize) {
-                *f = face_normals(&mesh.positions, &mesh.indices);
-            }
-            // Shading normals follow the deformation: a skinned mesh's own normals are skinned
-            // with it; a morphing mesh that came with normals gets smooth ones from its posed
-            // triangles (vertices split at hard edges stay split); one without stays faceted.
-            if let Some(k) = pose.normals.iter().position(|(nm, _)| *nm == m) {
-                mesh.normals = lucent_scene::Attr { values: pose.normals.swap_remove(k).1, indices: None };
-            } else if !mesh.normals.values.is_empty() {
-                mesh.normals = lucent_scene::Attr { values: vertex_normals(&mesh.positions, &mesh.indices), indices: None };
-            }
-            let name = mesh.name.clone();
-            let err = |source| WorldError::Build { mesh: name.clone(), source };
-            // Refit; rebuild once the refitted tree costs REBUILD_RATIO times a fresh one.
-            let ratio = match self.accel.geometry_mut(m as usize) {
-                Some(Geometry::Mesh(bvh)) => bvh.refit(&mesh.positions, &mesh.indices).map_err(err)?,
-                _ => f32::INFINITY,
-            };
-            if ratio > REBUILD_RATIO {
-                let opts = MeshOptions { refittable: true, ..self.opts };
-                let bvh = MeshBvh::build(&mesh.positions, &mesh.indices, opts).map_err(err)?;
-                self.accel.set_geometry(m as usize, Geometry::Mesh(bvh)).map_err(WorldError::Top)?;
-            }
+            let normals = pose.normals.iter().position(|(nm, _)| *nm == m).map(|k| pose.normals.swap_remove(k).1);
+            self.pose_mesh(m as usize, positions, normals)?;
         }
         let (info, scene, light_set) = (&mut self.info, &mut self.scene, &self.light_set);
         self.accel
@@ -109,6 +86,111 @@ impl World {
             self.light_set.set_delta(&self.lights);
         }
         Ok(pose.camera.or(self.scene.camera))
+    }
+
+    /// Moves mesh `m`'s vertices to `positions` (as many as it has): its bottom level is
+    /// refitted (rebuilt once a refit costs [`REBUILD_RATIO`] times a fresh build), its
+    /// face normals follow, and so do its shading normals: `normals` when given, else
+    /// smooth ones from the moved triangles where it had any. Every instance of the mesh
+    /// moves with it; the lights follow when it emits.
+    pub fn set_mesh_positions(&mut self, m: usize, positions: Vec<Vec3>, normals: Option<Vec<Vec3>>) -> Result<(), WorldError> {
+        let count = self.scene.meshes.get(m).map_or(0, |mesh| mesh.positions.len());
+        if m >= self.scene.meshes.len() || positions.len() != count {
+            return Err(WorldError::Edit(format!(
+                "mesh {m}: {} positions given where it has {count} (of {} meshes)",
+                positions.len(),
+                self.scene.meshes.len()
+            )));
+        }
+        let emits = self.emissive.get(m).is_some_and(|e| !e.is_empty());
+        self.pose_mesh(m, positions, normals)?;
+        // (The mesh's bounds moved: so do its instances' in the top level.)
+        self.accel.rebuild().map_err(WorldError::Top)?;
+        self.refresh_lights(emits);
+        Ok(())
+    }
+
+    /// Gives instances new transforms (`(instance, world_from_object)` pairs) and rebuilds
+    /// the top level once; the lights follow when an emitter moved or the bounds did.
+    pub fn set_instance_transforms(&mut self, moves: &[(usize, glam::Affine3A)]) -> Result<(), WorldError> {
+        let n = self.scene.instances.len();
+        if let Some(&(i, _)) = moves.iter().find(|(i, m)| *i >= n || !m.is_finite() || m.matrix3.determinant() == 0.0) {
+            return Err(WorldError::Edit(if i >= n {
+                format!("instance {i} out of range ({n} instances)")
+            } else {
+                format!("instance {i}: the transform is not finite or not invertible")
+            }));
+        }
+        let mut emitters_moved = false;
+        let (info, scene, light_set) = (&mut self.info, &mut self.scene, &self.light_set);
+        self.accel
+            .update_instances(|insts| {
+                for &(i, m) in moves {
+                    emitters_moved |= light_set.lights_instance(i) && scene.instances[i].world_from_object != m;
+                    insts[i] = Instance::new(insts[i].geometry, m);
+                    info[i] = InstInfo::new(info[i].geom, &insts[i]);
+                    scene.instances[i].world_from_object = m;
+                }
+            })
+            .map_err(WorldError::Top)?;
+        self.refresh_lights(emitters_moved);
+        Ok(())
+    }
+
+    /// Keeps the instances for which `keep` is true (in order; the others are gone, and
+    /// the later ones' indices close up) and rebuilds the top level; the bottom levels stay.
+    pub fn retain_instances(&mut self, keep: &[bool]) -> Result<(), WorldError> {
+        if keep.len() != self.scene.instances.len() {
+            return Err(WorldError::Edit(format!("{} flags for {} instances", keep.len(), self.scene.instances.len())));
+        }
+        let mut k = keep.iter();
+        self.scene.instances.retain(|_| *k.next().unwrap_or(&true));
+        let mut k = keep.iter();
+        self.info.retain(|_| *k.next().unwrap_or(&true));
+        let insts: Vec<Instance> = self.accel.instances().iter().zip(keep).filter(|(_, &keep)| keep).map(|(inst, _)| *inst).collect();
+        self.accel.set_instances(insts).map_err(WorldError::Top)?;
+        // (Instance indices moved: the light set, which names them, is made again.)
+        self.refresh_lights(true);
+        Ok(())
+    }
+
+    /// Mesh `m` posed at `positions` (and `normals`), its index refitted or rebuilt.
+    fn pose_mesh(&mut self, m: usize, positions: Vec<Vec3>, normals: Option<Vec<Vec3>>) -> Result<(), WorldError> {
+        let Some(mesh) = self.scene.meshes.get_mut(m) else { return Ok(()) };
+        mesh.positions = positions;
+        if let Some(f) = self.faces.get_mut(m) {
+            *f = face_normals(&mesh.positions, &mesh.indices);
+        }
+        // Shading normals follow the deformation: given ones (a skinned mesh's own,
+        // skinned with it), else a mesh that came with normals gets smooth ones from its
+        // posed triangles (vertices split at hard edges stay split); one without stays
+        // faceted.
+        if let Some(n) = normals {
+            mesh.normals = lucent_scene::Attr { values: n, indices: None };
+        } else if !mesh.normals.values.is_empty() {
+            mesh.normals = lucent_scene::Attr { values: vertex_normals(&mesh.positions, &mesh.indices), indices: None };
+        }
+        let name = mesh.name.clone();
+        let err = |source| WorldError::Build { mesh: name.clone(), source };
+        // Refit; rebuild once the refitted tree costs REBUILD_RATIO times a fresh one.
+        let ratio = match self.accel.geometry_mut(m) {
+            Some(Geometry::Mesh(bvh)) => bvh.refit(&mesh.positions, &mesh.indices).map_err(err)?,
+            _ => f32::INFINITY,
+        };
+        if ratio > REBUILD_RATIO {
+            let opts = MeshOptions { refittable: true, ..self.opts };
+            let bvh = MeshBvh::build(&mesh.positions, &mesh.indices, opts).map_err(err)?;
+            self.accel.set_geometry(m, Geometry::Mesh(bvh)).map_err(WorldError::Top)?;
+        }
+        Ok(())
+    }
+
+    /// After an edit: the light set made again when an emitter moved or the bounds did.
+    fn refresh_lights(&mut self, emitters_moved: bool) {
+        let bounds = self.scene.bounds();
+        if emitters_moved || bounds_bits(bounds) != bounds_bits(self.light_set.bounds()) {
+            self.remake_light_set(bounds);
+        }
     }
 
     /// Makes the light set again, for the scene's `bounds`.
