@@ -26,6 +26,10 @@ pub struct Camera {
     /// Thin lens: aperture radius (0: a pinhole) and distance of the plane in focus.
     lens_radius: f32,
     focus: f32,
+    /// The principal point's offset from the image centre, in view-plane units (added to
+    /// the view-plane coordinates of every ray), and whether it is not zero.
+    shift: (f32, f32),
+    shifted: bool,
 }
 
 impl Camera {
@@ -58,11 +62,52 @@ impl Camera {
             height: height.max(1),
             lens_radius: 0.0,
             focus: 1.0,
+            shift: (0.0, 0.0),
+            shifted: false,
+        }
+    }
+
+    /// A pinhole camera as a calibrated camera is described (OpenCV's and Open3D's pinhole
+    /// model): the eye, the camera's unit axes in the world (`right`, `down`, `forward`,
+    /// pixel x growing along `right`, pixel y along `down`), focal lengths and principal
+    /// point in pixels, the image size. A pixel's ray passes through
+    /// `forward + right (x + ½ − cx)/fx + down (y + ½ − cy)/fy`, normalized.
+    #[allow(clippy::too_many_arguments)]
+    #[must_use]
+    pub fn from_intrinsics(
+        eye: Vec3,
+        right: Vec3,
+        down: Vec3,
+        forward: Vec3,
+        (fx, fy): (f32, f32),
+        (cx, cy): (f32, f32),
+        width: u32,
+        height: u32,
+    ) -> Self {
+        let (w, h) = (width.max(1) as f32, height.max(1) as f32);
+        let shift = ((0.5 * w - cx) / fx, (cy - 0.5 * h) / fy);
+        Self {
+            eye,
+            forward,
+            right,
+            up: -down,
+            half_w: 0.5 * w / fx,
+            half_h: 0.5 * h / fy,
+            ortho: false,
+            normalize: true,
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+            width: width.max(1),
+            height: height.max(1),
+            lens_radius: 0.0,
+            focus: 1.0,
+            shifted: shift != (0.0, 0.0),
+            shift,
         }
     }
 
     /// Words in [`Camera::to_bits`].
-    pub const BITS: usize = 22;
+    pub const BITS: usize = 24;
 
     /// The camera as words, bit for bit (for sending it to another process:
     /// [`Camera::from_bits`] gives back the same camera, hence the same rays).
@@ -93,6 +138,8 @@ impl Camera {
             self.height,
             self.lens_radius.to_bits(),
             self.focus.to_bits(),
+            self.shift.0.to_bits(),
+            self.shift.1.to_bits(),
         ]
     }
 
@@ -123,9 +170,11 @@ impl Camera {
             height: b[19],
             lens_radius: f(20),
             focus: f(21),
+            shift: (f(22), f(23)),
+            shifted: (f(22), f(23)) != (0.0, 0.0),
         };
         let finite = [c.eye, c.forward, c.right, c.up].iter().all(|v| v.is_finite())
-            && [c.half_w, c.half_h, c.lens_radius, c.focus].iter().all(|x| x.is_finite());
+            && [c.half_w, c.half_h, c.lens_radius, c.focus, c.shift.0, c.shift.1].iter().all(|x| x.is_finite());
         let ok = finite && c.width > 0 && c.height > 0 && c.tmin >= 0.0 && c.tmax > c.tmin && c.lens_radius >= 0.0;
         ok.then_some(c)
     }
@@ -221,6 +270,8 @@ impl Camera {
             height: height.max(1),
             lens_radius: 0.0,
             focus: 1.0,
+            shift: (0.0, 0.0),
+            shifted: false,
         }
     }
 
@@ -232,6 +283,8 @@ impl Camera {
     pub fn ray(&self, x: f32, y: f32) -> Ray {
         let sx = (2.0 * x / self.width as f32 - 1.0) * self.half_w;
         let sy = (1.0 - 2.0 * y / self.height as f32) * self.half_h;
+        // (Not added when zero: −0 + 0 would turn a direction's −0 into +0.)
+        let (sx, sy) = if self.shifted { (sx + self.shift.0, sy + self.shift.1) } else { (sx, sy) };
         if self.ortho {
             return Ray::new(self.eye + self.right * sx + self.up * sy, self.forward).with_range(self.tmin, self.tmax);
         }
@@ -258,6 +311,12 @@ impl Camera {
             for i in 0..n {
                 sx[i] = (2.0 * pts[i].0 / w - 1.0) * self.half_w;
                 sy[i] = (1.0 - 2.0 * pts[i].1 / h) * self.half_h;
+            }
+            if self.shifted {
+                for i in 0..n {
+                    sx[i] += self.shift.0;
+                    sy[i] += self.shift.1;
+                }
             }
             if self.ortho {
                 for i in 0..n {
@@ -314,6 +373,7 @@ impl Camera {
             // Directions are forward + sx·right + sy·up with unit right/up/forward.
             (x / z, y / z)
         };
+        let (sx, sy) = if self.shifted { (sx - self.shift.0, sy - self.shift.1) } else { (sx, sy) };
         let px = (sx / self.half_w + 1.0) * 0.5 * self.width as f32;
         let py = (1.0 - sy / self.half_h) * 0.5 * self.height as f32;
         Some((px, py, z))
@@ -328,7 +388,12 @@ impl Camera {
     /// Eye, right, up and forward vectors and the half extents of the viewport at distance
     /// 1 (orthographic: of the view), for projecting the scene onto the image.
     pub(crate) fn basis(&self) -> CameraBasis {
-        CameraBasis { vectors: [self.eye, self.right, self.up, self.forward], half_w: self.half_w, half_h: self.half_h, ortho: self.ortho }
+        // (A shifted principal point skews the view axis: rays are (forward + shift) +
+        // sx·right + sy·up.)
+        let forward = if self.shifted { self.forward + self.right * self.shift.0 + self.up * self.shift.1 } else { self.forward };
+        let eye = if self.shifted && self.ortho { self.eye + self.right * self.shift.0 + self.up * self.shift.1 } else { self.eye };
+        let forward = if self.ortho { self.forward } else { forward };
+        CameraBasis { vectors: [eye, self.right, self.up, forward], half_w: self.half_w, half_h: self.half_h, ortho: self.ortho }
     }
 
     /// Near and far clip.
@@ -394,6 +459,7 @@ mod tests {
                 512,
                 384,
             ),
+            Camera::from_intrinsics(Vec3::new(0.2, 0.3, 4.0), Vec3::X, -Vec3::Y, -Vec3::Z, (300.0, 280.0), (140.0, 120.5), 317, 211),
         ];
         let pts: Vec<(f32, f32)> = (0..150).map(|i| ((i * 37 % 317) as f32 + (i % 7) as f32 / 7.0, (i * 53 % 211) as f32 + 0.5)).collect();
         for cam in &cams {
@@ -409,5 +475,33 @@ mod tests {
                 assert_eq!((g.tmin, g.tmax), (want.tmin, want.tmax));
             }
         }
+    }
+
+    /// A calibrated camera: with its principal point at the image centre it is the
+    /// look-at camera of the same field of view; shifted, each pixel's ray passes through
+    /// the point its intrinsics say, and projecting a point of it gives the pixel back.
+    #[test]
+    fn intrinsics_follow_opencvs_pinhole_model() {
+        let (w, h) = (64u32, 48u32);
+        let vfov = 50f32;
+        let f = 0.5 * h as f32 / (vfov.to_radians() * 0.5).tan();
+        let desc = CameraDesc { eye: Vec3::ZERO, look_at: -Vec3::Z, up: Vec3::Y, vfov_deg: vfov, ortho_height: None };
+        let a = Camera::new(&desc, w, h);
+        let b = Camera::from_intrinsics(Vec3::ZERO, Vec3::X, -Vec3::Y, -Vec3::Z, (f, f), (32.0, 24.0), w, h);
+        for (x, y) in [(0.5, 0.5), (10.25, 40.0), (63.5, 47.5)] {
+            assert!((a.ray(x, y).dir - b.ray(x, y).dir).length() < 1e-6, "{x},{y}");
+        }
+        let (fx, fy, cx, cy) = (70.0f32, 65.0f32, 20.0f32, 30.0f32);
+        let c = Camera::from_intrinsics(Vec3::new(1.0, 2.0, 3.0), Vec3::X, -Vec3::Y, -Vec3::Z, (fx, fy), (cx, cy), w, h);
+        for (x, y) in [(0.5f32, 0.5f32), (20.0, 30.0), (55.5, 7.25)] {
+            let d = c.ray(x, y).dir;
+            // In camera axes (x right, y down, z forward): (x − cx)/fx, (y − cy)/fy, 1.
+            let cam = Vec3::new(d.x, -d.y, -d.z) / -d.z;
+            assert!((cam.x - (x - cx) / fx).abs() < 1e-5 && (cam.y - (y - cy) / fy).abs() < 1e-5, "{x},{y}: {cam}");
+            let (px, py, _) = c.project(c.ray(x, y).at(2.0)).expect("in front");
+            assert!((px - x).abs() < 1e-3 && (py - y).abs() < 1e-3, "{x},{y}: {px},{py}");
+        }
+        let back = Camera::from_bits(&c.to_bits()).expect("a camera");
+        assert_eq!(back.ray(3.0, 4.0).dir, c.ray(3.0, 4.0).dir);
     }
 }
