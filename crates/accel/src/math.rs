@@ -47,7 +47,7 @@ pub fn atan2(y: f32, x: f32) -> f32 {
 /// Cephes' `asinf` polynomial: asin s for s in [0, ½], with z = s².
 #[inline(always)]
 fn asin_poly(s: f32, z: f32) -> f32 {
-    ((((4.216_32e-2 * z + 2.418_131_1e-2) * z + 4.547_002_6e-2) * z + 7.495_300_3e-2) * z + 1.666_675_2e-1) * z * s + s
+    ((((4.216_32e-2 * z + 2.418_131e-2) * z + 4.547_002_6e-2) * z + 7.495_300_3e-2) * z + 1.666_675_2e-1) * z * s + s
 }
 
 /// `acos(x)` for `x` in [−1, 1] (clamped there; NaN in, NaN out).

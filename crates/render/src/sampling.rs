@@ -161,7 +161,7 @@ impl Distribution1D {
     #[inline]
     fn cell(&self, u: f32) -> usize {
         let n = self.pdf.len();
-        if !(u >= 0.0) {
+        if u.is_nan() || u < 0.0 {
             return 0;
         }
         let j = ((u * n as f32) as usize).min(n - 1);
