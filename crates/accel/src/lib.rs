@@ -24,6 +24,7 @@
 //! ```
 #![deny(missing_docs)]
 
+mod all_hits;
 pub mod build;
 pub mod closed;
 mod geom;

@@ -127,8 +127,8 @@ pub struct BvhStats {
 pub struct MeshBvh {
     pub(crate) nodes: Nodes,
     pub(crate) tris: Vec<Tri4>,
-    wt_verts: Vec<[Vec3; 3]>,
-    wt_ids: Vec<u32>,
+    pub(crate) wt_verts: Vec<[Vec3; 3]>,
+    pub(crate) wt_ids: Vec<u32>,
     pub(crate) test: TriangleTest,
     bounds: Aabb,
     kernel: Kernel,

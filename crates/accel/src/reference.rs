@@ -85,3 +85,39 @@ pub fn intersect_instances(geoms: &[RefGeometry<'_>], instances: &[(u32, Affine3
     }
     best
 }
+
+/// Every hit over instances within the ray's range, each geometry tested in full, sorted
+/// by distance (ties by instance, then primitive): the reference of
+/// [`crate::TwoLevel::intersect_all`]. `watertight` picks the triangle test.
+#[must_use]
+pub fn all_hits_instances(geoms: &[RefGeometry<'_>], instances: &[(u32, Affine3A)], ray: &Ray, watertight: bool) -> Vec<Hit> {
+    let mut out = Vec::new();
+    for (id, (g, world_from_object)) in instances.iter().enumerate() {
+        let local = ray.transformed(&world_from_object.inverse());
+        match geoms[*g as usize] {
+            RefGeometry::Mesh(p, idx) => {
+                let w = WatertightRay::new(local.org, local.dir);
+                for (i, t) in idx.iter().enumerate() {
+                    let [a, b, c] = t.map(|i| p[i as usize]);
+                    let h = if watertight {
+                        unit_map_possible(a, b, c).then(|| w.hit(a, b, c, local.tmin, local.tmax)).flatten()
+                    } else {
+                        UnitTriangle::new(a, b, c).and_then(|u| unit_triangle_hit(&u, local.org, local.dir, local.tmin, local.tmax))
+                    };
+                    if let Some((t, u, v)) = h {
+                        out.push(Hit { t, u, v, prim: i as u32, inst: id as u32 });
+                    }
+                }
+            }
+            RefGeometry::Shape(s) => {
+                let mut tmin = local.tmin;
+                while let Some(h) = s.intersect_local(local.org, local.dir, tmin, local.tmax) {
+                    out.push(Hit { t: h.t, u: 0.0, v: 0.0, prim: h.part, inst: id as u32 });
+                    tmin = h.t.next_up();
+                }
+            }
+        }
+    }
+    out.sort_unstable_by(|a, b| a.t.total_cmp(&b.t).then(a.inst.cmp(&b.inst)).then(a.prim.cmp(&b.prim)));
+    out
+}

@@ -827,3 +827,58 @@ fn packets_through_corners_and_edges_match_single_rays() {
     }
     assert!(hits > 1000, "the tiles see the board ({hits} hits)");
 }
+
+/// Every hit along a ray, against the brute-force list: both triangle tests, spatial
+/// splits (one triangle in several leaves, reported once), instances of meshes and of
+/// every analytic shape (met at each crossing), rays from inside and limited ranges.
+#[test]
+fn all_hits_match_reference() {
+    let mut rng = Pcg64::seed_from_u64(41);
+    let (p1, i1) = soup(&mut rng, 400, 1.0);
+    let (p2, i2) = soup(&mut rng, 250, 1.0);
+    let shapes = [Shape::Sphere, Shape::CappedCylinder, Shape::CappedCone, Shape::Box, Shape::Disk, Shape::Cylinder, Shape::Cone];
+    for (test, watertight) in [(TriangleTest::UnitTriangle, false), (TriangleTest::Watertight, true)] {
+        let opts = |width, quality| MeshOptions { width, test, quality, ..MeshOptions::default() };
+        let mut geoms = vec![
+            Geometry::Mesh(MeshBvh::build(&p1, &i1, opts(Width::W8, lucent_accel::Quality::Spatial)).expect("b1")),
+            Geometry::Mesh(MeshBvh::build(&p2, &i2, opts(Width::W4, lucent_accel::Quality::Sah)).expect("b2")),
+        ];
+        let mut refs = vec![RefGeometry::Mesh(&p1, &i1), RefGeometry::Mesh(&p2, &i2)];
+        for s in shapes {
+            geoms.push(Geometry::Shape(s));
+            refs.push(RefGeometry::Shape(s));
+        }
+        let mut placed = vec![(0u32, Affine3A::IDENTITY)];
+        for k in 0..60u32 {
+            let m = Affine3A::from_scale_rotation_translation(
+                Vec3::splat(rng.random_range(0.3..1.5)),
+                Quat::from_euler(glam::EulerRot::XYZ, rng.random(), rng.random(), rng.random()),
+                Vec3::new(rng.random(), rng.random(), rng.random()) * 6.0,
+            );
+            placed.push((k % geoms.len() as u32, m));
+        }
+        let insts: Vec<Instance> = placed.iter().map(|&(g, m)| Instance::new(g, m)).collect();
+        let tl = TwoLevel::new(geoms, insts).expect("tlas");
+        let mut got = Vec::new();
+        let mut total = 0;
+        for i in 0..400 {
+            let mut r = random_ray(&mut rng, 6.0);
+            if i % 3 == 0 {
+                r = r.with_range(rng.random_range(0.0..2.0), rng.random_range(2.0..8.0));
+            }
+            let want = lucent_accel::reference::all_hits_instances(&refs, &placed, &r, watertight);
+            got.clear();
+            tl.intersect_all(&r, &mut got);
+            let key = |h: &lucent_accel::Hit| (h.t.to_bits(), h.inst, h.prim);
+            assert_eq!(got.iter().map(key).collect::<Vec<_>>(), want.iter().map(key).collect::<Vec<_>>(), "{test:?}: ray {r:?}");
+            let mut scratch = Vec::new();
+            assert_eq!(tl.count_hits(&r, &mut scratch), want.len());
+            // The closest of them is the closest hit.
+            if let (Some(first), Some(h)) = (want.first(), tl.intersect(&r)) {
+                assert!((first.t - h.t).abs() <= 1e-5 * h.t.max(1.0), "{test:?}: first of all {} vs closest {}", first.t, h.t);
+            }
+            total += want.len();
+        }
+        assert!(total > 400, "{test:?}: rays met {total} surfaces in all");
+    }
+}
