@@ -1,7 +1,7 @@
-//! Lanes: arithmetic written once over [`Real`], a number that is one `f32` or eight
+//! Lanes: arithmetic written once over `Real`, a number that is one `f32` or eight
 //! ([`F8`], `lucent_accel::simd`'s eight lanes, whose operations are loops the compiler
 //! turns into one AVX2 instruction each in functions compiled with AVX2, chosen at run
-//! time; the baseline build of the same loops is the fallback), and [`V3`], a 3-vector of
+//! time; the baseline build of the same loops is the fallback), and `V3`, a 3-vector of
 //! them. Code on them is branch-free (selects only) and uses no fused multiply-adds, so
 //! every width gives bit for bit the same answers: IEEE add, multiply, divide and square
 //! root are correctly rounded whatever the width. The Whitted integrator's blocks, the
@@ -262,7 +262,7 @@ impl V3<F8> {
 }
 
 /// Which build of a lane loop runs: the instruction sets a loop's function is compiled for
-/// by [`on_lanes!`], best first. Every build gives the same bits (IEEE operations, no fused
+/// by `on_lanes!`, best first. Every build gives the same bits (IEEE operations, no fused
 /// products: Rust never contracts).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Level {

@@ -59,7 +59,7 @@ pub struct PathSettings {
     /// The sampler's seed: another seed, another (equally good) set of samples.
     pub seed: u32,
     /// Trace many paths at once on lanes ([`super::wave`], the default); off: one path after
-    /// another ([`li`], the reference). The same estimator either way.
+    /// another (`li`, the reference). The same estimator either way.
     pub lanes: bool,
 }
 

@@ -1,9 +1,9 @@
 //! The path tracer on lanes: a small wavefront inside each thread (issue 58).
 //!
-//! [`super::path::li`] follows one path to its end before it starts the next. Here a block's
+//! `path::li` follows one path to its end before it starts the next. Here a block's
 //! samples (its pixels × the sample range, pixel by pixel) are a queue, and up to
 //! [`CAP`] paths of it are in flight at once, as lanes of a structure of arrays
-//! ([`Wave`]): every step runs one stage for every lane that is at it, and a lane whose
+//! (`Wave`): every step runs one stage for every lane that is at it, and a lane whose
 //! path ended takes the next sample of the queue at once (path regeneration), so the lanes
 //! stay full until the queue runs dry. The stages:
 //!
