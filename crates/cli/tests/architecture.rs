@@ -601,6 +601,7 @@ const MAY_DEPEND: &[(&str, &[&str])] = &[
     ("rend3r_machine", &["rend3r_isa", "lucent_accel", "lucent_scene", "lucent_render"]),
     ("rend3r_net", &["rend3r_isa", "rend3r_machine", "lucent_render"]),
     ("saarcor", &["lucent_accel", "lucent_scene", "lucent_render", "rend3r_isa", "rend3r_machine"]),
+    ("lucent_py", &["lucent_accel", "lucent_scene", "lucent_render"]),
     ("lucent_fuzzing", &["lucent_accel", "lucent_scene", "lucent_render", "rend3r_isa", "rend3r_machine", "rend3r_net", "lucent_cluster"]),
 ];
 

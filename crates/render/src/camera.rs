@@ -407,6 +407,12 @@ impl Camera {
     pub fn eye(&self) -> Vec3 {
         self.eye
     }
+
+    /// The unit view axis (depth is measured along it).
+    #[must_use]
+    pub fn forward(&self) -> Vec3 {
+        self.forward
+    }
 }
 
 /// See [`Camera::frame`].

@@ -54,6 +54,32 @@ impl Surface {
 }
 
 impl World {
+    /// The unit geometric normal of a hit in world space, the one [`World::surface`] gives
+    /// (a triangle's by its winding, `(b − a) × (c − a)`; a shape's outward), without the
+    /// rest of the surface point: what ray queries report. Zero for a hit this world does
+    /// not hold, or a degenerate triangle.
+    #[must_use]
+    pub fn geometric_normal(&self, r: &Ray, h: &Hit) -> Vec3 {
+        let (Some(inst), Some(placed)) = (self.info.get(h.inst as usize), self.accel.instances().get(h.inst as usize)) else {
+            return Vec3::ZERO;
+        };
+        let n_obj = match inst.geom {
+            Geom::Mesh(m) => match self.faces.get(m as usize).and_then(|f| f.get(h.prim as usize)) {
+                Some(f) => *f,
+                None => return Vec3::ZERO,
+            },
+            Geom::Shape { kind, .. } => {
+                let p_obj = placed.object_from_world.transform_point3(r.at(h.t));
+                shape_of(kind).normal_local(p_obj, h.prim)
+            }
+        };
+        if inst.identity {
+            n_obj
+        } else {
+            (inst.normal_to_world * glam::Vec3A::from(n_obj)).normalize_or_zero().into()
+        }
+    }
+
     /// Rebuilds the surface point of a hit.
     #[must_use]
     pub fn surface(&self, r: &Ray, h: &Hit) -> Surface {
