@@ -66,7 +66,7 @@ class Hits:
         self._origins = origins
         self._directions = directions
 
-    def __getattr__(self, name: str) -> Optional[np.ndarray]:
+    def __getattr__(self, name: str) -> Any:
         if name in ("t", "hit", "prim_id", "geom_id", "inst_id", "uv", "normal", "depth"):
             return self._fields.get(name)
         raise AttributeError(name)
@@ -207,7 +207,10 @@ class Scene:
         angle: float = 30.0,
     ) -> None:
         """Adds a ``'point'``, ``'directional'`` or ``'spot'`` light (for rendering)."""
-        self._s.add_light(kind, color=tuple(color), position=position, direction=direction, angle=angle)
+        c = [float(x) for x in color]
+        if len(c) != 3:
+            raise ValueError(f"color: {len(c)} numbers where 3 were needed")
+        self._s.add_light(kind, color=(c[0], c[1], c[2]), position=position, direction=direction, angle=angle)
 
     # edits ------------------------------------------------------------------------------
     def set_transforms(self, instances: ArrayLike, transforms: ArrayLike) -> None:
@@ -274,6 +277,11 @@ class Scene:
     def camera(self) -> Optional[Camera]:
         """The camera the scene file describes, if any."""
         return self._s.camera
+
+    def default_camera(self, width: Optional[int] = None, height: Optional[int] = None) -> Camera:
+        """The camera ``render`` uses when given none: the file's, else one framing the
+        scene (at the file's image size, or ``width`` x ``height``)."""
+        return self._s.default_camera(width, height)
 
     # queries ----------------------------------------------------------------------------
     def intersect(
@@ -414,8 +422,8 @@ def denoise(color: ArrayLike, *, albedo: ArrayLike, normal: ArrayLike, depth: Ar
 
 class Renderer:
     """A progressive render: each ``step(spp)`` adds samples to every pixel, and
-    ``image`` is the mean so far (after n samples, the image ``render`` makes with
-    ``spp=n``). Ctrl-C during a step leaves the image as it was before it.
+    ``image`` is the mean so far (for the path tracer, after n samples the image
+    ``render`` makes with ``spp=n``, up to the rounding of the sums). Ctrl-C during a step leaves the image as it was before it.
 
     >>> r = lucent.Renderer(scene, camera)          # doctest: +SKIP
     >>> for _ in range(16): r.step(4)               # doctest: +SKIP

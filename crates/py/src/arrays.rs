@@ -122,9 +122,9 @@ pub fn ints(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<(Vec<i64>, Vec<usize
     let np = obj.py().import("numpy")?;
     let arr = np.call_method1("asarray", (obj,)).map_err(|e| PyValueError::new_err(format!("{name}: not an array of integers ({e})")))?;
     let kind: String = arr.getattr("dtype")?.getattr("kind")?.extract()?;
-    if !matches!(kind.as_str(), "i" | "u")
-        && !(kind == "f" && arr.call_method0("__len__").is_ok_and(|n| n.extract::<usize>().is_ok_and(|n| n == 0)))
-    {
+    // (An empty list reads as float64: no integers in it to refuse.)
+    let empty = kind == "f" && arr.call_method0("__len__").is_ok_and(|n| n.extract::<usize>().is_ok_and(|n| n == 0));
+    if !(matches!(kind.as_str(), "i" | "u") || empty) {
         let dtype_name: String = arr.getattr("dtype")?.str()?.extract()?;
         return Err(PyTypeError::new_err(format!("{name}: an array of {dtype_name} where integers were needed")));
     }

@@ -10,6 +10,9 @@ use numpy::PyArrayDyn;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
+/// Origins and directions, each (height, width, 3).
+type RayArrays<'py> = (Bound<'py, PyArrayDyn<f32>>, Bound<'py, PyArrayDyn<f32>>);
+
 #[derive(Clone, Copy, Debug)]
 enum Kind {
     /// Look-at with a vertical field of view, or an orthographic view of a height.
@@ -66,6 +69,15 @@ impl Camera {
             lens: None,
             clip: None,
         }
+    }
+
+    /// The same camera with a scene file's clip range and lens.
+    pub fn with_hints(mut self, clip: (f32, f32), lens: Option<(f32, f32)>) -> Self {
+        if clip.0 >= 0.0 && clip.1 > clip.0 && clip != (0.0, f32::INFINITY) {
+            self.clip = Some(clip);
+        }
+        self.lens = lens;
+        self
     }
 
     /// lucent's camera for a scene stored minus `offset`.
@@ -277,7 +289,7 @@ impl Camera {
 
     /// The pixel-centre rays: origins and unit directions, each (height, width, 3)
     /// float32 (a thin lens's rays from the lens centre).
-    fn rays<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyArrayDyn<f32>>, Bound<'py, PyArrayDyn<f32>>)> {
+    fn rays<'py>(&self, py: Python<'py>) -> PyResult<RayArrays<'py>> {
         let cam = self.build(DVec3::ZERO);
         let (w, h) = (self.width as usize, self.height as usize);
         let (o, d) = py.detach(|| {

@@ -42,6 +42,8 @@ struct Rays<'a> {
     /// One origin for every ray.
     one_origin: bool,
     d: Slice<'a>,
+    /// One direction for every ray.
+    one_direction: bool,
     n: usize,
     tmin: Bound1<'a>,
     tmax: Bound1<'a>,
@@ -59,7 +61,8 @@ impl Rays<'_> {
         } else {
             (DVec3::new(self.o.get(k), self.o.get(k + 1), self.o.get(k + 2)) - self.offset).as_vec3()
         };
-        let d = Vec3::new(self.d.get(3 * i) as f32, self.d.get(3 * i + 1) as f32, self.d.get(3 * i + 2) as f32);
+        let j = if self.one_direction { 0 } else { 3 * i };
+        let d = Vec3::new(self.d.get(j) as f32, self.d.get(j + 1) as f32, self.d.get(j + 2) as f32);
         let (tmin, tmax) = (self.tmin.at(i), self.tmax.at(i));
         // (`!(a < b)` also refuses NaN.)
         let ok = o.is_finite() && d.is_finite() && d != Vec3::ZERO && tmin < tmax && tmin.is_finite() && !tmax.is_nan();
@@ -77,6 +80,7 @@ struct Input<'py> {
     tmax_s: f32,
     lead: Vec<usize>,
     one_origin: bool,
+    one_direction: bool,
 }
 
 /// A range bound: a number or an array of the rays' leading shape.
@@ -106,20 +110,26 @@ impl<'py> Input<'py> {
         tmax: &Bound<'py, PyAny>,
     ) -> PyResult<Self> {
         let d = Floats::extract(directions, "directions")?;
-        let lead = d.vectors("directions", 3)?;
+        let dlead = d.vectors("directions", 3)?;
         let o = Floats::extract(origins, "origins")?;
         let olead = o.vectors("origins", 3)?;
-        let one_origin = olead.is_empty();
-        if !one_origin && olead != lead {
-            return Err(PyValueError::new_err(format!(
-                "origins: shape {} does not match directions {} (give one origin (3,) or one per direction)",
-                shape_str(o.shape()),
-                shape_str(d.shape())
-            )));
-        }
+        // One origin for many directions (a camera, a LiDAR), one direction for many
+        // origins (toward a directional light), or one of each per ray.
+        let (lead, one_origin, one_direction) = match (olead.is_empty(), dlead.is_empty()) {
+            (true, _) => (dlead, true, false),
+            (false, true) => (olead, false, true),
+            (false, false) if olead == dlead => (dlead, false, false),
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "origins: shape {} does not match directions {} (give one of either as (3,), or one per ray)",
+                    shape_str(o.shape()),
+                    shape_str(d.shape())
+                )))
+            }
+        };
         let (tmin, tmin_s) = range_arg(tmin, "tmin", &lead)?;
         let (tmax, tmax_s) = range_arg(tmax, "tmax", &lead)?;
-        Ok(Self { o, d, tmin, tmax, tmin_s, tmax_s, lead, one_origin })
+        Ok(Self { o, d, tmin, tmax, tmin_s, tmax_s, lead, one_origin, one_direction })
     }
 
     fn rays(&self, offset: DVec3) -> PyResult<Rays<'_>> {
@@ -133,6 +143,7 @@ impl<'py> Input<'py> {
             o: self.o.slice()?,
             one_origin: self.one_origin,
             d: self.d.slice()?,
+            one_direction: self.one_direction,
             n: self.lead.iter().product(),
             tmin: bound(&self.tmin, self.tmin_s)?,
             tmax: bound(&self.tmax, self.tmax_s)?,

@@ -87,6 +87,7 @@ fn prepare_job(
 
 /// Renders samples `s0..s1` of every pixel band by band into `acc`, checking Python's
 /// signals between bands.
+#[allow(clippy::too_many_arguments)]
 fn render_bands(
     py: Python<'_>,
     world: &World,
@@ -231,8 +232,9 @@ struct Progress {
     spp: u32,
 }
 
-/// A progressive render: each ``step(spp)`` adds samples to every pixel (the image after
-/// n samples is the one ``render`` makes with ``spp=n``). Ctrl-C during a step leaves the
+/// A progressive render: each ``step(spp)`` adds samples to every pixel (for the path
+/// tracer, after n samples the image ``render`` makes with ``spp=n``, up to the rounding
+/// of the sums). Ctrl-C during a step leaves the
 /// image as it was before the step.
 #[pyclass(frozen, module = "lucent._lucent", name = "Renderer")]
 pub struct Renderer {

@@ -461,7 +461,7 @@ impl Scene {
             if !(r > 0.0 && r.is_finite()) {
                 return Err(PyValueError::new_err(format!("radius: {r} is not a positive number")));
             }
-            m = m * DAffine3::from_scale(DVec3::splat(r));
+            m *= DAffine3::from_scale(DVec3::splat(r));
         }
         if let Some(c) = center {
             let c = DVec3::from(c);
@@ -517,7 +517,7 @@ impl Scene {
         for i in 0..n {
             let p = DVec3::new(cs.get(3 * i), cs.get(3 * i + 1), cs.get(3 * i + 2));
             let rad = rs.get(if rs.len() == 1 { 0 } else { i });
-            if !p.is_finite() || !(rad > 0.0 && rad.is_finite()) {
+            if !(p.is_finite() && rad > 0.0 && rad.is_finite()) {
                 return Err(PyValueError::new_err(format!(
                     "sphere {i}: centre {p} radius {rad} (a finite centre and a positive radius were needed)"
                 )));
@@ -795,6 +795,27 @@ impl Scene {
         let desc = s.scene().camera?;
         let (w, h) = s.scene().hints.map_or((640, 480), |h| (h.width, h.height));
         Some(crate::camera::Camera::from_desc(&desc, w, h, s.offset))
+    }
+
+    /// The camera ``render`` uses when given none: the file's, else one framing the
+    /// scene, at the file's image size or ``width`` x ``height``.
+    #[pyo3(signature = (width = None, height = None))]
+    fn default_camera(&self, width: Option<u32>, height: Option<u32>) -> PyResult<crate::camera::Camera> {
+        let s = self.read();
+        let desc =
+            lucent_render::setup::camera_desc(s.scene(), None, false).map_err(|e| LucentError::new_err(format!("default_camera: {e}")))?;
+        let hints = s.scene().hints;
+        let (w, h) = match (width, height, hints) {
+            (Some(w), Some(h), _) => (w, h),
+            (None, None, Some(hh)) => (hh.width, hh.height),
+            (None, None, None) => (1024, 768),
+            _ => return Err(PyValueError::new_err("give both width and height, or neither")),
+        };
+        let mut cam = crate::camera::Camera::from_desc(&desc, w, h, s.offset);
+        if let Some(hh) = hints {
+            cam = cam.with_hints(hh.clip, hh.lens);
+        }
+        Ok(cam)
     }
 
     fn __repr__(&self) -> String {
