@@ -249,3 +249,22 @@ def test_every_file_kind_loads():
         lo, hi = s.bounds
         c = 0.5 * (lo + hi)
         assert s.intersect(c + [0, 0, 10 * np.linalg.norm(hi - lo)], [0, 0, -1]).t.shape == ()
+
+
+def test_watertight_rays_do_not_leak_through_shared_edges():
+    from conftest import DATA
+
+    z = np.load(DATA / "compat.npz")
+    V, F = z["ico_vertices"], z["ico_faces"]
+    s = lucent.Scene(triangle_test="watertight")
+    s.add_mesh(V, F)
+    # From inside, straight at every vertex and every edge's midpoint (where two or more
+    # triangles meet), and from points off the centre.
+    edges = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    targets = np.concatenate([V, 0.5 * (V[edges[:, 0]] + V[edges[:, 1]])])
+    rng = np.random.default_rng(5)
+    for origin in [np.zeros(3), *(rng.random((4, 3)) - 0.5) * 0.8]:
+        d = targets - origin
+        h = s.intersect(origin, d, fields=("hit",))
+        assert h.hit.all(), f"{(~h.hit).sum()} of {len(d)} rays leaked from {origin}"
+        assert s.count_hits(origin, d).min() >= 1
