@@ -70,6 +70,36 @@ def read_rays(path: Path):
     return np.ascontiguousarray(o), np.ascontiguousarray(d), np.ascontiguousarray(f[:, 6][valid])
 
 
+def closed_sphere(nu=256, nv=128):
+    """A closed UV sphere (shared vertices, poles fanned): 2 nu (nv - 1) triangles."""
+    th = np.linspace(0, np.pi, nv + 1)[1:-1]
+    ph = np.linspace(0, 2 * np.pi, nu, endpoint=False)
+    t, p = np.meshgrid(th, ph, indexing="ij")
+    ring = np.stack([np.sin(t) * np.cos(p), np.cos(t), np.sin(t) * np.sin(p)], -1).reshape(-1, 3)
+    v = np.concatenate([[[0, 1, 0]], ring, [[0, -1, 0]]]).astype(np.float32)
+    f = []
+    idx = lambda i, j: 1 + i * nu + (j % nu)
+    for j in range(nu):
+        f.append([0, idx(0, j + 1), idx(0, j)])
+        f.append([len(v) - 1, idx(nv - 2, j), idx(nv - 2, j + 1)])
+    for i in range(nv - 2):
+        for j in range(nu):
+            a, b, c, d = idx(i, j), idx(i, j + 1), idx(i + 1, j), idx(i + 1, j + 1)
+            f += [[a, b, d], [a, d, c]]
+    return v, np.array(f, np.uint32)
+
+
+def leak_rays(v, f, n=1_000_000, seed=3):
+    """Rays from points inside straight at vertices and edge midpoints (where triangles
+    meet: where a test that is not watertight lets rays through)."""
+    rng = np.random.default_rng(seed)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    targets = np.concatenate([v, 0.5 * (v[e[:, 0]] + v[e[:, 1]])]).astype(np.float64)
+    pick = targets[rng.integers(0, len(targets), n)]
+    o = (rng.random((n, 3)) - 0.5) * 0.5
+    return o.astype(np.float32), (pick - o).astype(np.float32), np.full(n, np.inf, np.float32)
+
+
 # ----------------------------------------------------------------------------- workers --
 def time_it(fn, runs):
     fn()  # warm-up (builds lazily, JIT compiles)
@@ -83,14 +113,18 @@ def time_it(fn, runs):
 
 
 def worker(lib, dump, kind, threads, runs, out_path):
-    v, f = read_mesh(dump / "mesh.bin")
-    o, d, tfar = read_rays(dump / f"rays_{kind}.bin")
+    if kind == "leaks":
+        v, f = closed_sphere()
+        o, d, tfar = leak_rays(v, f)
+    else:
+        v, f = read_mesh(dump / "mesh.bin")
+        o, d, tfar = read_rays(dump / f"rays_{kind}.bin")
     shadow = kind == "shadow"
     t0 = time.perf_counter()
-    if lib in ("lucent", "lucent-all"):
+    if lib in ("lucent", "lucent-all", "lucent-watertight"):
         import lucent
 
-        s = lucent.Scene()
+        s = lucent.Scene(triangle_test="watertight" if lib == "lucent-watertight" else "unit")
         s.add_mesh(v, f.astype(np.int64))
         s.commit()
         build = time.perf_counter() - t0
@@ -197,7 +231,7 @@ def pythons():
     return {k: v for k, v in cand.items() if v and (Path(v).exists() or shutil.which(v))}
 
 
-LIB_PY = {"lucent": "lucent", "lucent-all": "lucent", "open3d": "anchors", "embreex": "anchors", "trimesh": "anchors", "mitsuba": "mitsuba"}
+LIB_PY = {"lucent": "lucent", "lucent-all": "lucent", "lucent-watertight": "lucent", "open3d": "anchors", "embreex": "anchors", "trimesh": "anchors", "mitsuba": "mitsuba"}
 
 
 def main():
@@ -209,6 +243,7 @@ def main():
     ap.add_argument("--libs", default="lucent,lucent-all,open3d,embreex,trimesh,mitsuba")
     ap.add_argument("--kinds", default=",".join(KINDS))
     ap.add_argument("--json", default="/tmp/lucent-python-bench.json")
+    ap.add_argument("--leaks", action="store_true", help="count rays that slip through a closed mesh's shared edges and vertices instead")
     ap.add_argument("--worker", nargs=6, metavar=("LIB", "DUMP", "KIND", "THREADS", "RUNS", "OUT"), help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.worker:
@@ -216,6 +251,23 @@ def main():
         worker(lib, Path(dump), kind, int(threads), int(runs), out)
         return
     py = pythons()
+    if a.leaks:
+        tmp = Path(tempfile.mkdtemp(prefix="lucent-pybench-"))
+        print("rays from inside a closed sphere (65,024 triangles) at its vertices and edge midpoints:")
+        for lib in ["lucent", "lucent-watertight", "open3d", "embreex", "mitsuba"]:
+            if LIB_PY[lib] not in py:
+                continue
+            out = tmp / f"leaks-{lib}.npz"
+            cmd = [py[LIB_PY[lib]], str(Path(__file__).resolve()), "--worker", lib, "-", "leaks", "2", "1", str(out)]
+            r = subprocess.run(cmd, capture_output=True, text=True)
+            if r.returncode != 0:
+                print(f"  {lib}: failed: {r.stderr.strip().splitlines()[-1:]}")
+                continue
+            z = np.load(out)
+            ans = z["answer"]
+            missed = int(np.sum(~np.isfinite(ans))) if ans.dtype != np.bool_ else int(np.sum(~ans))
+            print(f"  {lib:18s} {missed:7d} of {int(z['rays'])} rays leaked")
+        return
     libs = [l for l in a.libs.split(",") if LIB_PY[l] in py]
     threads = [int(t) for t in a.threads.split(",")]
     rows = []

@@ -10,6 +10,7 @@
 
 // PyO3's macros expand to code clippy reads as needless conversions.
 #![allow(clippy::useless_conversion)]
+#![deny(missing_docs)]
 
 mod arrays;
 mod camera;

@@ -22,51 +22,75 @@ const BATCH: usize = 64;
 #[derive(Clone, Copy)]
 enum Bound1<'a> {
     Scalar(f32),
-    Per(Slice<'a>),
+    Per(&'a [f32]),
 }
 
 impl Bound1<'_> {
-    #[inline]
+    #[inline(always)]
     fn at(&self, i: usize) -> f32 {
         match self {
             Bound1::Scalar(x) => *x,
-            Bound1::Per(s) => s.get(i) as f32,
+            Bound1::Per(s) => s[i],
         }
     }
 }
 
-/// The rays of a call, as slices (sendable to the workers).
+/// The rays of a call as float32 slices in the scene's stored coordinates (sendable to
+/// the workers). PERF: float32 input without an offset is read where numpy holds it;
+/// anything else is converted once, in parallel, before tracing (reading each value
+/// through a per-value conversion was a tenth of a primary-ray query).
 #[derive(Clone, Copy)]
 struct Rays<'a> {
-    o: Slice<'a>,
+    o: &'a [f32],
     /// One origin for every ray.
     one_origin: bool,
-    d: Slice<'a>,
+    d: &'a [f32],
     /// One direction for every ray.
     one_direction: bool,
     n: usize,
     tmin: Bound1<'a>,
     tmax: Bound1<'a>,
-    offset: DVec3,
 }
 
 impl Rays<'_> {
-    /// Ray `i` in the scene's stored coordinates, or `None` when it cannot hit anything
-    /// (a non-finite origin or direction, a zero direction, an empty or NaN range).
-    #[inline]
+    /// Ray `i`, or `None` when it cannot hit anything (a non-finite origin or direction, a
+    /// zero direction, an empty or NaN range).
+    #[inline(always)]
     fn ray(&self, i: usize) -> Option<Ray> {
         let k = if self.one_origin { 0 } else { 3 * i };
-        let o = if self.offset == DVec3::ZERO {
-            Vec3::new(self.o.get(k) as f32, self.o.get(k + 1) as f32, self.o.get(k + 2) as f32)
-        } else {
-            (DVec3::new(self.o.get(k), self.o.get(k + 1), self.o.get(k + 2)) - self.offset).as_vec3()
-        };
+        let o = Vec3::new(self.o[k], self.o[k + 1], self.o[k + 2]);
         let j = if self.one_direction { 0 } else { 3 * i };
-        let d = Vec3::new(self.d.get(j) as f32, self.d.get(j + 1) as f32, self.d.get(j + 2) as f32);
+        let d = Vec3::new(self.d[j], self.d[j + 1], self.d[j + 2]);
         let (tmin, tmax) = (self.tmin.at(i), self.tmax.at(i));
-        // (`!(a < b)` also refuses NaN.)
         let ok = o.is_finite() && d.is_finite() && d != Vec3::ZERO && tmin < tmax && tmin.is_finite() && !tmax.is_nan();
         ok.then_some(Ray { org: o, dir: d, tmin, tmax })
+    }
+}
+
+/// `s` as float32, minus `shift` per component (of 3) where given: borrowed when it
+/// already is float32 and nothing is taken away, else converted in parallel into `buf`.
+fn as_f32<'a>(s: Slice<'a>, shift: Option<DVec3>, buf: &'a mut Vec<f32>) -> &'a [f32] {
+    match (s, shift) {
+        (Slice::F32(v), None) => v,
+        (Slice::F32(v), Some(sh)) => {
+            buf.resize(v.len(), 0.0);
+            buf.par_chunks_mut(3 * 4096).zip(v.par_chunks(3 * 4096)).for_each(|(o, i)| {
+                for (k, (o, i)) in o.iter_mut().zip(i).enumerate() {
+                    *o = (f64::from(*i) - sh[k % 3]) as f32;
+                }
+            });
+            buf
+        }
+        (Slice::F64(v), sh) => {
+            let sh = sh.unwrap_or(DVec3::ZERO);
+            buf.resize(v.len(), 0.0);
+            buf.par_chunks_mut(3 * 4096).zip(v.par_chunks(3 * 4096)).for_each(|(o, i)| {
+                for (k, (o, i)) in o.iter_mut().zip(i).enumerate() {
+                    *o = (*i - sh[k % 3]) as f32;
+                }
+            });
+            buf
+        }
     }
 }
 
@@ -132,24 +156,76 @@ impl<'py> Input<'py> {
         Ok(Self { o, d, tmin, tmax, tmin_s, tmax_s, lead, one_origin, one_direction })
     }
 
-    fn rays(&self, offset: DVec3) -> PyResult<Rays<'_>> {
-        fn bound<'a>(f: &'a Option<Floats<'_>>, s: f32) -> PyResult<Bound1<'a>> {
+    /// The arrays' values (sendable: converted and traced with the GIL released).
+    fn raw(&self) -> PyResult<Raw<'_>> {
+        fn opt<'a>(f: &'a Option<Floats<'_>>) -> PyResult<Option<Slice<'a>>> {
             Ok(match f {
-                Some(f) => Bound1::Per(f.slice()?),
-                None => Bound1::Scalar(s),
+                Some(f) => Some(f.slice()?),
+                None => None,
             })
         }
-        Ok(Rays {
+        Ok(Raw {
             o: self.o.slice()?,
-            one_origin: self.one_origin,
             d: self.d.slice()?,
+            tmin: opt(&self.tmin)?,
+            tmax: opt(&self.tmax)?,
+            tmin_s: self.tmin_s,
+            tmax_s: self.tmax_s,
+            one_origin: self.one_origin,
             one_direction: self.one_direction,
             n: self.lead.iter().product(),
-            tmin: bound(&self.tmin, self.tmin_s)?,
-            tmax: bound(&self.tmax, self.tmax_s)?,
-            offset,
         })
     }
+}
+
+/// A call's arrays as slices of whatever type they came in.
+#[derive(Clone, Copy)]
+struct Raw<'a> {
+    o: Slice<'a>,
+    d: Slice<'a>,
+    tmin: Option<Slice<'a>>,
+    tmax: Option<Slice<'a>>,
+    tmin_s: f32,
+    tmax_s: f32,
+    one_origin: bool,
+    one_direction: bool,
+    n: usize,
+}
+
+impl<'a> Raw<'a> {
+    /// The rays as float32 in the scene's coordinates (`offset` taken from the origins),
+    /// converted into `bufs` where needed (call with the GIL released: a float64 batch is
+    /// converted here).
+    fn rays(self, offset: DVec3, bufs: &'a mut Buffers32) -> Rays<'a> {
+        let shift = (offset != DVec3::ZERO).then_some(offset);
+        let Buffers32 { o: bo, d: bd, tmin: b0, tmax: b1 } = bufs;
+        let bound = |s: Option<Slice<'a>>, x: f32, buf: &'a mut Vec<f32>| match s {
+            Some(Slice::F32(v)) => Bound1::Per(v),
+            Some(Slice::F64(v)) => {
+                buf.extend(v.iter().map(|&x| x as f32));
+                Bound1::Per(buf)
+            }
+            None => Bound1::Scalar(x),
+        };
+        Rays {
+            o: as_f32(self.o, shift, bo),
+            one_origin: self.one_origin,
+            d: as_f32(self.d, None, bd),
+            one_direction: self.one_direction,
+            n: self.n,
+            tmin: bound(self.tmin, self.tmin_s, b0),
+            tmax: bound(self.tmax, self.tmax_s, b1),
+        }
+    }
+}
+
+/// Float32 copies of a call's arrays where they were not float32 already.
+#[derive(Default)]
+struct Buffers32 {
+    o: Vec<f32>,
+    d: Vec<f32>,
+    tmin: Vec<f32>,
+    tmax: Vec<f32>,
 }
 
 /// A batch of ray indices: a run, or an 8 × 8 tile of a 2-D leading shape.
@@ -187,39 +263,6 @@ fn batches(lead: &[usize], n: usize) -> Vec<Batch> {
         }
         _ => (0..n).step_by(BATCH).map(|a| Batch::Run(a, (a + BATCH).min(n))).collect(),
     }
-}
-
-/// Whether rays are coherent enough for the packet kernels: all in one direction octant
-/// (a camera's or a light's rays in a tile are; bounce rays mostly are not). Measured on
-/// the bunny's dumped rays: a test of the directions' spread as well cost more than it
-/// saved.
-fn coherent(rays: &[Option<Ray>]) -> bool {
-    let sign = |d: Vec3| (d.x < 0.0) as u8 | ((d.y < 0.0) as u8) << 1 | ((d.z < 0.0) as u8) << 2;
-    let mut s0 = None;
-    let mut n = 0;
-    for r in rays.iter().flatten() {
-        let s = sign(r.dir);
-        if *s0.get_or_insert(s) != s {
-            return false;
-        }
-        n += 1;
-    }
-    n >= 4
-}
-
-/// Puts a batch's rays into SoA blocks of eight (a missing ray: an empty lane).
-fn fill_blocks(rays: &[Option<Ray>], blocks: &mut [RayBlock; BATCH / 8]) -> usize {
-    let nb = rays.len().div_ceil(8);
-    for (k, r) in rays.iter().enumerate() {
-        match r {
-            Some(r) => blocks[k / 8].set(k % 8, r),
-            None => blocks[k / 8].set(k % 8, &EMPTY_RAY),
-        }
-    }
-    for k in rays.len()..nb * 8 {
-        blocks[k / 8].set(k % 8, &EMPTY_RAY);
-    }
-    nb
 }
 
 /// A lane that holds no ray (its range is empty).
@@ -415,26 +458,90 @@ fn packet_mode(coherent: Option<bool>) -> Option<bool> {
     coherent
 }
 
+/// A batch's rays gathered straight into SoA blocks of eight (a ray that cannot hit:
+/// an empty lane), which lanes hold a ray, and whether they share a direction octant.
+/// PERF: one pass over the arrays per batch (a list of rays first, then the blocks, was
+/// a fifth of a primary-ray query).
+struct Gathered {
+    blocks: [RayBlock; BATCH / 8],
+    valid: u64,
+    len: usize,
+}
+
+impl Gathered {
+    fn new() -> Self {
+        Self { blocks: [RayBlock::EMPTY; BATCH / 8], valid: 0, len: 0 }
+    }
+
+    /// Gathers rays `idx`; returns whether they suit the packet kernels (one direction
+    /// octant, at least four rays).
+    #[inline(always)]
+    fn gather(&mut self, rays: &Rays<'_>, idx: &[usize]) -> bool {
+        let sign = |d: Vec3| (d.x < 0.0) as u8 | ((d.y < 0.0) as u8) << 1 | ((d.z < 0.0) as u8) << 2;
+        let (mut all, mut any) = (7u8, 0u8);
+        self.valid = 0;
+        self.len = idx.len();
+        for (k, &i) in idx.iter().enumerate() {
+            let b = &mut self.blocks[k / 8];
+            match rays.ray(i) {
+                Some(r) => {
+                    b.set(k % 8, &r);
+                    self.valid |= 1 << k;
+                    let s = sign(r.dir);
+                    all &= s;
+                    any |= s;
+                }
+                None => b.set(k % 8, &EMPTY_RAY),
+            }
+        }
+        for k in idx.len()..idx.len().div_ceil(8) * 8 {
+            self.blocks[k / 8].set(k % 8, &EMPTY_RAY);
+        }
+        all == any && self.valid.count_ones() >= 4
+    }
+
+    fn blocks(&self) -> &[RayBlock] {
+        &self.blocks[..self.len.div_ceil(8)]
+    }
+
+    /// Ray `k` of the batch (when it holds one).
+    #[inline(always)]
+    fn ray(&self, k: usize) -> Option<Ray> {
+        if self.valid & (1 << k) == 0 {
+            return None;
+        }
+        let (b, l) = (&self.blocks[k / 8], k % 8);
+        Some(Ray {
+            org: Vec3::new(b.org[0][l], b.org[1][l], b.org[2][l]),
+            dir: Vec3::new(b.dir[0][l], b.dir[1][l], b.dir[2][l]),
+            tmin: b.tmin[l],
+            tmax: b.tmax[l],
+        })
+    }
+}
+
 /// Traces closest hits of `rays` into `out`.
 fn closest(st: &State, w: &World, rays: Rays<'_>, lead: &[usize], mode: Option<bool>, out: Out, forward: Vec3) {
     let tl = w.accel();
+    let needs_ray = !out.normal.is_null() || !out.depth.is_null();
     batches(lead, rays.n).par_iter().for_each_init(
-        || (Vec::with_capacity(BATCH), Vec::with_capacity(BATCH), [RayBlock::EMPTY; BATCH / 8], vec![None; BATCH]),
-        |(idx, rs, blocks, hits), b| {
+        || (Vec::with_capacity(BATCH), Gathered::new(), vec![None; BATCH]),
+        |(idx, g, hits), b| {
             b.indices(idx);
-            rs.clear();
-            rs.extend(idx.iter().map(|&i| rays.ray(i)));
-            if mode.unwrap_or_else(|| coherent(rs)) {
-                let nb = fill_blocks(rs, blocks);
-                tl.intersect_blocks(&blocks[..nb], &mut hits[..nb * 8]);
+            let packets = g.gather(&rays, idx);
+            if mode.unwrap_or(packets) {
+                let nb = g.blocks().len();
+                tl.intersect_blocks(g.blocks(), &mut hits[..nb * 8]);
             } else {
-                for (h, r) in hits.iter_mut().zip(rs.iter()) {
-                    *h = r.as_ref().and_then(|r| tl.intersect(r));
+                for (k, h) in hits[..idx.len()].iter_mut().enumerate() {
+                    *h = g.ray(k).and_then(|r| tl.intersect(&r));
                 }
             }
             for (k, &i) in idx.iter().enumerate() {
+                let hit = if g.valid & (1 << k) != 0 { hits[k] } else { None };
+                let r = if needs_ray { g.ray(k) } else { None };
                 // SAFETY: `i` is a ray of this batch only, below the ray count.
-                unsafe { out.put(i, st, w, rs[k].as_ref(), if rs[k].is_some() { hits[k] } else { None }, forward) };
+                unsafe { out.put(i, st, w, r.as_ref(), hit, forward) };
             }
         },
     );
@@ -472,11 +579,16 @@ impl Scene {
         let f = Fields::parse(&names, false)?;
         let bufs = Buffers::new(py, f, &input.lead, out)?;
         let offset = self.read().offset;
-        let rays = input.rays(offset)?;
+        let raw = input.raw()?;
         let lead = input.lead.clone();
         let o = bufs.out;
         let mode = packet_mode(coherent);
-        self.with_world(py, "intersect", move |st, w| crate::threads::run(threads, || closest(st, w, rays, &lead, mode, o, Vec3::Z)))?;
+        self.with_world(py, "intersect", move |st, w| {
+            crate::threads::run(threads, || {
+                let mut conv = Buffers32::default();
+                closest(st, w, raw.rays(offset, &mut conv), &lead, mode, o, Vec3::Z)
+            })
+        })?;
         bufs.into_dict(py)
     }
 
@@ -498,31 +610,32 @@ impl Scene {
         let inf = f64::INFINITY.into_pyobject(py)?.into_any();
         let input = Input::new(origins, directions, tmin.unwrap_or(&zero), tmax.unwrap_or(&inf))?;
         let offset = self.read().offset;
-        let rays = input.rays(offset)?;
+        let raw = input.raw()?;
         let lead = input.lead.clone();
-        let n = rays.n;
+        let n = raw.n;
         let v = self.with_world(py, "occluded", move |_, w| {
             crate::threads::run(threads, || {
+                let mut conv = Buffers32::default();
+                let rays = raw.rays(offset, &mut conv);
                 let tl = w.accel();
                 let mut res = vec![false; n];
                 let ptr = SendPtr(res.as_mut_ptr());
                 batches(&lead, n).par_iter().for_each_init(
-                    || (Vec::with_capacity(BATCH), Vec::with_capacity(BATCH), [RayBlock::EMPTY; BATCH / 8], vec![false; BATCH]),
-                    |(idx, rs, blocks, occ), b| {
+                    || (Vec::with_capacity(BATCH), Gathered::new(), vec![false; BATCH]),
+                    |(idx, g, occ), b| {
                         b.indices(idx);
-                        rs.clear();
-                        rs.extend(idx.iter().map(|&i| rays.ray(i)));
-                        if coherent.unwrap_or_else(|| crate::query::coherent(rs)) {
-                            let nb = fill_blocks(rs, blocks);
-                            tl.occluded_blocks(&blocks[..nb], &mut occ[..nb * 8]);
+                        let packets = g.gather(&rays, idx);
+                        if coherent.unwrap_or(packets) {
+                            let nb = g.blocks().len();
+                            tl.occluded_blocks(g.blocks(), &mut occ[..nb * 8]);
                         } else {
-                            for (o, r) in occ.iter_mut().zip(rs.iter()) {
-                                *o = r.as_ref().is_some_and(|r| tl.occluded(r));
+                            for (k, o) in occ[..idx.len()].iter_mut().enumerate() {
+                                *o = g.ray(k).is_some_and(|r| tl.occluded(&r));
                             }
                         }
                         for (k, &i) in idx.iter().enumerate() {
                             // SAFETY: `i` is below `n` and belongs to this batch only.
-                            unsafe { *ptr.get().add(i) = rs[k].is_some() && occ[k] };
+                            unsafe { *ptr.get().add(i) = g.valid & (1 << k) != 0 && occ[k] };
                         }
                     },
                 );
@@ -553,11 +666,13 @@ impl Scene {
         let inf = f64::INFINITY.into_pyobject(py)?.into_any();
         let input = Input::new(origins, directions, tmin.unwrap_or(&zero), tmax.unwrap_or(&inf))?;
         let offset = self.read().offset;
-        let rays = input.rays(offset)?;
-        let n = rays.n;
+        let raw = input.raw()?;
+        let n = raw.n;
         let cap = max_hits.unwrap_or(usize::MAX);
         let (counts, hits, gids, iids) = self.with_world(py, "intersect_all", move |st, w| {
             crate::threads::run(threads, || {
+                let mut conv = Buffers32::default();
+                let rays = raw.rays(offset, &mut conv);
                 let tl = w.accel();
                 let parts: Vec<(Vec<u32>, Vec<Hit>)> = (0..n)
                     .into_par_iter()
@@ -625,10 +740,12 @@ impl Scene {
         let inf = f64::INFINITY.into_pyobject(py)?.into_any();
         let input = Input::new(origins, directions, tmin.unwrap_or(&zero), tmax.unwrap_or(&inf))?;
         let offset = self.read().offset;
-        let rays = input.rays(offset)?;
-        let n = rays.n;
+        let raw = input.raw()?;
+        let n = raw.n;
         let v = self.with_world(py, "count_hits", move |_, w| {
             crate::threads::run(threads, || {
+                let mut conv = Buffers32::default();
+                let rays = raw.rays(offset, &mut conv);
                 let tl = w.accel();
                 (0..n)
                     .into_par_iter()
