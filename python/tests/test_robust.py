@@ -176,3 +176,26 @@ def test_memory_is_stable_over_many_calls(bunny, bunny_rays):
         bunny.occluded(o, d)
     grew = rss_mb() - base
     assert grew < 20, f"resident memory grew by {grew:.1f} MB over 10^4 calls"
+
+
+def test_bad_rays_inside_full_batches_miss_alone():
+    # 64 rays in a row (gathered eight at a time), bad ones scattered among them: each
+    # answers as it does alone.
+    s = tri()
+    rng = np.random.default_rng(2)
+    o = np.tile(np.array([0.2, 0.2, 1.0], np.float32), (64, 1)) + rng.random((64, 3)).astype(np.float32) * 0.05
+    d = np.tile(np.array([0, 0, -1.0], np.float32), (64, 1))
+    tmax = np.full(64, np.inf, np.float32)
+    o[3, 1] = np.nan
+    d[10] = 0
+    d[17, 0] = np.inf
+    tmax[30] = 0.5
+    tmax[41] = np.nan
+    o[50, 2] = -np.inf
+    for coherent in (None, True, False):
+        h = s.intersect(o, d, tmax=tmax, coherent=coherent)
+        alone = [s.intersect(o[i], d[i], tmax=float(tmax[i]) if not np.isnan(tmax[i]) else 0.0).hit for i in range(64)]
+        alone[41] = False
+        np.testing.assert_array_equal(h.hit, alone)
+        assert h.hit.sum() == 58
+        np.testing.assert_array_equal(s.occluded(o, d, tmax=tmax, coherent=coherent), h.hit)

@@ -18,7 +18,7 @@ the conversion to float32, as trimesh's ``scale_to_box`` tries to do for embreex
 
 from __future__ import annotations
 
-from typing import Any, Tuple
+from typing import Any, Optional, Tuple
 
 import numpy as np
 
@@ -47,6 +47,7 @@ class RayMeshIntersector:
         self._scale_to_box = scale_to_box
         self._scene = Scene()
         self._scene.add_mesh(np.asarray(geometry.vertices, dtype=np.float64), np.asarray(geometry.faces, dtype=np.int64))
+        self._closed: Optional[Scene] = None
 
     def intersects_first(self, ray_origins: Any, ray_directions: Any) -> np.ndarray:
         """Index of the first triangle each ray hits (int64, -1 on a miss)."""
@@ -93,16 +94,22 @@ class RayMeshIntersector:
 
     def contains_points(self, points: Any) -> np.ndarray:
         """Whether each point is inside the (closed) mesh: the parity of the surfaces a ray
-        from it crosses, asked along two directions and a third where those disagree."""
+        from it crosses, asked along two directions and a third where those disagree, with
+        the watertight triangle test (no ray slips between triangles that share an edge,
+        which would flip the parity)."""
         p = np.asarray(points, dtype=np.float64)
         if p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"points: shape {p.shape} where (n, 3) was needed")
         dirs = np.array([[0.4395064455, 0.617598629942, 0.652231566745], [-0.5785, -0.3981, 0.7119], [0.1343, -0.9421, -0.3074]])
-        odd = [(self._scene.count_hits(p, np.broadcast_to(dv, p.shape).copy()) % 2 == 1) for dv in dirs[:2]]
+        if self._closed is None:
+            self._closed = Scene(triangle_test="watertight")
+            self._closed.add_mesh(np.asarray(self.mesh.vertices, dtype=np.float64), np.asarray(self.mesh.faces, dtype=np.int64))
+        scene = self._closed
+        odd = [(scene.count_hits(p, np.broadcast_to(dv, p.shape).copy()) % 2 == 1) for dv in dirs[:2]]
         inside = odd[0].copy()
         disagree = odd[0] != odd[1]
         if disagree.any():
-            third = self._scene.count_hits(p[disagree], np.broadcast_to(dirs[2], (int(disagree.sum()), 3)).copy()) % 2 == 1
+            third = scene.count_hits(p[disagree], np.broadcast_to(dirs[2], (int(disagree.sum()), 3)).copy()) % 2 == 1
             # The majority of the three.
             inside[disagree] = third
         return inside
