@@ -127,6 +127,19 @@ fn range_arg<'py>(v: &Bound<'py, PyAny>, name: &str, lead: &[usize]) -> PyResult
 }
 
 impl<'py> Input<'py> {
+    /// [`Input::new`] with the default range [0, inf) where a bound is not given.
+    fn with_defaults(
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: Option<&Bound<'py, PyAny>>,
+        tmax: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Self> {
+        let zero = 0.0f64.into_pyobject(py)?.into_any();
+        let inf = f64::INFINITY.into_pyobject(py)?.into_any();
+        Self::new(origins, directions, tmin.unwrap_or(&zero), tmax.unwrap_or(&inf))
+    }
+
     fn new(
         origins: &Bound<'py, PyAny>,
         directions: &Bound<'py, PyAny>,
@@ -572,9 +585,7 @@ impl Scene {
         out: Option<&Bound<'py, PyDict>>,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let zero = 0.0f64.into_pyobject(py)?.into_any();
-        let inf = f64::INFINITY.into_pyobject(py)?.into_any();
-        let input = Input::new(origins, directions, tmin.unwrap_or(&zero), tmax.unwrap_or(&inf))?;
+        let input = Input::with_defaults(py, origins, directions, tmin, tmax)?;
         let names = fields.unwrap_or_else(|| FIELD_NAMES[..7].iter().map(|s| (*s).to_string()).collect());
         let f = Fields::parse(&names, false)?;
         let bufs = Buffers::new(py, f, &input.lead, out)?;
@@ -606,9 +617,7 @@ impl Scene {
         coherent: Option<bool>,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyArrayDyn<bool>>> {
-        let zero = 0.0f64.into_pyobject(py)?.into_any();
-        let inf = f64::INFINITY.into_pyobject(py)?.into_any();
-        let input = Input::new(origins, directions, tmin.unwrap_or(&zero), tmax.unwrap_or(&inf))?;
+        let input = Input::with_defaults(py, origins, directions, tmin, tmax)?;
         let offset = self.read().offset;
         let raw = input.raw()?;
         let lead = input.lead.clone();
@@ -662,9 +671,7 @@ impl Scene {
         max_hits: Option<usize>,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let zero = 0.0f64.into_pyobject(py)?.into_any();
-        let inf = f64::INFINITY.into_pyobject(py)?.into_any();
-        let input = Input::new(origins, directions, tmin.unwrap_or(&zero), tmax.unwrap_or(&inf))?;
+        let input = Input::with_defaults(py, origins, directions, tmin, tmax)?;
         let offset = self.read().offset;
         let raw = input.raw()?;
         let n = raw.n;
@@ -736,9 +743,7 @@ impl Scene {
         tmax: Option<&Bound<'py, PyAny>>,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyArrayDyn<i32>>> {
-        let zero = 0.0f64.into_pyobject(py)?.into_any();
-        let inf = f64::INFINITY.into_pyobject(py)?.into_any();
-        let input = Input::new(origins, directions, tmin.unwrap_or(&zero), tmax.unwrap_or(&inf))?;
+        let input = Input::with_defaults(py, origins, directions, tmin, tmax)?;
         let offset = self.read().offset;
         let raw = input.raw()?;
         let n = raw.n;

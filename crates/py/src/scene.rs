@@ -145,6 +145,18 @@ impl State {
         id
     }
 
+    /// The index of `material` (added to the scene), or of the default one.
+    fn material(&mut self, material: Option<Material>) -> u32 {
+        match material {
+            Some(mat) => {
+                let sc = self.scene_mut();
+                sc.materials.push(mat);
+                (sc.materials.len() - 1) as u32
+            }
+            None => self.default_material(),
+        }
+    }
+
     fn default_material(&mut self) -> u32 {
         let s = self.scene_mut();
         if s.materials.is_empty() {
@@ -406,14 +418,7 @@ impl Scene {
             if s.geoms.is_empty() && s.scene().instances.is_empty() {
                 s.offset = m.transform_point3(shift);
             }
-            let mat = match material {
-                Some(mat) => {
-                    let sc = s.scene_mut();
-                    sc.materials.push(mat);
-                    (sc.materials.len() - 1) as u32
-                }
-                None => s.default_material(),
-            };
+            let mat = s.material(material);
             let sc = s.scene_mut();
             let mesh_index = sc.meshes.len() as u32;
             sc.meshes.push(Mesh {
@@ -475,14 +480,7 @@ impl Scene {
             if s.geoms.is_empty() && s.scene().instances.is_empty() {
                 s.offset = m.translation;
             }
-            let mat = match material {
-                Some(mat) => {
-                    let sc = s.scene_mut();
-                    sc.materials.push(mat);
-                    (sc.materials.len() - 1) as u32
-                }
-                None => s.default_material(),
-            };
+            let mat = s.material(material);
             let g = GeomEntry { geom: Geom::Shape { kind: k, material: mat }, shift: DVec3::ZERO };
             s.geoms.push(g);
             let gid = (s.geoms.len() - 1) as i64;
@@ -531,14 +529,7 @@ impl Scene {
                     s.offset = m.translation;
                 }
             }
-            let mat = match material {
-                Some(mat) => {
-                    let sc = s.scene_mut();
-                    sc.materials.push(mat);
-                    (sc.materials.len() - 1) as u32
-                }
-                None => s.default_material(),
-            };
+            let mat = s.material(material);
             let g = GeomEntry { geom: Geom::Shape { kind: ShapeKind::Sphere, material: mat }, shift: DVec3::ZERO };
             s.geoms.push(g);
             let gid = (s.geoms.len() - 1) as i64;
