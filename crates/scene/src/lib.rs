@@ -18,6 +18,7 @@ mod model;
 mod obj;
 mod options;
 mod ply;
+pub mod spectrum;
 mod sunflowers;
 mod texture;
 

@@ -27,6 +27,7 @@ use crate::bsdf::{named_conductor, named_ior, Alpha, Bsdf, ColorTex, Distributio
 use crate::camera::CameraDesc;
 use crate::error::ImportError;
 use crate::model::{Environment, Geom, HdrImage, Instance, Light, LightKind, Material, Mesh, RenderHints, Scene, ShapeKind};
+use crate::spectrum::SpectrumUse;
 use crate::texture::{TextureCache, Wrap};
 use glam::{Affine2, Affine3A, Mat3, Mat4, Vec2, Vec3};
 use roxmltree::{Document, Node};
@@ -386,16 +387,36 @@ impl<'a, 'd> Cx<'a, 'd> {
                 Ok(Vec3::splat(self.number(p, &v)?))
             }
             "spectrum" => {
-                let v = self.attr(p, "value")?;
-                if v.contains(':') {
-                    // Wavelength:value pairs: their mean (lucent renders in RGB).
-                    self.warn(p, "spectrum", "a sampled <spectrum> is read as its mean value (lucent renders in RGB)");
-                    let vals: R<Vec<f32>> = v.split(',').map(|pair| self.number(p, pair.split(':').nth(1).unwrap_or(""))).collect();
-                    let vals = vals?;
-                    Ok(Vec3::splat(vals.iter().sum::<f32>() / vals.len().max(1) as f32))
+                // As Mitsuba's RGB variants read spectra (crate::spectrum): emission and
+                // unitless terms convert differently from reflectances.
+                let usage = if p.ancestors().any(|a| a.tag_name().name() == "emitter") {
+                    SpectrumUse::Emission
+                } else if matches!(p.attribute("name"), Some("eta" | "k" | "int_ior" | "ext_ior")) {
+                    SpectrumUse::Unbounded
                 } else {
-                    Ok(Vec3::splat(self.number(p, &v)?))
-                }
+                    SpectrumUse::Reflectance
+                };
+                let (w, v) = match (p.attribute("filename"), p.attribute("value")) {
+                    (Some(_), _) => {
+                        let file = self.attr(p, "filename")?;
+                        let path = self.base.join(file.replace('\\', "/"));
+                        let text = std::fs::read_to_string(&path).map_err(|e| self.err(p, format!("{}: {e}", path.display())))?;
+                        crate::spectrum::parse_spd(&text).map_err(|e| self.err(p, format!("{}: {e}", path.display())))?
+                    }
+                    (None, _) => {
+                        let v = self.attr(p, "value")?;
+                        if !v.contains(':') {
+                            let x = self.number(p, &v)?;
+                            return Ok(if usage == SpectrumUse::Emission {
+                                crate::spectrum::EQUAL_ENERGY_EMISSION * x
+                            } else {
+                                Vec3::splat(x)
+                            });
+                        }
+                        crate::spectrum::parse_pairs(&v).map_err(|e| self.err(p, format!("<spectrum value>: {e}")))?
+                    }
+                };
+                crate::spectrum::spectrum_to_rgb(&w, &v, usage).ok_or_else(|| self.err(p, "a spectrum needs increasing wavelengths"))
             }
             other => Err(self.err(p, format!("expected <rgb>, <spectrum> or <float>, found <{other}>"))),
         }

@@ -183,3 +183,41 @@ fn mtl_and_gltf_materials_keep_their_parameters() {
         ]
     );
 }
+
+/// Spectra read as Mitsuba 3.9.1's RGB variants read them (its colours of the same
+/// scene, from `mi.traverse`): reflectances under D65 and clamped, emission without an
+/// illuminant (a uniform one is slightly pink), indices unclamped, `.spd` files.
+#[test]
+fn spectra_read_as_mitsuba_reads_them() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("k.spd"), "# absorption\n400 3\n700 4\n").expect("spd");
+    let xml = format!(
+        r#"<scene version="3.0.0">{SENSOR}
+        <bsdf type="diffuse" id="d"><spectrum name="reflectance" value="400:0.2, 500:0.5, 600:0.8, 700:0.3"/></bsdf>
+        <bsdf type="conductor" id="c"><spectrum name="eta" value="400:1.5, 700:2.0"/><spectrum name="k" filename="k.spd"/></bsdf>
+        <shape type="sphere"><ref id="d"/><emitter type="area"><spectrum name="radiance" value="5"/></emitter></shape>
+        <shape type="sphere"><ref id="c"/><point name="center" x="3" y="0" z="0"/></shape>
+        <emitter type="point"><spectrum name="intensity" value="400:10, 700:20"/></emitter>
+        </scene>"#
+    );
+    let s = parse_mitsuba(&dir.path().join("t.xml"), dir.path(), &xml).expect("scene");
+    let close = |a: Vec3, b: [f32; 3]| {
+        assert!((a - Vec3::from(b)).abs().max_element() < 2e-5 * Vec3::from(b).max_element().max(1.0), "{a} vs {b:?}")
+    };
+    let m = |i: usize| {
+        let Geom::Shape { material, .. } = s.instances[i].geom else { panic!("shape") };
+        &s.materials[material as usize]
+    };
+    let Some(Bsdf::Diffuse { reflectance: ColorTex::Const(r) }) = &m(0).bsdf else { panic!("diffuse") };
+    close(*r, [0.755_029, 0.641_416, 0.323_239]);
+    close(m(0).emission, [6.023_97, 4.741_46, 4.544_58]);
+    let Some(Bsdf::Conductor { eta, k, .. }) = &m(1).bsdf else { panic!("conductor") };
+    // (lucent's conductor divides by the outside's index, air's 1.000277 by default.)
+    close(*eta * 1.000_277, [1.895_09, 1.737_86, 1.560_38]);
+    close(*k * 1.000_277, [3.790_17, 3.475_72, 3.120_77]);
+    close(s.lights[0].color, [21.4, 14.042_4, 10.171_4]);
+    let e = err(
+        r#"<scene version="3.0.0"><shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" value="500:1, 400:2"/></bsdf></shape></scene>"#,
+    );
+    assert!(e.contains("t.xml:1:") && e.contains("wavelengths must increase"), "{e}");
+}
