@@ -221,3 +221,72 @@ fn spectra_read_as_mitsuba_reads_them() {
     );
     assert!(e.contains("t.xml:1:") && e.contains("wavelengths must increase"), "{e}");
 }
+
+/// `<include>` (nested, relative to the including file, errors naming the included file
+/// and line), `<path>` (a folder searched for files) and `<alias>`.
+#[test]
+fn includes_paths_and_aliases() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::create_dir_all(d.join("parts/deeper")).expect("dirs");
+    std::fs::create_dir_all(d.join("meshes")).expect("dirs");
+    std::fs::write(d.join("meshes/tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").expect("obj");
+    std::fs::write(
+        d.join("parts/materials.xml"),
+        r#"<scene version="3.0.0">
+    <bsdf type="diffuse" id="white"><rgb name="reflectance" value="0.8"/></bsdf>
+    <alias id="white" as="paint"/>
+    <include filename="deeper/light.xml"/>
+</scene>"#,
+    )
+    .expect("materials");
+    std::fs::write(
+        d.join("parts/deeper/light.xml"),
+        r#"<scene version="3.0.0"><emitter type="point"><rgb name="intensity" value="7"/></emitter></scene>"#,
+    )
+    .expect("light");
+    let main = format!(
+        r#"<scene version="3.0.0">{SENSOR}
+    <path value="meshes"/>
+    <include filename="parts/materials.xml"/>
+    <shape type="obj"><string name="filename" value="tri.obj"/><ref id="paint"/></shape>
+</scene>"#
+    );
+    let s = parse_mitsuba(&d.join("main.xml"), d, &main).expect("scene");
+    assert_eq!(s.meshes.len(), 1, "the mesh found through <path>");
+    let m = &s.materials[s.meshes[0].material[0] as usize];
+    assert!(
+        matches!(&m.bsdf, Some(Bsdf::Diffuse { reflectance: ColorTex::Const(c) }) if *c == Vec3::splat(0.8)),
+        "the aliased BSDF of the included file"
+    );
+    assert_eq!(s.lights.len(), 1, "the light of the file the included file includes");
+    assert_eq!(s.lights[0].color, Vec3::splat(7.0));
+
+    // A cycle, a missing file, and an error inside an included file: each named where it is.
+    std::fs::write(d.join("a.xml"), r#"<scene version="3.0.0"><include filename="b.xml"/></scene>"#).expect("a");
+    std::fs::write(d.join("b.xml"), "<scene version=\"3.0.0\">\n  <include filename=\"a.xml\"/></scene>").expect("b");
+    let e = parse_mitsuba(&d.join("a.xml"), d, &std::fs::read_to_string(d.join("a.xml")).expect("a")).expect_err("cycle").to_string();
+    assert!(e.contains("b.xml:2:3") && e.contains("cycle"), "{e}");
+    let e = parse(r#"<scene version="3.0.0"><include filename="nowhere.xml"/></scene>"#).expect_err("missing").to_string();
+    assert!(e.contains("t.xml:1:24") && e.contains("nowhere.xml"), "{e}");
+    std::fs::write(
+        d.join("bad.xml"),
+        "<scene version=\"3.0.0\">\n<shape type=\"sphere\"><float name=\"radius\" value=\"x\"/></shape></scene>",
+    )
+    .expect("bad");
+    let e =
+        parse_mitsuba(&d.join("m.xml"), d, r#"<scene version="3.0.0"><include filename="bad.xml"/></scene>"#).expect_err("bad").to_string();
+    assert!(e.contains("bad.xml:2:") && e.contains("'x' is not a number"), "{e}");
+}
+
+/// A device or a folder named as an included file or a spectrum is refused, not read.
+#[cfg(unix)]
+#[test]
+fn includes_of_devices_are_refused() {
+    let e = parse(r#"<scene version="3.0.0"><include filename="/dev/zero"/></scene>"#).expect_err("device").to_string();
+    assert!(e.contains("not a regular file"), "{e}");
+    let e = parse(r#"<scene version="3.0.0"><shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" filename="/dev/zero"/></bsdf></shape></scene>"#)
+        .expect_err("device")
+        .to_string();
+    assert!(e.contains("not a regular file"), "{e}");
+}

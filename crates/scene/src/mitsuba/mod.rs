@@ -23,6 +23,8 @@
 //! grey diffuse one, an unknown emitter or shape is left out, reconstruction filters are
 //! lucent's box filter).
 
+mod files;
+
 use crate::bsdf::{named_conductor, named_ior, Alpha, Bsdf, ColorTex, Distribution, FloatTex, Rough, Sides};
 use crate::camera::CameraDesc;
 use crate::error::ImportError;
@@ -127,22 +129,17 @@ pub fn parse_mitsuba(path: &Path, base: &Path, text: &str) -> R<Scene> {
 
 /// [`parse_mitsuba`] with parameters set from outside (see [`load_mitsuba_with`]).
 pub fn parse_mitsuba_with(path: &Path, base: &Path, text: &str, defines: &[(String, String)]) -> R<Scene> {
-    if let Some((line, column)) = too_deep(text) {
-        return Err(ImportError::At {
-            path: path.to_path_buf(),
-            line: line as u32,
-            column: column as u32,
-            msg: format!("elements nest deeper than {MAX_DEPTH} levels"),
-        });
-    }
-    let doc = Document::parse_with_options(text, roxmltree::ParsingOptions { allow_dtd: false, nodes_limit: 1 << 22 }).map_err(|e| {
-        let p = e.pos();
-        ImportError::At { path: path.to_path_buf(), line: p.row, column: p.col, msg: e.to_string() }
-    })?;
+    // The file and those it includes, each parsed once more here (the first pass only
+    // found the includes).
+    let files = files::gather(path, base, text)?;
+    let docs = files.texts.iter().map(|(p, t)| files::parse(p, t)).collect::<R<Vec<_>>>()?;
     let mut cx = Cx {
-        path,
+        paths: files.texts.iter().map(|(p, _)| p.clone()).collect(),
         base: base.to_path_buf(),
-        doc: &doc,
+        dirs: files.dirs,
+        search: files.search,
+        includes: files.includes,
+        docs: &docs,
         defaults: HashMap::new(),
         ids: HashMap::new(),
         scene: Scene { materials: vec![Material::default()], ..Scene::default() },
@@ -163,39 +160,30 @@ pub fn parse_mitsuba_with(path: &Path, base: &Path, text: &str, defines: &[(Stri
         shapes: 0,
     };
     cx.defaults.extend(defines.iter().cloned());
-    let root = doc.root_element();
-    if root.tag_name().name() != "scene" {
-        return Err(cx.err(root, format!("expected <scene>, found <{}>", root.tag_name().name())));
-    }
-    // Every element with an id, for references (Mitsuba allows them anywhere).
-    // (A `<ref id>` names one; it defines nothing. The first definition of an id counts.)
-    for n in root.descendants().filter(|n| n.is_element() && n.tag_name().name() != "ref") {
-        if let Some(id) = n.attribute("id") {
-            cx.ids.entry(id.to_string()).or_insert(n.id());
+    for doc in &docs {
+        let root = doc.root_element();
+        if root.tag_name().name() != "scene" {
+            return Err(cx.err(root, format!("expected <scene>, found <{}>", root.tag_name().name())));
         }
     }
-    for n in root.children().filter(Node::is_element) {
-        match n.tag_name().name() {
-            "default" => {
-                let name = cx.attr_raw(n, "name")?;
-                let value = cx.attr_raw(n, "value")?;
-                cx.defaults.entry(name.to_string()).or_insert_with(|| value.to_string());
+    // Every element with an id, in every file, for references (Mitsuba allows them
+    // anywhere). (A `<ref id>` names one; it defines nothing. The first definition of an
+    // id counts.) Then `<alias id="a" as="b"/>`: b names what a names.
+    for (k, doc) in docs.iter().enumerate() {
+        for n in doc.root_element().descendants().filter(|n| n.is_element() && !matches!(n.tag_name().name(), "ref" | "alias")) {
+            if let Some(id) = n.attribute("id") {
+                cx.ids.entry(id.to_string()).or_insert((k, n.id()));
             }
-            "integrator" => cx.integrator(n)?,
-            "sensor" => cx.sensor(n)?,
-            "shape" => {
-                let Some(items) = cx.shape(n, 0)? else { continue };
-                for (geom, m) in items {
-                    cx.push_instance(n, geom, m)?;
-                }
-            }
-            "emitter" => cx.emitter(n, None)?,
-            // (Defined here, used by reference.)
-            "bsdf" | "texture" | "medium" | "spectrum" | "rfilter" | "sampler" | "film" => {}
-            "include" => cx.warn(n, "include", "<include> is not supported; the included file is left out"),
-            other => cx.warn(n, other, &format!("<{other}> is not supported; left out")),
         }
     }
+    for doc in &docs {
+        for n in doc.root_element().descendants().filter(|n| n.is_element() && n.tag_name().name() == "alias") {
+            let (id, alias) = (cx.attr_raw(n, "id")?, cx.attr_raw(n, "as")?);
+            let Some(&target) = cx.ids.get(id) else { return Err(cx.err(n, format!("<alias>: no element has id '{id}'"))) };
+            cx.ids.entry(alias.to_string()).or_insert(target);
+        }
+    }
+    cx.children(0, 0)?;
     let mut scene = cx.scene;
     scene.textures = cx.textures.into_textures();
     scene.hints = Some(cx.hints);
@@ -205,11 +193,16 @@ pub fn parse_mitsuba_with(path: &Path, base: &Path, text: &str, defines: &[(Stri
 }
 
 struct Cx<'a, 'd> {
-    path: &'a Path,
+    /// The scene's files (the first is the scene; see `files`), their folders, the
+    /// `<path>` folders, and which file each `<include>` brings in.
+    paths: Vec<PathBuf>,
     base: PathBuf,
-    doc: &'a Document<'d>,
+    dirs: Vec<PathBuf>,
+    search: Vec<PathBuf>,
+    includes: HashMap<(usize, roxmltree::NodeId), usize>,
+    docs: &'a [Document<'d>],
     defaults: HashMap<String, String>,
-    ids: HashMap<String, roxmltree::NodeId>,
+    ids: HashMap<String, (usize, roxmltree::NodeId)>,
     scene: Scene,
     textures: TextureCache,
     warned: HashSet<String>,
@@ -225,21 +218,73 @@ struct Cx<'a, 'd> {
 type ReadBsdf = (Bsdf, Sides);
 
 impl<'a, 'd> Cx<'a, 'd> {
+    /// The file `n` is in.
+    fn file_of(&self, n: Node) -> usize {
+        self.docs.iter().position(|d| std::ptr::eq(d, n.document())).unwrap_or(0)
+    }
+
     fn pos(&self, n: Node) -> (u32, u32) {
-        let p = self.doc.text_pos_at(n.range().start);
+        let p = n.document().text_pos_at(n.range().start);
         (p.row, p.col)
     }
 
     fn err(&self, n: Node, msg: impl Into<String>) -> ImportError {
         let (line, column) = self.pos(n);
-        ImportError::At { path: self.path.to_path_buf(), line, column, msg: msg.into() }
+        let path = self.paths.get(self.file_of(n)).cloned().unwrap_or_default();
+        ImportError::At { path, line, column, msg: msg.into() }
     }
 
     fn warn(&mut self, n: Node, kind: &str, msg: &str) {
         if self.warned.insert(kind.to_string()) {
             let (line, column) = self.pos(n);
-            tracing::warn!("{}:{line}:{column}: {msg}", self.path.display());
+            let path = self.paths.get(self.file_of(n)).cloned().unwrap_or_default();
+            tracing::warn!("{}:{line}:{column}: {msg}", path.display());
         }
+    }
+
+    /// A file a scene names (relative to the naming file's folder, the `<path>` folders,
+    /// then the scene's): the first of them where it exists, else under the scene's folder.
+    fn find(&self, n: Node, name: &str) -> PathBuf {
+        let dir = self.dirs.get(self.file_of(n)).unwrap_or(&self.base);
+        files::resolve(name, dir, &self.search, &self.base).unwrap_or_else(|| self.base.join(name.replace('\\', "/")))
+    }
+
+    /// The node with `id` (per file).
+    fn node(&self, (k, id): (usize, roxmltree::NodeId)) -> Option<Node<'a, 'd>> {
+        self.docs.get(k).and_then(|d| d.get_node(id))
+    }
+
+    /// The top-level elements of file `k` (an `<include>`d file's in its place).
+    fn children(&mut self, k: usize, depth: usize) -> R<()> {
+        let Some(doc) = self.docs.get(k) else { return Ok(()) };
+        for n in doc.root_element().children().filter(Node::is_element) {
+            match n.tag_name().name() {
+                "default" => {
+                    let name = self.attr_raw(n, "name")?;
+                    let value = self.attr_raw(n, "value")?;
+                    self.defaults.entry(name.to_string()).or_insert_with(|| value.to_string());
+                }
+                "integrator" => self.integrator(n)?,
+                "sensor" => self.sensor(n)?,
+                "shape" => {
+                    let Some(items) = self.shape(n, 0)? else { continue };
+                    for (geom, m) in items {
+                        self.push_instance(n, geom, m)?;
+                    }
+                }
+                "emitter" => self.emitter(n, None)?,
+                // (Defined here, used by reference.)
+                "bsdf" | "texture" | "medium" | "spectrum" | "rfilter" | "sampler" | "film" => {}
+                // (Read with the files: see `files` and the id pass.)
+                "path" | "alias" => {}
+                "include" => match self.includes.get(&(k, n.id())) {
+                    Some(&j) if depth < files::MAX_INCLUDE_DEPTH => self.children(j, depth + 1)?,
+                    _ => return Err(self.err(n, "<include>: the file was not read")),
+                },
+                other => self.warn(n, other, &format!("<{other}> is not supported; left out")),
+            }
+        }
+        Ok(())
     }
 
     /// An attribute as written.
@@ -283,8 +328,7 @@ impl<'a, 'd> Cx<'a, 'd> {
             return Err(self.err(n, "references nest too deep (a cycle?)"));
         }
         let id = self.attr(n, "id")?;
-        let target =
-            self.ids.get(&id).and_then(|&i| self.doc.get_node(i)).ok_or_else(|| self.err(n, format!("no element has id '{id}'")))?;
+        let target = self.ids.get(&id).and_then(|&i| self.node(i)).ok_or_else(|| self.err(n, format!("no element has id '{id}'")))?;
         self.deref(target, depth + 1)
     }
 
@@ -399,8 +443,8 @@ impl<'a, 'd> Cx<'a, 'd> {
                 let (w, v) = match (p.attribute("filename"), p.attribute("value")) {
                     (Some(_), _) => {
                         let file = self.attr(p, "filename")?;
-                        let path = self.base.join(file.replace('\\', "/"));
-                        let text = std::fs::read_to_string(&path).map_err(|e| self.err(p, format!("{}: {e}", path.display())))?;
+                        let path = self.find(p, &file);
+                        let text = files::read_text(&path).map_err(|e| self.err(p, format!("{}: {e}", path.display())))?;
                         crate::spectrum::parse_spd(&text).map_err(|e| self.err(p, format!("{}: {e}", path.display())))?
                     }
                     (None, _) => {
@@ -460,8 +504,8 @@ impl<'a, 'd> Cx<'a, 'd> {
                     Some("clamp") => Wrap::Clamp,
                     Some(w) => return Err(self.err(t, format!("wrap_mode '{w}': expected repeat, mirror or clamp"))),
                 };
-                let path = self.base.join(file.replace('\\', "/"));
-                let at = format!("{}:{}", self.path.display(), self.pos(t).0);
+                let path = self.find(t, &file);
+                let at = format!("{}:{}", self.paths.get(self.file_of(t)).cloned().unwrap_or_default().display(), self.pos(t).0);
                 match self.textures.load(&path, wrap, !raw, &at) {
                     Some(tex) => Ok(ColorTex::Image { tex, scale: Vec3::ONE, to_uv }),
                     None => Ok(ColorTex::grey(0.5)),
@@ -860,8 +904,7 @@ impl<'a, 'd> Cx<'a, 'd> {
             let id = self.attr(r, "id")?;
             if !self.groups.contains_key(&id) {
                 // (Defined later in the file: read it now.)
-                if let Some(g) = self.ids.get(&id).and_then(|&i| self.doc.get_node(i)).filter(|g| g.attribute("type") == Some("shapegroup"))
-                {
+                if let Some(g) = self.ids.get(&id).and_then(|&i| self.node(i)).filter(|g| g.attribute("type") == Some("shapegroup")) {
                     self.shape(g, 0)?;
                 }
             }
@@ -893,7 +936,7 @@ impl<'a, 'd> Cx<'a, 'd> {
         let geom = match kind.as_str() {
             "obj" | "ply" => {
                 let file = self.string(n, "filename")?.ok_or_else(|| self.err(n, format!("a '{kind}' shape needs a 'filename'")))?;
-                let path = self.base.join(file.replace('\\', "/"));
+                let path = self.find(n, &file);
                 let face_normals = self.boolean(n, "face_normals", false)?;
                 let key = (path.clone(), mat, face_normals, flip);
                 let mesh = match self.meshes.get(&key) {
@@ -1027,7 +1070,7 @@ impl<'a, 'd> Cx<'a, 'd> {
             }
             ("envmap", _) => {
                 let file = self.string(n, "filename")?.ok_or_else(|| self.err(n, "an envmap needs a 'filename'"))?;
-                let path = self.base.join(file.replace('\\', "/"));
+                let path = self.find(n, &file);
                 let scale = self.float(n, "scale", 1.0)?;
                 let to_world = self.to_world(n)?;
                 let image = load_hdr(&path).map_err(|e| self.err(n, format!("{}: {e}", path.display())))?;
