@@ -105,6 +105,12 @@ pub struct RenderArgs {
     /// for comparisons).
     #[arg(long)]
     pub single_rays: bool,
+    /// The film's reconstruction filter: `box` (each pixel the mean of the samples in its
+    /// square), `tent[:RADIUS]` (radius 1 pixel unless given) or `gaussian[:STDDEV]`
+    /// (σ 0.5 pixel, out to 4σ: Mitsuba's default). Default: the scene file's (Mitsuba
+    /// XML's film), else box.
+    #[arg(long, value_parser = parse_filter)]
+    pub filter: Option<lucent_scene::PixelFilter>,
     /// BVH quality: `high` (binned SAH, then insertion-based optimization: the
     /// default), `sah` (binned SAH only: the shortest build, rays 5-15% slower) or
     /// `spatial` (binned SAH with spatial splits: triangles cut between leaves; much
@@ -217,6 +223,23 @@ pub fn choose_camera(scene: &Scene, camera: Option<&[f32]>, ortho: bool) -> Resu
     })
 }
 
+/// `--filter`'s value: `box`, `tent[:RADIUS]` or `gaussian[:STDDEV]`.
+fn parse_filter(s: &str) -> Result<lucent_scene::PixelFilter, String> {
+    let (name, size) = match s.split_once(':') {
+        Some((n, v)) => (n, Some(v.parse::<f32>().map_err(|_| format!("'{v}' is not a number"))?)),
+        None => (s, None),
+    };
+    if let Some(v) = size.filter(|v| !(*v > 0.0 && *v < 64.0)) {
+        return Err(format!("the filter's size must be positive and below 64 (got {v})"));
+    }
+    match name {
+        "box" if size.is_none() => Ok(lucent_scene::PixelFilter::Box),
+        "tent" => Ok(lucent_scene::PixelFilter::Tent { radius: size.unwrap_or(1.0) }),
+        "gaussian" => Ok(lucent_scene::PixelFilter::Gaussian { stddev: size.unwrap_or(0.5) }),
+        _ => Err(format!("'{s}' is not box, tent[:RADIUS] or gaussian[:STDDEV]")),
+    }
+}
+
 pub fn run(a: RenderArgs) -> Result<()> {
     // (MPI starts first: a rank of `mpirun` renders the same image as the others.)
     let session = crate::mpi_cmd::Session::start(&a.mpi)?;
@@ -281,6 +304,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             ..MeshOptions::default()
         },
         packets: !a.single_rays,
+        filter: a.filter,
     };
     let prepared = lucent_render::setup::prepare(scene, &recipe)?;
     if prepared.sky {

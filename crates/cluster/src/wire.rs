@@ -7,6 +7,7 @@ use glam::Vec3;
 use lucent_render::{
     Camera, Integrator, LightSampling, PathSettings, Region, RegionFilm, RenderSettings, Traversal, VplSettings, WhittedSettings,
 };
+use lucent_scene::PixelFilter;
 
 /// Why bytes are not a message.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
@@ -224,6 +225,17 @@ fn put_settings(o: &mut Out, s: &RenderSettings) {
         Integrator::EyeLight => o.u8(3),
         Integrator::Normals => o.u8(4),
     }
+    match s.filter {
+        PixelFilter::Box => o.u8(0),
+        PixelFilter::Tent { radius } => {
+            o.u8(1);
+            o.f32(radius);
+        }
+        PixelFilter::Gaussian { stddev } => {
+            o.u8(2);
+            o.f32(stddev);
+        }
+    }
 }
 
 fn get_settings(i: &mut In) -> Result<RenderSettings, DecodeError> {
@@ -273,7 +285,24 @@ fn get_settings(i: &mut In) -> Result<RenderSettings, DecodeError> {
         4 => Integrator::Normals,
         v => return Err(invalid(at, format!("integrator {v} does not exist"))),
     };
-    Ok(RenderSettings { width, height, spp, integrator, traversal: Traversal { packets } })
+    let at = i.at;
+    let filter = match i.u8("the filter")? {
+        0 => PixelFilter::Box,
+        k @ (1 | 2) => {
+            let at = i.at;
+            let r = i.f32("the filter's size")?;
+            if !(r > 0.0 && r < 64.0) {
+                return Err(invalid(at, format!("filter size {r} is not a positive size below 64")));
+            }
+            if k == 1 {
+                PixelFilter::Tent { radius: r }
+            } else {
+                PixelFilter::Gaussian { stddev: r }
+            }
+        }
+        v => return Err(invalid(at, format!("filter {v} does not exist"))),
+    };
+    Ok(RenderSettings { width, height, spp, integrator, traversal: Traversal { packets }, filter })
 }
 
 impl Msg {
@@ -432,12 +461,16 @@ mod tests {
             Integrator::EyeLight,
             Integrator::Normals,
         ]
-        .map(|integrator| RenderSettings {
+        .into_iter()
+        .zip([PixelFilter::Box, PixelFilter::Gaussian { stddev: 0.5 }, PixelFilter::Tent { radius: 1.5 }].into_iter().cycle())
+        .map(|(integrator, filter)| RenderSettings {
             spp: 9,
             integrator,
             traversal: Traversal { packets: false },
+            filter,
             ..RenderSettings::new(33, 7)
-        });
+        })
+        .collect::<Vec<_>>();
         let mut msgs = vec![
             Msg::Hello { digest: 0x0123_4567_89ab_cdef, threads: 64 },
             Msg::Job { id: 5, region: Region { x0: 0, y0: 16, x1: 64, y1: 80, s0: 0, s1: 16 } },

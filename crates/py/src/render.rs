@@ -77,7 +77,7 @@ fn prepare_job(
         .filter(|c| c.is_plain_view())
         .and_then(|c| c.desc(offset))
         .map(|d| [d.eye.x, d.eye.y, d.eye.z, d.look_at.x, d.look_at.y, d.look_at.z, d.up.x, d.up.y, d.up.z, d.vfov_deg]);
-    let recipe = Recipe { integrator: integ, size, spp, view, ortho: false, mesh: scene.read().opts, packets: true };
+    let recipe = Recipe { integrator: integ, size, spp, view, ortho: false, mesh: scene.read().opts, packets: true, filter: None };
     let mut prepared = py.detach(|| guard("render", || prepare(sc, &recipe)))?.map_err(|e| LucentError::new_err(format!("render: {e}")))?;
     if let Some(c) = cam.filter(|c| !c.is_plain_view()) {
         prepared.camera = c.build(offset);

@@ -57,7 +57,7 @@ pub use integrator::guides::render_aovs;
 pub use integrator::{Integrator, LightSampling, PathSettings, VplSettings, WhittedSettings};
 pub use lights::{EmissionSample, LightModel, LightSample};
 pub use render::{render, render_pixel, render_region, RenderSettings};
-pub use sampler::{jitter, pcg_hash, CameraSamples, PixelSampler, Sampler};
+pub use sampler::{filter_offset, jitter, pcg_hash, CameraSamples, PixelSampler, Sampler};
 pub use tiles::{Block, Job, Traversal, TILE};
 pub use world::pose::vertex_normals;
 pub use world::record::{record_rays, RecordedRays};

@@ -12,7 +12,7 @@ use glam::Vec3;
 
 /// What to render and how: the image's size and samples per pixel, the integrator (what
 /// the rays compute) and the traversal (how they are traced).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderSettings {
     /// Image width.
     pub width: u32,
@@ -25,6 +25,8 @@ pub struct RenderSettings {
     pub integrator: Integrator,
     /// How they are traced.
     pub traversal: Traversal,
+    /// The film's reconstruction filter (box: each pixel the mean of samples in its square).
+    pub filter: lucent_scene::PixelFilter,
 }
 
 impl RenderSettings {
@@ -32,13 +34,20 @@ impl RenderSettings {
     /// (Whitted) and traversal (packets).
     #[must_use]
     pub fn new(width: u32, height: u32) -> Self {
-        Self { width, height, spp: 1, integrator: Integrator::default(), traversal: Traversal::default() }
+        Self {
+            width,
+            height,
+            spp: 1,
+            integrator: Integrator::default(),
+            traversal: Traversal::default(),
+            filter: lucent_scene::PixelFilter::Box,
+        }
     }
 
     /// The image the integrator renders regions of.
     #[must_use]
     pub fn job(&self) -> Job {
-        Job { width: self.width, height: self.height, spp: self.spp, traversal: self.traversal }
+        Job { width: self.width, height: self.height, spp: self.spp, traversal: self.traversal, filter: self.filter }
     }
 }
 
@@ -47,7 +56,7 @@ impl RenderSettings {
 #[must_use]
 pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32) -> Vec3 {
     let spp = s.spp.max(1);
-    let cs = s.integrator.camera_samples(spp);
+    let cs = crate::sampler::CameraSamples { filter: s.filter, ..s.integrator.camera_samples(spp) };
     let mut c = Vec3::ZERO;
     for k in 0..spp {
         let (jx, jy) = cs.pixel(x, y, k);

@@ -16,6 +16,8 @@
 //! supersampling, the debug views' lens), so that every random number of every
 //! integrator is made here.
 
+use lucent_scene::PixelFilter;
+
 /// Generator matrix of the second Sobol' dimension, one 32-bit column per bit of the index.
 const SOBOL1: [u32; 32] = {
     let mut v = [0u32; 32];
@@ -119,6 +121,62 @@ pub fn jitter(x: u32, y: u32, s: u32) -> (f32, f32) {
     ((h >> 8) as f32 / (1u32 << 24) as f32, (h2 >> 8) as f32 / (1u32 << 24) as f32)
 }
 
+/// An offset from a pixel's centre (in pixels) distributed as `f` along one axis, from a
+/// uniform `u` in [0, 1): the tent's inverse CDF in closed form, the Gaussian's from a
+/// table of its cumulative integral (one table for σ = 1, scaled).
+#[must_use]
+pub fn filter_offset(f: PixelFilter, u: f32) -> f32 {
+    match f {
+        PixelFilter::Box => u - 0.5,
+        PixelFilter::Tent { radius } => {
+            if u < 0.5 {
+                radius * ((2.0 * u).sqrt() - 1.0)
+            } else {
+                radius * (1.0 - (2.0 - 2.0 * u).max(0.0).sqrt())
+            }
+        }
+        PixelFilter::Gaussian { stddev } => stddev * gaussian_table().invert(u),
+    }
+}
+
+/// Bins of the Gaussian's tabulated integral over [−4, 4].
+const GAUSS_BINS: usize = 4096;
+
+/// The cumulative integral of `exp(−x²/2) − exp(−8)` over [−4, 4] (σ = 1), normalised,
+/// at `GAUSS_BINS + 1` evenly spaced points.
+struct GaussTable {
+    cdf: Vec<f32>,
+}
+
+impl GaussTable {
+    fn new() -> Self {
+        let f = |x: f64| ((-0.5 * x * x).exp() - (-8.0f64).exp()).max(0.0);
+        let h = 8.0 / GAUSS_BINS as f64;
+        let mut acc = 0.0;
+        let mut cdf = vec![0.0f64];
+        for i in 0..GAUSS_BINS {
+            let (a, b) = (-4.0 + i as f64 * h, -4.0 + (i + 1) as f64 * h);
+            // Simpson's rule on each bin.
+            acc += h / 6.0 * (f(a) + 4.0 * f(0.5 * (a + b)) + f(b));
+            cdf.push(acc);
+        }
+        Self { cdf: cdf.iter().map(|c| (c / acc) as f32).collect() }
+    }
+
+    /// x in [−4, 4] with `cdf(x) = u` (linear within a bin).
+    fn invert(&self, u: f32) -> f32 {
+        let i = self.cdf.partition_point(|&c| c <= u).clamp(1, GAUSS_BINS) - 1;
+        let (c0, c1) = (self.cdf[i], self.cdf[i + 1]);
+        let t = if c1 > c0 { ((u - c0) / (c1 - c0)).clamp(0.0, 1.0) } else { 0.5 };
+        -4.0 + (i as f32 + t) * (8.0 / GAUSS_BINS as f32)
+    }
+}
+
+fn gaussian_table() -> &'static GaussTable {
+    static T: std::sync::OnceLock<GaussTable> = std::sync::OnceLock::new();
+    T.get_or_init(GaussTable::new)
+}
+
 /// The default seed of the path tracer's and the VPL integrator's samplers.
 pub const DEFAULT_SEED: u32 = 0x1ce7_0001;
 
@@ -129,12 +187,17 @@ pub const LENS_PAIR: u32 = 0x4000_0000;
 /// first pair and its [`LENS_PAIR`] (the path tracer and VPLs), or hashes of pixel and
 /// sample ([`jitter`]: Whitted and the debug views); every sample at its pixel's centre
 /// when `centred` (one-sample images of all but the path tracer).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CameraSamples {
     /// The low-discrepancy sampler, or `None` for hashes.
     pub sobol: Option<Sampler>,
     /// Every sample at its pixel's centre.
     pub centred: bool,
+    /// The film's reconstruction filter: samples are placed around the pixel's centre in
+    /// proportion to it (filter importance sampling, as pbrt-v4's `FilterSampler` does
+    /// for positive filters: every sample then weighs the same, so a pixel is still the
+    /// mean of its own samples and regions still merge bit for bit).
+    pub filter: PixelFilter,
 }
 
 impl CameraSamples {
@@ -142,10 +205,14 @@ impl CameraSamples {
     #[inline]
     #[must_use]
     pub fn pixel(&self, x: u32, y: u32, k: u32) -> (f32, f32) {
-        match self.sobol {
-            _ if self.centred => (0.5, 0.5),
+        let (u, v) = match self.sobol {
+            _ if self.centred => return (0.5, 0.5),
             Some(s) => s.get2(x, y, k, 0),
             None => jitter(x, y, k),
+        };
+        match self.filter {
+            PixelFilter::Box => (u, v),
+            f => (0.5 + filter_offset(f, u), 0.5 + filter_offset(f, v)),
         }
     }
 

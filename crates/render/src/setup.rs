@@ -106,6 +106,8 @@ pub struct Recipe {
     pub mesh: MeshOptions,
     /// Camera rays in packets (the same image either way).
     pub packets: bool,
+    /// The reconstruction filter, in place of the scene file's (else a box).
+    pub filter: Option<lucent_scene::PixelFilter>,
 }
 
 /// A render ready to run: the world, its camera, the settings.
@@ -147,6 +149,7 @@ pub fn prepare(mut scene: Scene, recipe: &Recipe) -> Result<Prepared, SetupError
         spp: spp.max(1),
         integrator: recipe.integrator,
         traversal: Traversal { packets: recipe.packets },
+        filter: recipe.filter.or(hints.map(|h| h.filter)).unwrap_or_default(),
         ..RenderSettings::new(w, h)
     };
     let mut camera = Camera::new(&desc, w, h);
@@ -193,6 +196,7 @@ mod tests {
             ortho: false,
             mesh: MeshOptions::default(),
             packets: true,
+            filter: None,
         };
         let p = prepare(scene.clone(), &recipe("path")).expect("prepared");
         assert!(p.sky && p.settings.spp == 16);

@@ -19,7 +19,7 @@ pub const TILE: u32 = 16;
 
 /// The image a piece of work belongs to: its size, its samples per pixel, and how rays are
 /// traced. Every integrator renders a [`Region`] of one into a [`Sink`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Job {
     /// Image width.
     pub width: u32,
@@ -29,6 +29,8 @@ pub struct Job {
     pub spp: u32,
     /// How rays are traced.
     pub traversal: Traversal,
+    /// The film's reconstruction filter (where in and around its pixel a sample lies).
+    pub filter: lucent_scene::PixelFilter,
 }
 
 /// What shades a block of camera rays: the integrators that work pixel by pixel (all but
@@ -295,7 +297,7 @@ pub fn render_blocks(
 ) -> u64 {
     let (width, height) = (job.width, job.height);
     let spp = job.spp.max(1);
-    let cs = shader.camera_samples(spp);
+    let cs = crate::sampler::CameraSamples { filter: job.filter, ..shader.camera_samples(spp) };
     let samples = if cs.centred { Samples::Centres } else { Samples::Anywhere };
     let (s0, s1) = (region.s0, region.s1);
     // Which pixels can meet anything, by projecting the instances (object order): a sparse
@@ -305,6 +307,8 @@ pub fn render_blocks(
         _ if cam.size() != (width, height) => None,
         // (Rays from a lens, and misses that are not the background colour, need tracing.)
         _ if cam.has_lens() || !shader.misses_show_background(w) => None,
+        // (A filter wider than the pixel sends its samples into the neighbours' squares.)
+        _ if !cs.centred && cs.filter.radius() > 0.5 => None,
         Samples::Centres => CoverageBands::new(w, cam, true),
         Samples::Anywhere => CoverageBands::new(w, cam, false),
     };

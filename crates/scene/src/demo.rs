@@ -289,6 +289,7 @@ pub fn studio_scene() -> Scene {
         hide_emitters: false,
         lens: None,
         clip: (0.0, f32::INFINITY),
+        filter: crate::model::PixelFilter::Box,
     });
     s
 }

@@ -269,6 +269,39 @@ pub struct RenderHints {
     pub lens: Option<(f32, f32)>,
     /// Near and far clipping depths.
     pub clip: (f32, f32),
+    /// The film's reconstruction filter.
+    pub filter: PixelFilter,
+}
+
+/// How a pixel weighs the image around it (the film's reconstruction filter, separable in
+/// x and y; Mitsuba's `rfilter` plugins of the same names and defaults).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum PixelFilter {
+    /// The pixel's own square (radius 0.5): every sample in it weighs the same.
+    #[default]
+    Box,
+    /// `max(0, 1 − |x|/radius)` (Mitsuba's default radius: 1 pixel).
+    Tent {
+        /// Radius in pixels.
+        radius: f32,
+    },
+    /// `exp(−x²/2σ²) − exp(−8)` out to 4σ (Mitsuba's default filter, σ = 0.5 pixel).
+    Gaussian {
+        /// Standard deviation σ in pixels.
+        stddev: f32,
+    },
+}
+
+impl PixelFilter {
+    /// How far from a pixel's centre its samples reach, in pixels.
+    #[must_use]
+    pub fn radius(self) -> f32 {
+        match self {
+            Self::Box => 0.5,
+            Self::Tent { radius } => radius,
+            Self::Gaussian { stddev } => 4.0 * stddev,
+        }
+    }
 }
 
 /// A linear RGB image of floats (environment maps).

@@ -87,7 +87,7 @@ impl Integrator {
             Self::Vpl(s) => Some(s.sampler()),
             _ => None,
         };
-        CameraSamples { sobol, centred: spp <= 1 && !matches!(self, Self::Path(_)) }
+        CameraSamples { sobol, centred: spp <= 1 && !matches!(self, Self::Path(_)), filter: lucent_scene::PixelFilter::Box }
     }
 
     /// Renders `region` of `job`'s image into `sink` (per pixel, the sum of the region's

@@ -116,7 +116,7 @@ impl VplSettings {
     /// [`crate::Integrator::camera_samples`]).
     #[must_use]
     pub fn camera_samples(&self, spp: u32) -> CameraSamples {
-        CameraSamples { sobol: Some(self.sampler()), centred: spp <= 1 }
+        CameraSamples { sobol: Some(self.sampler()), centred: spp <= 1, filter: lucent_scene::PixelFilter::Box }
     }
 
     /// The sampler of the camera side.
@@ -428,7 +428,7 @@ pub fn trace_layers(w: &World, cam: &Camera, job: &Job, set: &VplSet, r: Region,
         return 0;
     }
     let d_min2 = d_min2(w, s);
-    let cs = set.settings.camera_samples(job.spp.max(1));
+    let cs = CameraSamples { filter: job.filter, ..set.settings.camera_samples(job.spp.max(1)) };
     let packets = job.traversal.packets;
     // Bands of VPL_TILE rows, tiles of VPL_TILE columns; per band, the tile's buffers.
     const N: usize = (VPL_TILE * VPL_TILE) as usize;
@@ -688,7 +688,7 @@ pub fn render(
 pub fn frame_rays(w: &World, cam: &Camera, job: &Job, set: &VplSet) -> (Vec<Vec<Ray>>, Vec<Vec<Ray>>) {
     let (s, k) = (&set.settings, set.frame);
     let d_min2 = d_min2(w, s);
-    let cs = s.camera_samples(job.spp.max(1));
+    let cs = CameraSamples { filter: job.filter, ..s.camera_samples(job.spp.max(1)) };
     let (mut primary, mut shadow) = (Vec::new(), Vec::new());
     for ty in (0..job.height).step_by(VPL_TILE as usize) {
         for tx in (0..job.width).step_by(VPL_TILE as usize) {

@@ -28,7 +28,7 @@ mod files;
 use crate::bsdf::{named_conductor, named_ior, Alpha, Bsdf, ColorTex, Distribution, FloatTex, Rough, Sides};
 use crate::camera::CameraDesc;
 use crate::error::ImportError;
-use crate::model::{Environment, Geom, HdrImage, Instance, Light, LightKind, Material, Mesh, RenderHints, Scene, ShapeKind};
+use crate::model::{Environment, Geom, HdrImage, Instance, Light, LightKind, Material, Mesh, PixelFilter, RenderHints, Scene, ShapeKind};
 use crate::spectrum::SpectrumUse;
 use crate::texture::{TextureCache, Wrap};
 use glam::{Affine2, Affine3A, Mat3, Mat4, Vec2, Vec3};
@@ -156,6 +156,8 @@ pub fn parse_mitsuba_with(path: &Path, base: &Path, text: &str, defines: &[(Stri
             hide_emitters: false,
             lens: None,
             clip: (0.01, 10000.0),
+            // (Mitsuba's film default; a film of the scene's sets its own.)
+            filter: PixelFilter::Gaussian { stddev: 0.5 },
         },
         shapes: 0,
     };
@@ -360,6 +362,16 @@ impl<'a, 'd> Cx<'a, 'd> {
                 self.number(p, &v)
             }
             Some(p) => Err(self.err(p, format!("'{name}' must be a <float>"))),
+        }
+    }
+
+    /// A float property that must be positive and finite (a size).
+    fn positive(&self, plugin: Node<'a, 'd>, name: &str, default: f32) -> R<f32> {
+        let v = self.float(plugin, name, default)?;
+        if v > 0.0 && v.is_finite() && v < 64.0 {
+            Ok(v)
+        } else {
+            Err(self.err(plugin, format!("'{name}' must be a positive size below 64 (got {v})")))
         }
     }
 
@@ -768,13 +780,26 @@ impl<'a, 'd> Cx<'a, 'd> {
                 return Err(self.err(film, format!("film size {w}x{h}: expected 1 to 65536 pixels a side")));
             }
             (self.hints.width, self.hints.height) = (w as u32, h as u32);
-            if let Some(f) = film.children().find(|c| c.tag_name().name() == "rfilter") {
-                if f.attribute("type") != Some("box") {
-                    self.warn(f, "rfilter", "lucent reconstructs pixels with a box filter; the film's filter is not used");
+            // The film's reconstruction filter, Mitsuba's Gaussian when it names none.
+            self.hints.filter = match film.children().find(|c| c.tag_name().name() == "rfilter") {
+                Some(f) => {
+                    let f = self.deref(f, 0)?;
+                    match self.attr(f, "type")?.as_str() {
+                        "box" => PixelFilter::Box,
+                        "tent" => PixelFilter::Tent { radius: self.positive(f, "radius", 1.0)? },
+                        "gaussian" => PixelFilter::Gaussian { stddev: self.positive(f, "stddev", 0.5)? },
+                        other => {
+                            self.warn(
+                                f,
+                                "rfilter",
+                                &format!("rfilter '{other}' is not supported (box, tent, gaussian are); a Gaussian of σ 0.5 instead"),
+                            );
+                            PixelFilter::Gaussian { stddev: 0.5 }
+                        }
+                    }
                 }
-            } else {
-                self.warn(film, "rfilter", "Mitsuba's default filter is a Gaussian; lucent reconstructs pixels with a box filter");
-            }
+                None => PixelFilter::Gaussian { stddev: 0.5 },
+            };
         }
         if let Some(s) = n.children().find(|c| c.tag_name().name() == "sampler") {
             let c = self.integer(s, "sample_count", 4)?;
