@@ -146,7 +146,9 @@ class Scene:
     ``quality``: ``'high'`` (default: SAH and tree optimisation), ``'sah'`` (fastest build)
     or ``'spatial'`` (spatial splits, for scenes of long thin triangles).
     ``triangle_test``: ``'unit'`` (lucent's unit-triangle test, fastest) or
-    ``'watertight'`` (no ray slips between triangles that share an edge).
+    ``'watertight'`` (no ray slips between triangles that share an edge: use it for
+    inside/outside tests by counting crossings, where a ray exactly through an edge of the
+    unit test can pass between the two triangles).
     """
 
     __slots__ = ("_s",)
