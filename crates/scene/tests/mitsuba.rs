@@ -279,13 +279,17 @@ fn includes_paths_and_aliases() {
     assert!(e.contains("bad.xml:2:") && e.contains("'x' is not a number"), "{e}");
 }
 
-/// A device or a folder named as an included file or a spectrum is refused, not read.
+/// A device or a folder named as an included file, a spectrum or a mesh is refused, not read.
 #[cfg(unix)]
 #[test]
 fn includes_of_devices_are_refused() {
     let e = parse(r#"<scene version="3.0.0"><include filename="/dev/zero"/></scene>"#).expect_err("device").to_string();
     assert!(e.contains("not a regular file"), "{e}");
     let e = parse(r#"<scene version="3.0.0"><shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" filename="/dev/zero"/></bsdf></shape></scene>"#)
+        .expect_err("device")
+        .to_string();
+    assert!(e.contains("not a regular file"), "{e}");
+    let e = parse(r#"<scene version="3.0.0"><shape type="obj"><string name="filename" value="/dev/zero"/></shape></scene>"#)
         .expect_err("device")
         .to_string();
     assert!(e.contains("not a regular file"), "{e}");

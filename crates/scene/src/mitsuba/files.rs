@@ -4,11 +4,66 @@
 //! folders its `<path value=...>` elements add to where files are looked for (Mitsuba's
 //! file resolver: the including file's folder, then those paths, then the scene's own).
 
-use super::{too_deep, MAX_DEPTH, R};
 use crate::error::ImportError;
 use roxmltree::{Document, Node, NodeId};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+
+/// The deepest elements may nest (the XML parser recurses per level: thousands of levels
+/// overflowed a thread's stack; Mitsuba scenes nest a handful).
+const MAX_DEPTH: usize = 256;
+
+/// The line and column of the first element nested deeper than [`MAX_DEPTH`], found by a
+/// scan of the tags (comments, processing instructions, CDATA and quoted attribute values
+/// skipped) before the parser sees the text.
+fn too_deep(text: &str) -> Option<(usize, usize)> {
+    let b = text.as_bytes();
+    let (mut i, mut depth) = (0usize, 0usize);
+    while let Some(off) = b[i..].iter().position(|&c| c == b'<') {
+        let start = i + off;
+        let rest = &text[start..];
+        let skip_to = |end: &str| rest.find(end).map_or(b.len(), |k| start + k + end.len());
+        if rest.starts_with("<!--") {
+            i = skip_to("-->");
+        } else if rest.starts_with("<![CDATA[") {
+            i = skip_to("]]>");
+        } else if rest.starts_with("<?") {
+            i = skip_to("?>");
+        } else if rest.starts_with("<!") {
+            i = skip_to(">");
+        } else if rest.starts_with("</") {
+            depth = depth.saturating_sub(1);
+            i = skip_to(">");
+        } else {
+            // An opening tag: to its '>' outside quotes; '/>' closes it at once.
+            let mut j = start + 1;
+            let mut quote = 0u8;
+            while j < b.len() && !(quote == 0 && b[j] == b'>') {
+                match (quote, b[j]) {
+                    (0, q @ (b'"' | b'\'')) => quote = q,
+                    (q, c) if q == c => quote = 0,
+                    _ => {}
+                }
+                j += 1;
+            }
+            if !(j > start && b.get(j.wrapping_sub(1)) == Some(&b'/')) {
+                depth += 1;
+                if depth > MAX_DEPTH {
+                    let line = text[..start].matches('\n').count() + 1;
+                    let column = start - text[..start].rfind('\n').map_or(0, |k| k + 1) + 1;
+                    return Some((line, column));
+                }
+            }
+            i = (j + 1).min(b.len());
+        }
+        if i >= b.len() {
+            break;
+        }
+    }
+    None
+}
+
+type R<T> = Result<T, ImportError>;
 
 /// How deep includes may nest.
 pub(super) const MAX_INCLUDE_DEPTH: usize = 16;

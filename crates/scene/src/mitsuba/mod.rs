@@ -43,60 +43,6 @@ const MAX_REF_DEPTH: u32 = 16;
 /// At most this many shapes (instances included), against files that would exhaust memory.
 const MAX_SHAPES: usize = 1 << 22;
 
-/// The deepest elements may nest (the XML parser recurses per level: thousands of levels
-/// overflowed a thread's stack; Mitsuba scenes nest a handful).
-const MAX_DEPTH: usize = 256;
-
-/// The line and column of the first element nested deeper than [`MAX_DEPTH`], found by a
-/// scan of the tags (comments, processing instructions, CDATA and quoted attribute values
-/// skipped) before the parser sees the text.
-fn too_deep(text: &str) -> Option<(usize, usize)> {
-    let b = text.as_bytes();
-    let (mut i, mut depth) = (0usize, 0usize);
-    while let Some(off) = b[i..].iter().position(|&c| c == b'<') {
-        let start = i + off;
-        let rest = &text[start..];
-        let skip_to = |end: &str| rest.find(end).map_or(b.len(), |k| start + k + end.len());
-        if rest.starts_with("<!--") {
-            i = skip_to("-->");
-        } else if rest.starts_with("<![CDATA[") {
-            i = skip_to("]]>");
-        } else if rest.starts_with("<?") {
-            i = skip_to("?>");
-        } else if rest.starts_with("<!") {
-            i = skip_to(">");
-        } else if rest.starts_with("</") {
-            depth = depth.saturating_sub(1);
-            i = skip_to(">");
-        } else {
-            // An opening tag: to its '>' outside quotes; '/>' closes it at once.
-            let mut j = start + 1;
-            let mut quote = 0u8;
-            while j < b.len() && !(quote == 0 && b[j] == b'>') {
-                match (quote, b[j]) {
-                    (0, q @ (b'"' | b'\'')) => quote = q,
-                    (q, c) if q == c => quote = 0,
-                    _ => {}
-                }
-                j += 1;
-            }
-            if !(j > start && b.get(j.wrapping_sub(1)) == Some(&b'/')) {
-                depth += 1;
-                if depth > MAX_DEPTH {
-                    let line = text[..start].matches('\n').count() + 1;
-                    let column = start - text[..start].rfind('\n').map_or(0, |k| k + 1) + 1;
-                    return Some((line, column));
-                }
-            }
-            i = (j + 1).min(b.len());
-        }
-        if i >= b.len() {
-            break;
-        }
-    }
-    None
-}
-
 type R<T> = Result<T, ImportError>;
 
 /// Loads a Mitsuba 3 XML scene.
@@ -249,6 +195,15 @@ impl<'a, 'd> Cx<'a, 'd> {
     fn find(&self, n: Node, name: &str) -> PathBuf {
         let dir = self.dirs.get(self.file_of(n)).unwrap_or(&self.base);
         files::resolve(name, dir, &self.search, &self.base).unwrap_or_else(|| self.base.join(name.replace('\\', "/")))
+    }
+
+    /// Refuses a named file that is not a regular file (a device such as /dev/zero would
+    /// be read forever, a folder fails later with a vaguer message).
+    fn regular_file(&self, n: Node, path: &Path) -> R<()> {
+        match std::fs::metadata(path) {
+            Ok(m) if !m.is_file() => Err(self.err(n, format!("{}: not a regular file", path.display()))),
+            _ => Ok(()),
+        }
     }
 
     /// The node with `id` (per file).
@@ -962,6 +917,7 @@ impl<'a, 'd> Cx<'a, 'd> {
             "obj" | "ply" => {
                 let file = self.string(n, "filename")?.ok_or_else(|| self.err(n, format!("a '{kind}' shape needs a 'filename'")))?;
                 let path = self.find(n, &file);
+                self.regular_file(n, &path)?;
                 let face_normals = self.boolean(n, "face_normals", false)?;
                 let key = (path.clone(), mat, face_normals, flip);
                 let mesh = match self.meshes.get(&key) {
@@ -1096,6 +1052,7 @@ impl<'a, 'd> Cx<'a, 'd> {
             ("envmap", _) => {
                 let file = self.string(n, "filename")?.ok_or_else(|| self.err(n, "an envmap needs a 'filename'"))?;
                 let path = self.find(n, &file);
+                self.regular_file(n, &path)?;
                 let scale = self.float(n, "scale", 1.0)?;
                 let to_world = self.to_world(n)?;
                 let image = load_hdr(&path).map_err(|e| self.err(n, format!("{}: {e}", path.display())))?;
