@@ -37,13 +37,17 @@ pub fn spheres_program(n: usize, lights: usize) -> String {
     s
 }
 
-/// REND3R's estimated frame time for `n` spheres, in seconds: its Table IV gives 0.405 s
-/// for one sphere and 16.9 s for 4,096; between them, the straight line through those
-/// two (a linear model: 0.465 s for 16 spheres, 1.432 s for 256). The same estimate
-/// serves 0 and 1 lights.
+/// REND3R's estimated frame time for `n` spheres and `lights` lights, in seconds: its
+/// Table IV's row where it has one (1, 16, 256 and 4,096 spheres; 0 or 1 light), else
+/// its cycle formula, (spheres + 205) × (lights + 1) cycles a pixel at 100 MHz, which
+/// gives every row of the table to its printed digits.
 #[must_use]
-pub fn rend3r_estimate_s(n: usize) -> f64 {
-    0.405 + (16.9 - 0.405) * (n as f64 - 1.0) / 4095.0
+pub fn rend3r_estimate_s(n: usize, lights: usize) -> f64 {
+    use rend3r_machine::cycles::{ray_traced, PAPER_ROWS};
+    match PAPER_ROWS.iter().find(|r| r.0 == n as u64 && r.1 == lights as u64) {
+        Some(r) => r.2,
+        None => ray_traced(n as u64, lights as u64, 512 * 384, 512 * 384).seconds().0,
+    }
 }
 
 pub fn run(frames: usize, size: (u32, u32), spheres: &[usize], light_counts: &[usize]) -> Result<()> {
@@ -84,7 +88,7 @@ pub fn run(frames: usize, size: (u32, u32), spheres: &[usize], light_counts: &[u
                 times.push(frame()?);
             }
             let ms = crate::stats::median(&mut times) * 1e3;
-            let model = rend3r_estimate_s(n);
+            let model = rend3r_estimate_s(n, lights);
             println!("| {n} | {lights} | {ms:.2} | {model:.3} | {:.0} |", model * 1e3 / ms);
             eprintln!(
                 "{{\"kind\":\"rend3r_frame\",\"spheres\":{n},\"lights\":{lights},\"width\":{},\"height\":{},\"median_ms\":{ms:.3}}}",
@@ -115,9 +119,11 @@ pub fn run(frames: usize, size: (u32, u32), spheres: &[usize], light_counts: &[u
 #[cfg(test)]
 mod tests {
     #[test]
-    fn estimates_follow_the_table_s_ends() {
+    fn estimates_are_the_table_s_rows() {
         let e = super::rend3r_estimate_s;
-        assert!((e(1) - 0.405).abs() < 1e-12 && (e(4096) - 16.9).abs() < 1e-12);
-        assert!((e(16) - 0.4654).abs() < 1e-4 && (e(256) - 1.4322).abs() < 1e-4, "{} {}", e(16), e(256));
+        assert_eq!([e(1, 0), e(16, 0), e(256, 0), e(4096, 0)], [0.405, 0.435, 0.906, 8.456]);
+        assert_eq!([e(1, 1), e(16, 1), e(256, 1), e(4096, 1)], [0.810, 0.869, 1.813, 16.912]);
+        // Off the table: the paper's formula, (64 + 205) cycles a pixel.
+        assert!((e(64, 0) - 269.0 * 512.0 * 384.0 / 1e8).abs() < 1e-9);
     }
 }
