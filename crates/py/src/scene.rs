@@ -285,22 +285,25 @@ fn material_of(d: &Bound<'_, PyDict>) -> PyResult<Material> {
 }
 
 /// Vertices as float32 after taking `shift` away (float64 math for float64 input).
-fn positions(v: &Floats<'_>, name: &str, shift: DVec3) -> PyResult<Vec<Vec3>> {
+fn positions(py: Python<'_>, v: &Floats<'_>, name: &str, shift: DVec3) -> PyResult<Vec<Vec3>> {
     let lead = v.vectors(name, 3)?;
     if lead.len() != 1 {
         return Err(PyValueError::new_err(format!("{name}: shape {} where (N, 3) was needed", shape_str(v.shape()))));
     }
     let s = v.slice()?;
-    let n = s.len() / 3;
-    let mut out = Vec::with_capacity(n);
-    for i in 0..n {
-        let p = DVec3::new(s.get(3 * i), s.get(3 * i + 1), s.get(3 * i + 2));
-        if !p.is_finite() {
-            return Err(PyValueError::new_err(format!("{name}[{i}]: not finite ({p})")));
+    // (Converted with the GIL released: a mesh of millions of vertices takes a while.)
+    py.detach(|| {
+        let n = s.len() / 3;
+        let mut out = Vec::with_capacity(n);
+        for i in 0..n {
+            let p = DVec3::new(s.get(3 * i), s.get(3 * i + 1), s.get(3 * i + 2));
+            if !p.is_finite() {
+                return Err(PyValueError::new_err(format!("{name}[{i}]: not finite ({p})")));
+            }
+            out.push((p - shift).as_vec3());
         }
-        out.push((p - shift).as_vec3());
-    }
-    Ok(out)
+        Ok(out)
+    })
 }
 
 /// The centre of float64 vertices' bounds (zero for float32 input: stored as given).
@@ -376,23 +379,26 @@ impl Scene {
             None => DAffine3::IDENTITY,
         };
         let shift = centre(&v)?;
-        let pos = positions(&v, "vertices", shift)?;
+        let pos = positions(py, &v, "vertices", shift)?;
         let nv = pos.len();
-        let mut indices = Vec::with_capacity(f.len() / 3);
-        for (k, t) in f.chunks_exact(3).enumerate() {
-            let mut tri = [0u32; 3];
-            for (c, &i) in t.iter().enumerate() {
-                tri[c] = u32::try_from(i)
-                    .ok()
-                    .filter(|&i| (i as usize) < nv)
-                    .ok_or_else(|| PyIndexError::new_err(format!("faces[{k}, {c}]: vertex {i} out of range (0..{nv})")))?;
+        let indices = py.detach(|| -> PyResult<Vec<[u32; 3]>> {
+            let mut indices = Vec::with_capacity(f.len() / 3);
+            for (k, t) in f.chunks_exact(3).enumerate() {
+                let mut tri = [0u32; 3];
+                for (c, &i) in t.iter().enumerate() {
+                    tri[c] = u32::try_from(i)
+                        .ok()
+                        .filter(|&i| (i as usize) < nv)
+                        .ok_or_else(|| PyIndexError::new_err(format!("faces[{k}, {c}]: vertex {i} out of range (0..{nv})")))?;
+                }
+                indices.push(tri);
             }
-            indices.push(tri);
-        }
+            Ok(indices)
+        })?;
         let normals = match normals {
             Some(n) => {
                 let n = Floats::extract(n, "normals")?;
-                let p = positions(&n, "normals", DVec3::ZERO)?;
+                let p = positions(py, &n, "normals", DVec3::ZERO)?;
                 if p.len() != nv {
                     return Err(PyValueError::new_err(format!("normals: {} rows for {nv} vertices", p.len())));
                 }
@@ -597,7 +603,7 @@ impl Scene {
         let Geom::Mesh(m) = g.geom else {
             return Err(PyValueError::new_err(format!("geometry {geometry}: an analytic shape has no vertices")));
         };
-        let pos = positions(&v, "vertices", g.shift)?;
+        let pos = positions(py, &v, "vertices", g.shift)?;
         self.edit(py, "update_vertices", move |s| {
             let have = s.scene().meshes.get(m as usize).map_or(0, |mesh| mesh.positions.len());
             if have != pos.len() {
