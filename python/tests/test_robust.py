@@ -42,6 +42,12 @@ def test_wrong_shapes_name_the_argument():
         s.set_transforms([99], np.eye(4)[None])
     with pytest.raises(IndexError, match="geometry 5"):
         s.add_instances(5, np.eye(4)[None])
+    with pytest.raises(ValueError, match=r"transform: one \(4, 4\) matrix was needed, not \(2, 4, 4\)"):
+        lucent.Scene().add_shape("sphere", transform=np.tile(np.eye(4), (2, 1, 1)))
+    K = np.array([[50.0, 0, 32], [0, 50, 24], [0, 0, 1]])
+    for bad in (np.zeros((0, 4, 4)), np.tile(np.eye(4), (2, 1, 1))):
+        with pytest.raises(ValueError, match="pose: one"):
+            lucent.Camera.from_intrinsics(K, pose=bad, width=64, height=48)
     with pytest.raises(ValueError, match="quality"):
         lucent.Scene(quality="best")
     with pytest.raises(ValueError, match="kind"):

@@ -70,22 +70,24 @@ pub fn acos(x: f32) -> f32 {
     }
 }
 
+/// Units in the last place between `a` and `b`: how many floats lie between them (0 for
+/// equal values, and for +0 and −0), the measure the approximations here are tested in.
+#[must_use]
+pub fn ulps(a: f32, b: f32) -> u32 {
+    let key = |v: f32| {
+        let b = v.to_bits() as i32;
+        if b < 0 {
+            i32::MIN - b
+        } else {
+            b
+        }
+    };
+    key(a).abs_diff(key(b))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Units in the last place between `a` and `b`.
-    fn ulps(a: f32, b: f32) -> u32 {
-        let key = |v: f32| {
-            let b = v.to_bits() as i32;
-            if b < 0 {
-                i32::MIN - b
-            } else {
-                b
-            }
-        };
-        key(a).abs_diff(key(b))
-    }
 
     fn close(got: f32, want: f64) -> bool {
         ulps(got, want as f32) <= 4 || (f64::from(got) - want).abs() <= 2e-7

@@ -99,6 +99,14 @@ impl<'py> Floats<'py> {
         }
     }
 
+    /// Checks the shape is `(N, k)` and returns `N`.
+    pub fn rows(&self, name: &str, k: usize) -> PyResult<usize> {
+        match self.vectors(name, k)?.as_slice() {
+            [n] => Ok(*n),
+            _ => Err(PyValueError::new_err(format!("{name}: shape {} where (N, {k}) was needed", shape_str(self.shape())))),
+        }
+    }
+
     /// Checks the shape is `(..., k)` and returns the leading shape.
     pub fn vectors(&self, name: &str, k: usize) -> PyResult<Vec<usize>> {
         let s = self.shape();
@@ -149,6 +157,18 @@ pub fn with_last(shape: &[usize], k: usize) -> Vec<usize> {
         s.push(k);
     }
     s
+}
+
+/// One `(4, 4)` world-from-object matrix, or the identity when none is given.
+pub fn one_affine(obj: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<glam::DAffine3> {
+    let Some(obj) = obj else { return Ok(glam::DAffine3::IDENTITY) };
+    match affines(obj, name)? {
+        (a, lead) if lead.is_empty() => Ok(a[0]),
+        (_, lead) => Err(PyValueError::new_err(format!(
+            "{name}: one (4, 4) matrix was needed, not {}",
+            shape_str(&with_last(&with_last(&lead, 4), 4))
+        ))),
+    }
 }
 
 /// A `(4, 4)` matrix (or `(K, 4, 4)` matrices) as affine maps in f64, the bottom row

@@ -206,13 +206,12 @@ impl Camera {
         // Camera to world.
         let (r, eye) = match (extrinsic, pose) {
             (Some(e), None) => {
-                let (a, _) = crate::arrays::affines(e, "extrinsic")?;
-                let inv = a[0].inverse();
+                let inv = crate::arrays::one_affine(Some(e), "extrinsic")?.inverse();
                 (inv.matrix3, inv.translation)
             }
             (None, Some(p)) => {
-                let (a, _) = crate::arrays::affines(p, "pose")?;
-                (a[0].matrix3, a[0].translation)
+                let a = crate::arrays::one_affine(Some(p), "pose")?;
+                (a.matrix3, a.translation)
             }
             (None, None) => (DMat3::IDENTITY, DVec3::ZERO),
             (Some(_), Some(_)) => return Err(PyValueError::new_err("give extrinsic or pose, not both")),

@@ -466,11 +466,6 @@ impl<'py> Buffers<'py> {
     }
 }
 
-/// The packet mode asked for.
-fn packet_mode(coherent: Option<bool>) -> Option<bool> {
-    coherent
-}
-
 /// A batch's rays gathered straight into SoA blocks of eight (a ray that cannot hit:
 /// an empty lane), which lanes hold a ray, and whether they share a direction octant.
 /// PERF: one pass over the arrays per batch (a list of rays first, then the blocks, was
@@ -593,11 +588,10 @@ impl Scene {
         let raw = input.raw()?;
         let lead = input.lead.clone();
         let o = bufs.out;
-        let mode = packet_mode(coherent);
         self.with_world(py, "intersect", move |st, w| {
             crate::threads::run(threads, || {
                 let mut conv = Buffers32::default();
-                closest(st, w, raw.rays(offset, &mut conv), &lead, mode, o, Vec3::Z)
+                closest(st, w, raw.rays(offset, &mut conv), &lead, coherent, o, Vec3::Z)
             })
         })?;
         bufs.into_dict(py)

@@ -8,7 +8,7 @@
 //! geometry's world centre) that rays and transforms are moved by, so coordinates far from
 //! the origin keep their precision where the work happens.
 
-use crate::arrays::{affines, ints, shape_str, to_numpy, Floats};
+use crate::arrays::{affines, ints, one_affine, shape_str, to_numpy, Floats};
 use crate::errors::{guard, LucentError};
 use glam::{Affine3A, DAffine3, DVec3, Vec2, Vec3};
 use lucent_accel::{MeshOptions, Quality, TriangleTest};
@@ -286,10 +286,7 @@ fn material_of(d: &Bound<'_, PyDict>) -> PyResult<Material> {
 
 /// Vertices as float32 after taking `shift` away (float64 math for float64 input).
 fn positions(py: Python<'_>, v: &Floats<'_>, name: &str, shift: DVec3) -> PyResult<Vec<Vec3>> {
-    let lead = v.vectors(name, 3)?;
-    if lead.len() != 1 {
-        return Err(PyValueError::new_err(format!("{name}: shape {} where (N, 3) was needed", shape_str(v.shape()))));
-    }
+    v.rows(name, 3)?;
     let s = v.slice()?;
     // (Converted with the GIL released: a mesh of millions of vertices takes a while.)
     py.detach(|| {
@@ -368,16 +365,7 @@ impl Scene {
         if fshape.len() != 2 || fshape[1] != 3 {
             return Err(PyValueError::new_err(format!("faces: shape {} where (F, 3) was needed", shape_str(&fshape))));
         }
-        let m = match transform {
-            Some(t) => {
-                let (a, lead) = affines(t, "transform")?;
-                if !lead.is_empty() {
-                    return Err(PyValueError::new_err("transform: one (4, 4) matrix was needed"));
-                }
-                a[0]
-            }
-            None => DAffine3::IDENTITY,
-        };
+        let m = one_affine(transform, "transform")?;
         let shift = centre(&v)?;
         let pos = positions(py, &v, "vertices", shift)?;
         let nv = pos.len();
@@ -458,16 +446,7 @@ impl Scene {
         material: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<i64> {
         let k = shape_kind(kind)?;
-        let mut m = match transform {
-            Some(t) => {
-                let (a, lead) = affines(t, "transform")?;
-                if !lead.is_empty() {
-                    return Err(PyValueError::new_err("transform: one (4, 4) matrix was needed"));
-                }
-                a[0]
-            }
-            None => DAffine3::IDENTITY,
-        };
+        let mut m = one_affine(transform, "transform")?;
         if let Some(r) = radius {
             if !(r > 0.0 && r.is_finite()) {
                 return Err(PyValueError::new_err(format!("radius: {r} is not a positive number")));
@@ -506,11 +485,7 @@ impl Scene {
         material: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, numpy::PyArrayDyn<i64>>> {
         let c = Floats::extract(centers, "centers")?;
-        let lead = c.vectors("centers", 3)?;
-        if lead.len() != 1 {
-            return Err(PyValueError::new_err(format!("centers: shape {} where (N, 3) was needed", shape_str(c.shape()))));
-        }
-        let n = lead[0];
+        let n = c.rows("centers", 3)?;
         let r = Floats::extract(radii, "radii")?;
         let rs = r.slice()?;
         if !(rs.len() == 1 || (r.shape() == [n])) {

@@ -47,14 +47,20 @@ impl Camera {
             None => ((desc.vfov_deg.to_radians() * 0.5).tan(), false),
         };
         let aspect = width as f32 / height.max(1) as f32;
+        Self { ortho, ..Self::pinhole(desc.eye, (right, up, forward), (half_h * aspect, half_h), width, height) }
+    }
+
+    /// A pinhole at `eye` with the axes `(right, up, forward)` and the view plane's half
+    /// extents at unit distance, no lens, clip, or principal-point shift.
+    fn pinhole(eye: Vec3, (right, up, forward): (Vec3, Vec3, Vec3), (half_w, half_h): (f32, f32), width: u32, height: u32) -> Self {
         Self {
-            eye: desc.eye,
+            eye,
             forward,
             right,
             up,
-            half_w: half_h * aspect,
+            half_w,
             half_h,
-            ortho,
+            ortho: false,
             normalize: true,
             tmin: 0.0,
             tmax: f32::INFINITY,
@@ -87,22 +93,9 @@ impl Camera {
         let (w, h) = (width.max(1) as f32, height.max(1) as f32);
         let shift = ((0.5 * w - cx) / fx, (cy - 0.5 * h) / fy);
         Self {
-            eye,
-            forward,
-            right,
-            up: -down,
-            half_w: 0.5 * w / fx,
-            half_h: 0.5 * h / fy,
-            ortho: false,
-            normalize: true,
-            tmin: 0.0,
-            tmax: f32::INFINITY,
-            width: width.max(1),
-            height: height.max(1),
-            lens_radius: 0.0,
-            focus: 1.0,
             shifted: shift != (0.0, 0.0),
             shift,
+            ..Self::pinhole(eye, (right, -down, forward), (0.5 * w / fx, 0.5 * h / fy), width, height)
         }
     }
 

@@ -457,6 +457,7 @@ pub fn exp(x: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lucent_accel::math::ulps;
     use rand::{Rng, SeedableRng};
 
     /// The Phong power against `powf` over the range it serves (relative error, with an
@@ -494,19 +495,6 @@ mod tests {
                 assert_eq!(got.0[i].to_bits(), pow_unit(x[i], y[i]).to_bits(), "{}^{}", x[i], y[i]);
             }
         }
-    }
-
-    /// Units in the last place between `a` and `b`.
-    fn ulps(a: f32, b: f32) -> u32 {
-        let key = |v: f32| {
-            let b = v.to_bits() as i32;
-            if b < 0 {
-                i32::MIN - b
-            } else {
-                b
-            }
-        };
-        key(a).abs_diff(key(b))
     }
 
     /// `sin_cos` against the library's over [−2π, 2π] (4 ulp, or an absolute 1e-7 near
