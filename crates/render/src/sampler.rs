@@ -16,6 +16,7 @@
 //! supersampling, the debug views' lens), so that every random number of every
 //! integrator is made here.
 
+use crate::sampling::Distribution1D;
 use lucent_scene::PixelFilter;
 
 /// Generator matrix of the second Sobol' dimension, one 32-bit column per bit of the index.
@@ -135,46 +136,29 @@ pub fn filter_offset(f: PixelFilter, u: f32) -> f32 {
                 radius * (1.0 - (2.0 - 2.0 * u).max(0.0).sqrt())
             }
         }
-        PixelFilter::Gaussian { stddev } => stddev * gaussian_table().invert(u),
+        PixelFilter::Gaussian { stddev } => stddev * (8.0 * gaussian_table().sample(u).0 - 4.0),
     }
 }
 
 /// Bins of the Gaussian's tabulated integral over [−4, 4].
 const GAUSS_BINS: usize = 4096;
 
-/// The cumulative integral of `exp(−x²/2) − exp(−8)` over [−4, 4] (σ = 1), normalised,
-/// at `GAUSS_BINS + 1` evenly spaced points.
-struct GaussTable {
-    cdf: Vec<f32>,
-}
-
-impl GaussTable {
-    fn new() -> Self {
+/// `exp(−x²/2) − exp(−8)` over [−4, 4] (σ = 1) as a piecewise-constant distribution, each
+/// bin weighted by its integral (Simpson's rule): sampled by inverting its cumulative
+/// integral, linearly within a bin.
+fn gaussian_table() -> &'static Distribution1D {
+    static T: std::sync::OnceLock<Distribution1D> = std::sync::OnceLock::new();
+    T.get_or_init(|| {
         let f = |x: f64| ((-0.5 * x * x).exp() - (-8.0f64).exp()).max(0.0);
         let h = 8.0 / GAUSS_BINS as f64;
-        let mut acc = 0.0;
-        let mut cdf = vec![0.0f64];
-        for i in 0..GAUSS_BINS {
-            let (a, b) = (-4.0 + i as f64 * h, -4.0 + (i + 1) as f64 * h);
-            // Simpson's rule on each bin.
-            acc += h / 6.0 * (f(a) + 4.0 * f(0.5 * (a + b)) + f(b));
-            cdf.push(acc);
-        }
-        Self { cdf: cdf.iter().map(|c| (c / acc) as f32).collect() }
-    }
-
-    /// x in [−4, 4] with `cdf(x) = u` (linear within a bin).
-    fn invert(&self, u: f32) -> f32 {
-        let i = self.cdf.partition_point(|&c| c <= u).clamp(1, GAUSS_BINS) - 1;
-        let (c0, c1) = (self.cdf[i], self.cdf[i + 1]);
-        let t = if c1 > c0 { ((u - c0) / (c1 - c0)).clamp(0.0, 1.0) } else { 0.5 };
-        -4.0 + (i as f32 + t) * (8.0 / GAUSS_BINS as f32)
-    }
-}
-
-fn gaussian_table() -> &'static GaussTable {
-    static T: std::sync::OnceLock<GaussTable> = std::sync::OnceLock::new();
-    T.get_or_init(GaussTable::new)
+        let bins: Vec<f32> = (0..GAUSS_BINS)
+            .map(|i| {
+                let (a, b) = (-4.0 + i as f64 * h, -4.0 + (i + 1) as f64 * h);
+                (h / 6.0 * (f(a) + 4.0 * f(0.5 * (a + b)) + f(b))) as f32
+            })
+            .collect();
+        Distribution1D::new(&bins)
+    })
 }
 
 /// The default seed of the path tracer's and the VPL integrator's samplers.
