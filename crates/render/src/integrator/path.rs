@@ -98,6 +98,8 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
     // The previous bounce: its BSDF pdf (solid angle) and whether it was a delta lobe.
     let (mut prev_pdf, mut prev_delta) = (0.0f32, true);
     let mut prev_p = ray.org;
+    // (The previous bounce's shading normal: where the light choice was weighed.)
+    let mut prev_n = Vec3::ZERO;
     let mut depth = 0u32;
     // The relative index of refraction along the path so far (for roulette).
     let mut eta = 1.0f32;
@@ -116,7 +118,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
                             match s.sampling {
                                 LightSampling::Bsdf => 1.0,
                                 LightSampling::Nee => 0.0,
-                                LightSampling::Mis => power_heuristic(prev_pdf, lights.env_pdf(d)),
+                                LightSampling::Mis => power_heuristic(prev_pdf, lights.env_pdf(prev_p, prev_n, d)),
                             }
                         };
                         radiance += beta * le * weight;
@@ -136,7 +138,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
             let weight = if prev_delta {
                 1.0
             } else {
-                match (s.sampling, lights.pdf_hit(hit.inst, hit.prim, prev_p, surf.p, d)) {
+                match (s.sampling, lights.pdf_hit(hit.inst, hit.prim, prev_p, prev_n, surf.p, d)) {
                     (LightSampling::Bsdf, _) | (_, None) => 1.0,
                     // (Emitters next-event estimation can sample count when it does.)
                     (LightSampling::Nee, Some(_)) => 0.0,
@@ -154,7 +156,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         let wo = fr.to_local(-d);
         // Next-event estimation.
         if !bsdf.is_delta() && !lights.is_empty() && s.sampling != LightSampling::Bsdf {
-            if let Some(ls) = lights.sample(surf.p, choice_at(depth, 0), dims(base), textures) {
+            if let Some(ls) = lights.sample(surf.p, fr.n, choice_at(depth, 0), dims(base), textures) {
                 let wi = fr.to_local(ls.dir);
                 let f = bsdf.eval(wo, wi);
                 if f.max_element() > 0.0 {
@@ -178,6 +180,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         prev_pdf = bs.pdf;
         prev_delta = bs.delta;
         prev_p = surf.p;
+        prev_n = fr.n;
         ray = surf.spawn(fr.to_world(bs.wi));
         depth += 1;
         // Russian roulette.

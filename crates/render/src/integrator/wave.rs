@@ -93,6 +93,8 @@ struct Wave<'w> {
     prev_pdf: [f32; CAP],
     prev_delta: [bool; CAP],
     prev_p: Rows,
+    /// (Its shading normal: where the light choice was weighed.)
+    prev_n: Rows,
     depth: [u32; CAP],
     eta: [f32; CAP],
     /// This bounce (stage 1): whether the path scatters here, its surface, BSDF, frame
@@ -129,6 +131,7 @@ impl<'w> Wave<'w> {
             prev_pdf: [0.0; CAP],
             prev_delta: [true; CAP],
             prev_p: zero,
+            prev_n: zero,
             depth: [0; CAP],
             eta: [1.0; CAP],
             scatter: [false; CAP],
@@ -157,6 +160,7 @@ impl<'w> Wave<'w> {
         self.prev_pdf[i] = 0.0;
         self.prev_delta[i] = true;
         put3(&mut self.prev_p, i, ray.org);
+        put3(&mut self.prev_n, i, Vec3::ZERO);
         self.depth[i] = 0;
         self.eta[i] = 1.0;
         self.done[i] = false;
@@ -173,6 +177,7 @@ impl<'w> Wave<'w> {
             self.radiance[c][to] = self.radiance[c][from];
             self.beta[c][to] = self.beta[c][from];
             self.prev_p[c][to] = self.prev_p[c][from];
+            self.prev_n[c][to] = self.prev_n[c][from];
         }
         self.prev_pdf[to] = self.prev_pdf[from];
         self.prev_delta[to] = self.prev_delta[from];
@@ -528,7 +533,7 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>) {
                             match s.sampling {
                                 LightSampling::Bsdf => 1.0,
                                 LightSampling::Nee => 0.0,
-                                LightSampling::Mis => power_heuristic(wave.prev_pdf[i], lights.env_pdf(d)),
+                                LightSampling::Mis => power_heuristic(wave.prev_pdf[i], lights.env_pdf(get3(&wave.prev_p, i), get3(&wave.prev_n, i), d)),
                             }
                         };
                         beta * le * weight
@@ -549,7 +554,7 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>) {
             let weight = if wave.prev_delta[i] {
                 1.0
             } else {
-                match (s.sampling, lights.pdf_hit(hit.inst, hit.prim, get3(&wave.prev_p, i), surf.p, d)) {
+                match (s.sampling, lights.pdf_hit(hit.inst, hit.prim, get3(&wave.prev_p, i), get3(&wave.prev_n, i), surf.p, d)) {
                     (LightSampling::Bsdf, _) | (_, None) => 1.0,
                     (LightSampling::Nee, Some(_)) => 0.0,
                     (LightSampling::Mis, Some(light_pdf)) => power_heuristic(wave.prev_pdf[i], light_pdf),
@@ -612,7 +617,7 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         if bsdf.is_delta() {
             continue;
         }
-        let Some(ls) = lights.sample(wave.surf[i].p, wave.u_light[i], (wave.u2_light[0][i], wave.u2_light[1][i]), textures) else {
+        let Some(ls) = lights.sample(wave.surf[i].p, wave.frame[i].n, wave.u_light[i], (wave.u2_light[0][i], wave.u2_light[1][i]), textures) else {
             continue;
         };
         sampled[i] = true;
@@ -725,6 +730,7 @@ fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>) {
         wave.prev_pdf[i] = pdf[i];
         wave.prev_delta[i] = delta[i];
         put3(&mut wave.prev_p, i, wave.surf[i].p);
+        put3(&mut wave.prev_n, i, wave.frame[i].n);
         wave.ray[i] = wave.surf[i].spawn(wave.frame[i].to_world(get3(&wi, i)));
         wave.depth[i] += 1;
         if wave.depth[i] >= s.rr_depth {

@@ -84,6 +84,11 @@ impl EnvLight {
         Some(Self { scale: e.scale, map: Some((img, Distribution2D::new(&f, gw, gh))), to_world: e.to_world, to_local, mean })
     }
 
+    /// The luminance of its mean radiance.
+    pub(crate) fn mean_luminance(&self) -> f32 {
+        luminance(self.mean)
+    }
+
     /// Its power, as light through the scene's bounding sphere of radius `radius` (for the
     /// choice among lights).
     pub(crate) fn power(&self, radius: f32) -> f32 {
