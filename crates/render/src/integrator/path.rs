@@ -110,15 +110,15 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         let Some((hit_ray, hit)) = found else {
             if !hidden(depth) {
                 let d = ray.dir.normalize();
-                match lights.env_radiance(d) {
-                    Some(le) => {
+                match lights.env_radiance_pdf(d) {
+                    Some((le, dir_pdf)) => {
                         let weight = if prev_delta {
                             1.0
                         } else {
                             match s.sampling {
                                 LightSampling::Bsdf => 1.0,
                                 LightSampling::Nee => 0.0,
-                                LightSampling::Mis => power_heuristic(prev_pdf, lights.env_pdf(prev_p, prev_n, d)),
+                                LightSampling::Mis => power_heuristic(prev_pdf, lights.env_choice(prev_p, prev_n) * dir_pdf),
                             }
                         };
                         radiance += beta * le * weight;

@@ -525,15 +525,15 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>) {
         let Some((hit_ray, hit)) = found else {
             if !hidden(depth) {
                 let d = wave.ray[i].dir.normalize();
-                let add = match lights.env_radiance(d) {
-                    Some(le) => {
+                let add = match lights.env_radiance_pdf(d) {
+                    Some((le, dir_pdf)) => {
                         let weight = if wave.prev_delta[i] {
                             1.0
                         } else {
                             match s.sampling {
                                 LightSampling::Bsdf => 1.0,
                                 LightSampling::Nee => 0.0,
-                                LightSampling::Mis => power_heuristic(wave.prev_pdf[i], lights.env_pdf(get3(&wave.prev_p, i), get3(&wave.prev_n, i), d)),
+                                LightSampling::Mis => power_heuristic(wave.prev_pdf[i], lights.env_choice(get3(&wave.prev_p, i), get3(&wave.prev_n, i)) * dir_pdf),
                             }
                         };
                         beta * le * weight

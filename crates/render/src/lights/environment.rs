@@ -106,6 +106,19 @@ impl EnvLight {
         self.lookup(img, u, v) * self.scale
     }
 
+    /// [`EnvLight::eval`] of one direction and the density of [`EnvLight::sample`] for it,
+    /// the angles found once.
+    pub(crate) fn eval_pdf(&self, dir: Vec3) -> (Vec3, f32) {
+        let Some((img, dist)) = &self.map else { return (self.scale, 1.0 / (4.0 * PI)) };
+        let d = self.to_local.transform_vector3(dir).normalize_or_zero();
+        let u = atan2(d.x, -d.z) * (0.5 / PI);
+        let v = acos(d.y) / PI;
+        let le = self.lookup(img, u, v) * self.scale;
+        let st = (1.0 - d.y * d.y).max(0.0).sqrt();
+        let pdf = if st <= 0.0 { 0.0 } else { dist.pdf(Vec2::new(u - u.floor(), v)) / (2.0 * PI * PI * st) };
+        (le, pdf)
+    }
+
     /// The map's bilinear value at (u, v) (see [`EnvLight::eval`]).
     fn lookup(&self, img: &HdrImage, u: f32, v: f32) -> Vec3 {
         let (w, h) = (img.width as usize, img.height as usize);
@@ -115,9 +128,11 @@ impl EnvLight {
         let y = v * (h - 1) as f32;
         let (x0, y0) = ((x as usize).min(w - 1), (y as usize).min(h - 2));
         let (fx, fy) = (x - x0 as f32, y - y0 as f32);
-        let t = |xi: usize, yi: usize| img.texels[yi * w + xi % w];
-        let top = t(x0, y0) * (1.0 - fx) + t(x0 + 1, y0) * fx;
-        let bottom = t(x0, y0 + 1) * (1.0 - fx) + t(x0 + 1, y0 + 1) * fx;
+        // (The column after the last is the first: a compare, not a division.)
+        let x1 = if x0 + 1 == w { 0 } else { x0 + 1 };
+        let t = |xi: usize, yi: usize| img.texels[yi * w + xi];
+        let top = t(x0, y0) * (1.0 - fx) + t(x1, y0) * fx;
+        let bottom = t(x0, y0 + 1) * (1.0 - fx) + t(x1, y0 + 1) * fx;
         top * (1.0 - fy) + bottom * fy
     }
 
@@ -142,23 +157,5 @@ impl EnvLight {
             return None;
         }
         Some(LightSample { dir, dist: f32::INFINITY, li, pdf, delta: false })
-    }
-
-    /// The density of [`EnvLight::sample`] for world direction `dir`.
-    pub(crate) fn pdf(&self, dir: Vec3) -> f32 {
-        match &self.map {
-            None => 1.0 / (4.0 * PI),
-            Some((_, dist)) => {
-                let d = self.to_local.transform_vector3(dir).normalize_or_zero();
-                let u = atan2(d.x, -d.z) * (0.5 / PI);
-                let u = u - u.floor();
-                let v = acos(d.y) / PI;
-                let st = (1.0 - d.y * d.y).max(0.0).sqrt();
-                if st <= 0.0 {
-                    return 0.0;
-                }
-                dist.pdf(Vec2::new(u, v)) / (2.0 * PI * PI * st)
-            }
-        }
     }
 }

@@ -426,13 +426,17 @@ impl LightSet {
         (e.flux.is_finite() && e.flux.max_element() > 0.0 && e.dir != Vec3::ZERO && e.p.is_finite()).then_some(e)
     }
 
-    /// The density with which [`LightSet::sample`] from `p` (normal `n`) picks direction
-    /// `dir` of the environment.
-    pub fn env_pdf(&self, p: Vec3, n: Vec3, dir: Vec3) -> f32 {
-        match &self.env {
-            Some((i, e)) => self.pmf(*i as usize, p, n) * e.pdf(dir),
-            None => 0.0,
-        }
+    /// Radiance of the environment along unit `dir` and the density of that direction
+    /// once the environment is chosen (`None` without one): [`LightSet::env_radiance`]
+    /// and the density of that direction as [`LightSet::sample`] picks it, over
+    /// [`LightSet::env_choice`].
+    pub fn env_radiance_pdf(&self, dir: Vec3) -> Option<(Vec3, f32)> {
+        self.env.as_ref().map(|(_, e)| e.eval_pdf(dir))
+    }
+
+    /// The probability of choosing the environment from `p` (normal `n`).
+    pub fn env_choice(&self, p: Vec3, n: Vec3) -> f32 {
+        self.env.as_ref().map_or(0.0, |(i, _)| self.pmf(*i as usize, p, n))
     }
 }
 
