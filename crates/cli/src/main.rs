@@ -385,6 +385,9 @@ enum BenchCmd {
         /// The shared scenes folder (a reference scene's `$scenes` parameter).
         #[arg(long, default_value = "../shared/scenes")]
         dir: PathBuf,
+        /// Only these scenes (folder names under --data, e.g. `--scene envmap`). Repeatable
+        #[arg(long = "scene")]
+        scenes: Vec<String>,
     },
     /// REND3R's Table IV scenes (1..4096 spheres, 0/1 lights): frame times, and words per
     /// second through the assembler and the processor.
@@ -530,7 +533,7 @@ fn run() -> Result<()> {
             dynamic_bench::run(&scenes, frames, size)
         }
         Cmd::Bench(BenchCmd::Leaks { rays, seed }) => leaks_bench::run(rays, seed),
-        Cmd::Bench(BenchCmd::Path { data, dir }) => path_bench::run(&data, &dir),
+        Cmd::Bench(BenchCmd::Path { data, dir, scenes }) => path_bench::run(&data, &dir, &scenes),
         Cmd::Bench(BenchCmd::Vpl { dir, size, frames, reference_spp, speed_only, only }) => {
             vpl_bench::run(&vpl_bench::VplOptions { dir, size, frames, reference_spp, speed_only, only })
         }

@@ -19,10 +19,18 @@
 //! shaded, sampled and accumulated for free would still take that long; Mitsuba's time
 //! over it is the most times faster lucent could be at equal error without faster
 //! traversal or fewer rays.
+//!
+//! Then a cost table per scene, in thread-nanoseconds per sample (wall time × threads /
+//! samples) of the equal-error render: the scalar path tracer (one path after another,
+//! the reference) whole and less its rays alone; the lane integrator whole and part by
+//! part (its stage clocks, `lucent_render::integrator::wave_profile`, shares of its own
+//! profiled render scaled to its unprofiled time), with its lanes' occupancy: paths in
+//! flight per step (of 64) and lanes per BSDF loop.
 
 use crate::stats::{median, rays_alone};
 use anyhow::{bail, Context, Result};
 use lucent_accel::MeshOptions;
+use lucent_render::integrator::wave_profile::{self, Part, WaveProfile};
 use lucent_render::{render, Camera, Film, Integrator, PathSettings, RenderSettings, World};
 use std::path::Path;
 use std::time::Instant;
@@ -45,22 +53,28 @@ fn mitsuba_seconds(xml: &Path, defines: &[(String, String)]) -> Option<f64> {
     text.split("second ").nth(1)?.split(' ').next()?.parse().ok()
 }
 
-pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
+pub fn run(data: &Path, scenes_dir: &Path, only: &[String]) -> Result<()> {
     let mut dirs: Vec<_> = std::fs::read_dir(data)
         .with_context(|| format!("{}", data.display()))?
         .flatten()
         .map(|e| e.path())
         .filter(|p| p.join("scene.xml").is_file() && p.join("mitsuba.json").is_file())
+        .filter(|p| only.is_empty() || p.file_name().is_some_and(|n| only.iter().any(|o| n == o.as_str())))
         .collect();
     dirs.sort();
     if dirs.is_empty() {
-        bail!("no reference scenes under {} (each needs scene.xml, mitsuba.json, reference_4096spp.exr)", data.display());
+        bail!(
+            "no reference scenes under {} (each needs scene.xml, mitsuba.json, reference_4096spp.exr){}",
+            data.display(),
+            if only.is_empty() { String::new() } else { format!(" named {}", only.join(", ")) }
+        );
     }
     println!("machine: {} threads", rayon::current_num_threads());
     println!(
         "| scene | lucent samples/s | relMSE 64 spp, median (lucent / Mitsuba) | lucent spp, s to Mitsuba's 64-spp error | Mitsuba 64 spp s | x faster at equal error | rays/sample, their s alone | ceiling x |"
     );
     println!("|---|---|---|---|---|---|---|---|");
+    let mut costs = Vec::new();
     for dir in dirs {
         let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let xml = dir.join("scene.xml");
@@ -78,17 +92,19 @@ pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
         let (w, h) = (hints.width, hints.height);
         let world = World::new(scene, MeshOptions::default())?;
         let camera = Camera::new(&desc, w, h).with_clip(hints.clip.0, hints.clip.1);
-        let settings = |spp: u32, seed: u32| RenderSettings {
+        let settings_with = |spp: u32, seed: u32, lanes: bool| RenderSettings {
             spp,
             integrator: Integrator::Path(PathSettings {
                 max_depth: hints.max_depth.unwrap_or(u32::MAX),
                 rr_depth: hints.rr_depth,
                 hide_emitters: hints.hide_emitters,
                 seed,
+                lanes,
                 ..PathSettings::default()
             }),
             ..RenderSettings::new(w, h)
         };
+        let settings = |spp: u32, seed: u32| settings_with(spp, seed, true);
         let shot = |spp: u32, seed: u32| {
             let t = Instant::now();
             let f = render(&world, &camera, &settings(spp, seed), &|_| {}).0;
@@ -114,6 +130,31 @@ pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
             ms / t_rays
         );
         std::io::Write::flush(&mut std::io::stdout())?;
+        // The cost table's figures: both integrators at the equal-error spp (medians of
+        // three), then one profiled lane render for the shares.
+        let samples = f64::from(w * h) * f64::from(spp_eq);
+        let thread_ns = |s: f64| s * 1e9 * rayon::current_num_threads() as f64 / samples;
+        let timed = |lanes: bool| {
+            let mut t: Vec<f64> = (0..3)
+                .map(|_| {
+                    let t = Instant::now();
+                    std::hint::black_box(render(&world, &camera, &settings_with(spp_eq, 1, lanes), &|_| {}));
+                    t.elapsed().as_secs_f64()
+                })
+                .collect();
+            median(&mut t)
+        };
+        let (t_scalar, t_lanes) = (timed(false), timed(true));
+        wave_profile::begin();
+        std::hint::black_box(render(&world, &camera, &settings(spp_eq, 1), &|_| {}));
+        let profile = wave_profile::end();
+        costs.push(Cost {
+            name: format!("{name} ({spp_eq} spp)"),
+            scalar: thread_ns(t_scalar),
+            rays: thread_ns(t_rays),
+            lanes: thread_ns(t_lanes),
+            profile,
+        });
         eprintln!(
             "{}",
             serde_json::json!({"kind": "path", "scene": name, "samples_per_s": rate, "rel_mse_64": e64, "mitsuba_rel_mse_64": m_err,
@@ -121,5 +162,59 @@ pub fn run(data: &Path, scenes_dir: &Path) -> Result<()> {
                 "rays_per_sample": per_sample, "rays_alone_s": t_rays, "ceiling": ms / t_rays})
         );
     }
+    print_costs(&costs);
     Ok(())
+}
+
+/// One scene's line of the cost table.
+struct Cost {
+    name: String,
+    /// Thread-nanoseconds per sample: the scalar integrator, the render's rays alone, the
+    /// lane integrator.
+    scalar: f64,
+    rays: f64,
+    lanes: f64,
+    profile: WaveProfile,
+}
+
+fn print_costs(costs: &[Cost]) {
+    println!();
+    println!("Cost per sample, thread-ns (wall time x threads / samples), equal-error renders:");
+    println!(
+        "| scene | scalar: whole, less its rays alone | lanes: whole | traversal (closest, shadow) | shading (surfaces, numbers, lights, scatter) | elsewhere (camera, film) | paths in flight of 64 | lanes per BSDF loop, one by one % |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for c in costs {
+        let p = &c.profile;
+        let ns = |part: Part| p.share(part) * c.lanes;
+        let sum = |parts: &[Part]| parts.iter().map(|&q| ns(q)).sum::<f64>();
+        let shading = [Part::Surfaces, Part::Numbers, Part::Lights, Part::Scatter];
+        let alone = 100.0 * p.alone_lanes as f64 / (p.alone_lanes + p.packed_lanes).max(1) as f64;
+        println!(
+            "| {} | {:.0}, {:.0} | {:.0} | {:.0} ({:.0}, {:.0}) | {:.0} ({:.0}, {:.0}, {:.0}, {:.0}) | {:.0} ({:.0}, {:.0}) | {:.1} | {:.1}, {alone:.1} |",
+            c.name,
+            c.scalar,
+            c.scalar - c.rays,
+            c.lanes,
+            ns(Part::ClosestHits) + ns(Part::ShadowRays),
+            ns(Part::ClosestHits),
+            ns(Part::ShadowRays),
+            sum(&shading),
+            ns(Part::Surfaces),
+            ns(Part::Numbers),
+            ns(Part::Lights),
+            ns(Part::Scatter),
+            ns(Part::Camera) + ns(Part::Film),
+            ns(Part::Camera),
+            ns(Part::Film),
+            p.mean_lanes(),
+            p.mean_packed(),
+        );
+        eprintln!(
+            "{}",
+            serde_json::json!({"kind": "path_cost", "scene": c.name, "scalar_ns": c.scalar, "rays_alone_ns": c.rays, "lanes_ns": c.lanes,
+                "parts_ns": Part::ALL.iter().map(|&q| (format!("{q:?}"), ns(q))).collect::<std::collections::BTreeMap<_, _>>(),
+                "samples_profiled": p.samples, "mean_lanes": p.mean_lanes(), "mean_packed": p.mean_packed(), "alone_pct": alone})
+        );
+    }
 }

@@ -23,6 +23,7 @@ pub(crate) mod hit;
 pub mod path;
 pub mod vpl;
 pub mod wave;
+pub mod wave_profile;
 pub mod whitted;
 
 pub use path::{LightSampling, PathSettings};

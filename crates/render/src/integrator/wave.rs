@@ -31,6 +31,7 @@
 
 use super::hit::{bsdf_frame, coherent, emitted, material, shading_normal};
 use super::path::{LightSampling, PathSettings, CHOICES, PAIRS};
+use super::wave_profile::{now, Part, Watch};
 use crate::bsdf::{Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughPlastic};
 use crate::lanes::on_lanes;
 use crate::sampler::PixelSampler;
@@ -400,6 +401,17 @@ impl<'w> Models<'w> {
         each_model!(self, |p| p.clear());
     }
 
+    /// Counts the packed loops just run, and `alone` lanes shaded one by one.
+    fn count(&mut self, watch: &mut Watch, alone: usize) {
+        if let Some(prof) = &mut watch.p {
+            each_model!(self, |p| if !p.lane.is_empty() {
+                prof.packed_loops += 1;
+                prof.packed_lanes += p.lane.len() as u64;
+            });
+            prof.alone_lanes += alone as u64;
+        }
+    }
+
     /// Packs lane `i` (BSDF `b`) with its model's lanes; `false` for a BSDF without a lane
     /// form (the thin sheet, the user's), which the caller takes lane by lane.
     #[inline(always)]
@@ -428,6 +440,7 @@ pub(crate) fn shade_samples(settings: &PathSettings, s: &SampleBlock, block: &Bl
     let mut vals = vec![Vec3::ZERO; CHUNK.min(total)];
     let mut wave = Wave::new();
     let mut models = Models::new();
+    let mut watch = Watch::new();
     let mut next = 0usize;
     while next < total {
         let end = (next + CHUNK).min(total);
@@ -446,8 +459,10 @@ pub(crate) fn shade_samples(settings: &PathSettings, s: &SampleBlock, block: &Bl
                 wave.start(i, (e - chunk.start) as u32, k, sampler.pixel(x, y), s.camera_ray(x, y, k));
                 wave.n += 1;
             }
+            watch.lap(Part::Camera);
             camera_packets(w, &mut wave, fresh, block.among, s.traversal.packets);
-            step(w, settings, &mut wave, &mut models, &mut vals);
+            watch.lap(Part::ClosestHits);
+            step(w, settings, &mut wave, &mut models, &mut vals, &mut watch);
         }
         // The chunk's values, pixel by pixel in order of the sample index.
         for e in chunk.clone() {
@@ -463,7 +478,12 @@ pub(crate) fn shade_samples(settings: &PathSettings, s: &SampleBlock, block: &Bl
             }
         }
         next = end;
+        watch.lap(Part::Film);
     }
+    if let Some(p) = &mut watch.p {
+        p.samples += total as u64;
+    }
+    watch.finish();
 }
 
 /// The closest hits of the camera rays of lanes `fresh..`, as packets of up to
@@ -492,11 +512,19 @@ fn camera_packets(w: &World, wave: &mut Wave, fresh: usize, among: Option<&[u32]
 }
 
 /// One bounce of every lane; ended paths write their values and leave.
-fn step<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, vals: &mut [Vec3]) {
-    trace(w, s, wave);
+fn step<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, vals: &mut [Vec3], watch: &mut Watch) {
+    if let Some(p) = &mut watch.p {
+        p.steps += 1;
+        p.lanes += wave.n as u64;
+    }
+    let rays = trace(w, s, wave, watch.is_on());
+    watch.lap(Part::Surfaces);
+    watch.moved(rays, Part::Surfaces, Part::ClosestHits);
     numbers(wave);
-    light(w, s, wave, models);
-    scatter(s, wave, models);
+    watch.lap(Part::Numbers);
+    light(w, s, wave, models, watch);
+    scatter(s, wave, models, watch);
+    watch.lap(Part::Scatter);
     // Ended paths leave (their order among the lanes does not matter): from the back, so
     // the lane each removal moves in has been looked at already.
     for i in (0..wave.n).rev() {
@@ -509,19 +537,26 @@ fn step<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Mo
             }
         }
     }
+    watch.lap(Part::Film);
 }
 
 /// Stage 1, lane by lane: the closest hits, the light of what they meet (or of the
-/// environment), and where paths go on, the surface's BSDF and shading frame.
+/// environment), and where paths go on, the surface's BSDF and shading frame. With
+/// `timed`, returns the clock counts spent in the closest-hit queries.
 #[inline(never)]
-fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>) {
+fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -> u64 {
+    let mut ray_ticks = 0u64;
     let lights = &w.light_set;
     let hidden = |depth: u32| depth == 0 && s.hide_emitters;
     for i in 0..wave.n {
         wave.scatter[i] = false;
         let depth = wave.depth[i];
         let beta = get3(&wave.beta, i);
+        let t0 = if timed { now() } else { 0 };
         let found = w.first_hit(&wave.ray[i], wave.first[i].take());
+        if timed {
+            ray_ticks += now().wrapping_sub(t0);
+        }
         let Some((hit_ray, hit)) = found else {
             if !hidden(depth) {
                 let d = wave.ray[i].dir.normalize();
@@ -533,7 +568,10 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>) {
                             match s.sampling {
                                 LightSampling::Bsdf => 1.0,
                                 LightSampling::Nee => 0.0,
-                                LightSampling::Mis => power_heuristic(wave.prev_pdf[i], lights.env_choice(get3(&wave.prev_p, i), get3(&wave.prev_n, i)) * dir_pdf),
+                                LightSampling::Mis => power_heuristic(
+                                    wave.prev_pdf[i],
+                                    lights.env_choice(get3(&wave.prev_p, i), get3(&wave.prev_n, i)) * dir_pdf,
+                                ),
                             }
                         };
                         beta * le * weight
@@ -574,6 +612,7 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>) {
         put3(&mut wave.wo, i, frame.to_local(-d));
         wave.scatter[i] = true;
     }
+    ray_ticks
 }
 
 /// Stage 2, on lanes: the bounce's sampler numbers (for every lane: those of lanes that
@@ -597,7 +636,7 @@ fn numbers(wave: &mut Wave) {
 /// Stage 3: next-event estimation. A light sample per lane that scatters (lane by lane),
 /// the BSDF toward it on lanes (packed by model), then every shadow ray.
 #[inline(never)]
-fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>) {
+fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, watch: &mut Watch) {
     let lights = &w.light_set;
     if lights.is_empty() || s.sampling == LightSampling::Bsdf {
         return;
@@ -617,7 +656,9 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         if bsdf.is_delta() {
             continue;
         }
-        let Some(ls) = lights.sample(wave.surf[i].p, wave.frame[i].n, wave.u_light[i], (wave.u2_light[0][i], wave.u2_light[1][i]), textures) else {
+        let Some(ls) =
+            lights.sample(wave.surf[i].p, wave.frame[i].n, wave.u_light[i], (wave.u2_light[0][i], wave.u2_light[1][i]), textures)
+        else {
             continue;
         };
         sampled[i] = true;
@@ -631,6 +672,7 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         }
     }
     run_models!(&mut *models, eval_all);
+    models.count(watch, n_alone);
     let mut f: Rows = [[0.0; CAP]; 3];
     let mut bsdf_pdf = [0.0f32; CAP];
     each_model!(&mut *models, |p| {
@@ -662,17 +704,19 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
     // (Measured: the first bounce's shadow rays of one pixel toward one light, sorted
     // together and traced as packets where coherent, made the bunny 3% and Sponza 1%
     // slower; the Cornell box's area light spreads them past a packet's cone.)
+    watch.lap(Part::Lights);
     for &(i, ray, c) in &pending[..count] {
         if !w.occluded_solid(&ray) {
             add3(&mut wave.radiance, usize::from(i), c);
         }
     }
+    watch.lap(Part::ShadowRays);
 }
 
 /// Stage 4: the BSDF's sample (on lanes, packed by model), then the throughput, roulette
 /// and the next ray.
 #[inline(never)]
-fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>) {
+fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, watch: &mut Watch) {
     models.clear();
     let mut alone = [0u8; CAP];
     let mut n_alone = 0;
@@ -687,6 +731,7 @@ fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>) {
         }
     }
     run_models!(&mut *models, sample_all);
+    models.count(watch, n_alone);
     let mut ok = [false; CAP];
     let mut wi: Rows = [[0.0; CAP]; 3];
     let mut weight: Rows = [[0.0; CAP]; 3];

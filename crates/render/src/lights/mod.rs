@@ -214,7 +214,9 @@ impl LightSet {
                 for (e, &p) in entries.iter().zip(power) {
                     let (n, corners) = match e {
                         Entry::Area(AreaLight::Tri(t)) => (t.n, [t.p0, t.p0 + t.e1, t.p0 + t.e2, t.p0]),
-                        Entry::Area(AreaLight::Disk { c, ax, ay, n, .. }) => (*n, [*c + *ax + *ay, *c - *ax - *ay, *c + *ax - *ay, *c - *ax + *ay]),
+                        Entry::Area(AreaLight::Disk { c, ax, ay, n, .. }) => {
+                            (*n, [*c + *ax + *ay, *c - *ax - *ay, *c + *ax - *ay, *c - *ax + *ay])
+                        }
                         _ => continue,
                     };
                     for q in corners {
@@ -480,7 +482,9 @@ mod tests {
         let light = |kind, color| Light { kind, color, inverse_square: true };
         scene.lights.push(light(LightKind::Point { position: Vec3::new(1.0, 2.0, 0.0) }, Vec3::splat(3.0)));
         let (inner, outer) = (0.2f32, 0.4f32);
-        scene.lights.push(light(LightKind::Spot { position: Vec3::new(0.0, 2.0, 0.0), direction: -Vec3::Y, inner, outer }, Vec3::splat(5.0)));
+        scene
+            .lights
+            .push(light(LightKind::Spot { position: Vec3::new(0.0, 2.0, 0.0), direction: -Vec3::Y, inner, outer }, Vec3::splat(5.0)));
         scene.lights.push(light(LightKind::Directional { direction: Vec3::new(0.2, -1.0, 0.1) }, Vec3::splat(0.8)));
         scene.environment = Some(Environment { scale: Vec3::splat(0.2), image: None, to_world: Affine3A::IDENTITY });
         LightSet::of(&scene, Some((Vec3::splat(-3.0), Vec3::splat(3.0))), &[], &[])
@@ -523,7 +527,11 @@ mod tests {
     fn user_lights_and_crowds_are_chosen_uniformly() {
         let mut scene = Scene::default();
         for i in 0..=MAX_WEIGHED {
-            scene.lights.push(Light { kind: LightKind::Point { position: Vec3::new(i as f32, 1.0, 0.0) }, color: Vec3::ONE, inverse_square: true });
+            scene.lights.push(Light {
+                kind: LightKind::Point { position: Vec3::new(i as f32, 1.0, 0.0) },
+                color: Vec3::ONE,
+                inverse_square: true,
+            });
         }
         let set = LightSet::of(&scene, Some((Vec3::splat(-1.0), Vec3::splat(20.0))), &[], &[]);
         assert!(!set.weighed);

@@ -97,7 +97,9 @@ impl Lane {
             Reach::Directional { toward, irradiance } => {
                 Lane { c: toward, m: 0.0, cos_o: -1.0, cos_e: -2.0, intensity: irradiance, recv: 1.0, ..Lane::default() }
             }
-            Reach::Everywhere { irradiance } => Lane { cos_o: -1.0, cos_e: -2.0, intensity: irradiance, everywhere: 1.0, ..Lane::default() },
+            Reach::Everywhere { irradiance } => {
+                Lane { cos_o: -1.0, cos_e: -2.0, intensity: irradiance, everywhere: 1.0, ..Lane::default() }
+            }
         }
     }
 }
@@ -110,7 +112,7 @@ fn lane_weight(l: &Lane, p: Vec3, n: Vec3, has_n: bool) -> f32 {
     let to = l.c - p * l.m;
     let d2 = to.length_squared();
     let r2 = l.radius * l.radius;
-    let inside = !(d2 > r2);
+    let inside = d2 <= r2 || d2.is_nan();
     let inv_d = 1.0 / d2.sqrt();
     let w = to * inv_d;
     let sin_b = (l.radius * inv_d).min(1.0);
@@ -227,7 +229,9 @@ impl Lanes {
         }
         // (Eight lanes where they hold every light: half the divisions and roots.)
         if self.count <= WIDTH / 2 {
-            crate::lanes::on_lanes!(|s: &Lanes, p: Vec3, n: Vec3, out: &mut [f32; WIDTH]| run::<{ WIDTH / 2 }>(s, p, n, out))(self, p, n, out);
+            crate::lanes::on_lanes!(|s: &Lanes, p: Vec3, n: Vec3, out: &mut [f32; WIDTH]| run::<{ WIDTH / 2 }>(s, p, n, out))(
+                self, p, n, out,
+            );
             out[WIDTH / 2..].fill(0.0);
         } else {
             crate::lanes::on_lanes!(|s: &Lanes, p: Vec3, n: Vec3, out: &mut [f32; WIDTH]| run::<WIDTH>(s, p, n, out))(self, p, n, out);
