@@ -5,7 +5,7 @@
 use super::sample::{EmissionSample, LightSample};
 use crate::color::luminance;
 use crate::sampling::{uniform_cone, uniform_sphere};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use lucent_scene::{Light, LightKind};
 use std::f32::consts::PI;
 
@@ -56,12 +56,16 @@ pub(crate) fn sample(l: &Light, p: Vec3) -> Option<LightSample> {
             (dir != Vec3::ZERO).then_some(LightSample { dir, dist: f32::INFINITY, li: l.color, pdf: 1.0, delta: true })
         }
         LightKind::Point { position } | LightKind::Spot { position, .. } => {
-            let to = position - p;
+            // PERF: in four lanes (Vec3A), length and division included: as Vec3 the
+            // square root and the divisions of x, y and of z ran one after another (perf put
+            // 5-6% of a Sponza render on them); Sponza at 64 spp 0.94 -> 0.87 s (medians of
+            // five, interleaved, 2 threads).
+            let to = Vec3A::from(position) - Vec3A::from(p);
             let dist = to.length();
             if !(dist > 0.0 && dist.is_finite()) {
                 return None;
             }
-            let dir = to / dist;
+            let dir = Vec3::from(to / dist);
             let falloff = match l.kind {
                 LightKind::Spot { direction, inner, outer, .. } => {
                     // Mitsuba's spot falloff: full inside `inner`, then linear in the angle
