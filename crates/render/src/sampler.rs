@@ -19,52 +19,27 @@
 use crate::sampling::Distribution1D;
 use lucent_scene::PixelFilter;
 
-/// Generator matrix of the second Sobol' dimension, one 32-bit column per bit of the index.
-const SOBOL1: [u32; 32] = {
-    let mut v = [0u32; 32];
-    let mut m: u32 = 1;
-    let mut k = 0;
-    while k < 32 {
-        v[k] = m << (31 - k);
-        m = (m << 1) ^ m;
-        k += 1;
-    }
-    v
-};
-
-/// [`SOBOL1`] by bytes of the index: `SOBOL1_BYTES[k][b]` is the XOR of the columns of the
-/// set bits of `b` at bits `8k..8k + 8`. PERF: four lookups instead of a loop over 32 bits
-/// (scrambled indices have all 32; the loop was half of a path-traced frame).
-const SOBOL1_BYTES: [[u32; 256]; 4] = {
-    let mut t = [[0u32; 256]; 4];
-    let mut k = 0;
-    while k < 4 {
-        let mut b = 0;
-        while b < 256 {
-            let mut y = 0u32;
-            let mut j = 0;
-            while j < 8 {
-                if b >> j & 1 != 0 {
-                    y ^= SOBOL1[8 * k + j];
-                }
-                j += 1;
-            }
-            t[k][b] = y;
-            b += 1;
-        }
-        k += 1;
-    }
-    t
-};
+/// The second Sobol' dimension's digits before they are read as a fraction: digit `r` of
+/// point `i` is the XOR of the bits `c` of `i` whose position contains `r`'s bits (its
+/// generator matrix is Pascal's triangle mod 2, and C(c, r) is odd exactly when `r ⊆ c`,
+/// Lucas's theorem), summed over supersets one bit of the position at a time. PERF:
+/// fifteen shifts, masks and XORs, which vectorize, instead of four table lookups (gathers
+/// on lanes); the same bits (tested against the generator matrix).
+#[inline]
+fn superset_xor(mut z: u32) -> u32 {
+    z ^= (z >> 1) & 0x5555_5555;
+    z ^= (z >> 2) & 0x3333_3333;
+    z ^= (z >> 4) & 0x0f0f_0f0f;
+    z ^= (z >> 8) & 0x00ff_00ff;
+    z ^= (z >> 16) & 0x0000_ffff;
+    z
+}
 
 /// The unscrambled pair `(dim 0, dim 1)` of Sobol' point `i`, as 32-bit fractions.
 #[inline]
 #[must_use]
 pub fn sobol2(i: u32) -> (u32, u32) {
-    let b = i.to_le_bytes();
-    let y =
-        SOBOL1_BYTES[0][b[0] as usize] ^ SOBOL1_BYTES[1][b[1] as usize] ^ SOBOL1_BYTES[2][b[2] as usize] ^ SOBOL1_BYTES[3][b[3] as usize];
-    (i.reverse_bits(), y)
+    (i.reverse_bits(), superset_xor(i).reverse_bits())
 }
 
 /// Burley's Laine-Karras-style permutation: a hash in which each bit depends only on the
@@ -295,14 +270,50 @@ impl PixelSampler {
         // sequence), then each dimension scrambled on its own.
         let k = hash32(self.key ^ pair.wrapping_mul(0x9e37_79b9));
         let shuffled = owen_scramble(index, hash32(k ^ 0x5eed_0001));
-        let (a, b) = sobol2(shuffled);
-        (owen_scramble(a, hash32(k ^ 0x5eed_0002)), owen_scramble(b, hash32(k ^ 0x5eed_0003)))
+        // (`owen_scramble` of `sobol2(shuffled)`'s two fractions, whose bit reversals
+        // cancel the scramble's own.)
+        (
+            laine_karras(shuffled, hash32(k ^ 0x5eed_0002)).reverse_bits(),
+            laine_karras(superset_xor(shuffled), hash32(k ^ 0x5eed_0003)).reverse_bits(),
+        )
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The second dimension from its generator matrix (m_k = 2 m_(k-1) XOR m_(k-1)), column
+    /// by column.
+    fn sobol1_by_matrix(i: u32) -> u32 {
+        let (mut m, mut y) = (1u32, 0u32);
+        for k in 0..32 {
+            if i >> k & 1 != 0 {
+                y ^= m << (31 - k);
+            }
+            m = (m << 1) ^ m;
+        }
+        y
+    }
+
+    #[test]
+    fn the_superset_sum_is_the_generator_matrix() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        for i in (0..1u32 << 16).chain((0..200_000).map(|_| rng.random::<u32>())).chain([u32::MAX, 1 << 31]) {
+            assert_eq!(sobol2(i).1, sobol1_by_matrix(i), "{i:#x}");
+        }
+        // And the pair as scrambled: the reversals folded away give the same numbers.
+        let px = PixelSampler { key: 0x1234_5678 };
+        for index in 0..4096 {
+            for pair in 0..6u32 {
+                let k = hash32(px.key ^ pair.wrapping_mul(0x9e37_79b9));
+                let (a, b) = sobol2(owen_scramble(index, hash32(k ^ 0x5eed_0001)));
+                let want = (owen_scramble(a, hash32(k ^ 0x5eed_0002)), owen_scramble(b, hash32(k ^ 0x5eed_0003)));
+                assert_eq!(px.get2_bits(index, pair), want);
+            }
+        }
+    }
 
     /// The unscrambled sequence starts as the Sobol' sequence does.
     #[test]
