@@ -119,6 +119,19 @@ pub(crate) fn bsdf_frame<'w>(w: &'w World, surf: &Surface, ns: Vec3, d: Vec3) ->
     }
 }
 
+/// The normal a light sample is weighed and drawn by at a surface with `bsdf` in `frame`
+/// (see `lights::reach` and the environment's sampling): the frame's for a BSDF that only
+/// reflects (it sends nothing below it), none (zero) for one that transmits or that the
+/// user wrote, whose light may come from either side.
+#[inline]
+pub(crate) fn light_normal(bsdf: &Bsdf, frame: &ShadingFrame) -> Vec3 {
+    if bsdf.transmits() {
+        Vec3::ZERO
+    } else {
+        frame.n
+    }
+}
+
 /// What `surf`, met by `r`, emits back along it.
 pub(crate) fn emission_at(w: &World, r: &Ray, surf: &Surface) -> Vec3 {
     let mat = material(w, surf.material);

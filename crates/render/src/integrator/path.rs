@@ -23,7 +23,7 @@
 //! without an environment, rays that leave the scene see the background colour
 //! (a constant environment that next-event estimation does not sample).
 
-use super::hit::{bsdf_frame, emitted, material, shading_normal};
+use super::hit::{bsdf_frame, emitted, light_normal, material, shading_normal};
 use crate::sampler::Sampler;
 pub use crate::sampler::DEFAULT_SEED;
 use crate::sampling::power_heuristic;
@@ -110,7 +110,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         let Some((hit_ray, hit)) = found else {
             if !hidden(depth) {
                 let d = ray.dir.normalize();
-                match lights.env_radiance_pdf(d) {
+                match lights.env_radiance_pdf(d, prev_n) {
                     Some((le, dir_pdf)) => {
                         let weight = if prev_delta {
                             1.0
@@ -156,7 +156,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         let wo = fr.to_local(-d);
         // Next-event estimation.
         if !bsdf.is_delta() && !lights.is_empty() && s.sampling != LightSampling::Bsdf {
-            if let Some(ls) = lights.sample(surf.p, fr.n, choice_at(depth, 0), dims(base), textures) {
+            if let Some(ls) = lights.sample(surf.p, light_normal(&bsdf, &fr), choice_at(depth, 0), dims(base), textures) {
                 let wi = fr.to_local(ls.dir);
                 let f = bsdf.eval(wo, wi);
                 if f.max_element() > 0.0 {
@@ -180,7 +180,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         prev_pdf = bs.pdf;
         prev_delta = bs.delta;
         prev_p = surf.p;
-        prev_n = fr.n;
+        prev_n = light_normal(&bsdf, &fr);
         ray = surf.spawn(fr.to_world(bs.wi));
         depth += 1;
         // Russian roulette.

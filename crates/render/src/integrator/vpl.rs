@@ -41,7 +41,7 @@
 //! from the pixel's sampler, as the path tracer's. Everything is a pure function of
 //! (pixel, sample): images do not depend on thread count or tile order.
 
-use super::hit::{bsdf_frame, emitted, material, packet_first_hits, shading_normal};
+use super::hit::{bsdf_frame, emitted, light_normal, material, packet_first_hits, shading_normal};
 use crate::aov::{dark, demodulate, demodulating, Layers};
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
@@ -337,7 +337,7 @@ fn camera_path<'w>(
             // Direct light: next-event estimation alone (emitters met through delta lobes
             // counted above; no BSDF-sampled direct light to weigh against).
             let mut direct = Vec3::ZERO;
-            if let Some(ls) = lights.sample(surf.p, fr.n, px.get1_hashed(k, depth), px.get2(k, 1 + depth), textures) {
+            if let Some(ls) = lights.sample(surf.p, light_normal(&bsdf, &fr), px.get1_hashed(k, depth), px.get2(k, 1 + depth), textures) {
                 let f = bsdf.eval(wo, fr.to_local(ls.dir));
                 if f.max_element() > 0.0 {
                     let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };

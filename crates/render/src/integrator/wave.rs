@@ -29,7 +29,7 @@
 // Lane loops index several arrays by the lane number; written so, they vectorize.
 #![allow(clippy::needless_range_loop)]
 
-use super::hit::{bsdf_frame, coherent, emitted, material, shading_normal};
+use super::hit::{bsdf_frame, coherent, emitted, light_normal, material, shading_normal};
 use super::path::{LightSampling, PathSettings, CHOICES, PAIRS};
 use super::wave_profile::{now, Part, Watch};
 use crate::bsdf::{Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughPlastic};
@@ -560,7 +560,7 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
         let Some((hit_ray, hit)) = found else {
             if !hidden(depth) {
                 let d = wave.ray[i].dir.normalize();
-                let add = match lights.env_radiance_pdf(d) {
+                let add = match lights.env_radiance_pdf(d, get3(&wave.prev_n, i)) {
                     Some((le, dir_pdf)) => {
                         let weight = if wave.prev_delta[i] {
                             1.0
@@ -656,9 +656,13 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         if bsdf.is_delta() {
             continue;
         }
-        let Some(ls) =
-            lights.sample(wave.surf[i].p, wave.frame[i].n, wave.u_light[i], (wave.u2_light[0][i], wave.u2_light[1][i]), textures)
-        else {
+        let Some(ls) = lights.sample(
+            wave.surf[i].p,
+            light_normal(&bsdf, &wave.frame[i]),
+            wave.u_light[i],
+            (wave.u2_light[0][i], wave.u2_light[1][i]),
+            textures,
+        ) else {
             continue;
         };
         sampled[i] = true;
@@ -775,7 +779,7 @@ fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, w
         wave.prev_pdf[i] = pdf[i];
         wave.prev_delta[i] = delta[i];
         put3(&mut wave.prev_p, i, wave.surf[i].p);
-        put3(&mut wave.prev_n, i, wave.frame[i].n);
+        put3(&mut wave.prev_n, i, wave.bsdf[i].map_or(Vec3::ZERO, |b| light_normal(&b, &wave.frame[i])));
         wave.ray[i] = wave.surf[i].spawn(wave.frame[i].to_world(get3(&wi, i)));
         wave.depth[i] += 1;
         if wave.depth[i] >= s.rr_depth {

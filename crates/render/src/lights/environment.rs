@@ -4,7 +4,7 @@
 use super::sample::LightSample;
 use crate::color::luminance;
 use crate::lanes::sin_cos;
-use crate::sampling::{uniform_sphere, Distribution2D};
+use crate::sampling::{cosine_hemisphere, uniform_sphere, Distribution2D, ShadingFrame};
 use glam::{Affine3A, Vec2, Vec3};
 use lucent_accel::math::{acos, atan2};
 use lucent_scene::{Environment, HdrImage};
@@ -108,8 +108,8 @@ impl EnvLight {
 
     /// [`EnvLight::eval`] of one direction and the density of [`EnvLight::sample`] for it,
     /// the angles found once.
-    pub(crate) fn eval_pdf(&self, dir: Vec3) -> (Vec3, f32) {
-        let Some((img, dist)) = &self.map else { return (self.scale, 1.0 / (4.0 * PI)) };
+    pub(crate) fn eval_pdf(&self, dir: Vec3, n: Vec3) -> (Vec3, f32) {
+        let Some((img, dist)) = &self.map else { return (self.scale, constant_pdf(dir, n)) };
         let d = self.to_local.transform_vector3(dir).normalize_or_zero();
         let u = atan2(d.x, -d.z) * (0.5 / PI);
         let v = acos(d.y) / PI;
@@ -136,9 +136,19 @@ impl EnvLight {
         top * (1.0 - fy) + bottom * fy
     }
 
-    /// A direction (unit, world) and its density per solid angle.
-    pub(crate) fn sample(&self, u: (f32, f32)) -> Option<LightSample> {
+    /// A direction (unit, world) and its density per solid angle, from a point whose
+    /// surface has unit normal `n` (zero: none). A constant environment is sampled by the
+    /// cosine about `n` (the light it sends to a diffuse surface, exactly; directions
+    /// behind the surface are left to the BSDF's samples, whose MIS weight is then 1), or
+    /// uniformly without a normal; a map by its luminance.
+    pub(crate) fn sample(&self, u: (f32, f32), n: Vec3) -> Option<LightSample> {
         let (local, pdf, li) = match &self.map {
+            None if n != Vec3::ZERO => {
+                let l = cosine_hemisphere(u);
+                let dir = ShadingFrame::new(n).to_world(l).normalize_or_zero();
+                let pdf = constant_pdf(dir, n);
+                return (pdf > 0.0).then_some(LightSample { dir, dist: f32::INFINITY, li: self.scale, pdf, delta: false });
+            }
             None => (uniform_sphere(u), 1.0 / (4.0 * PI), self.scale),
             Some((img, dist)) => {
                 let (uv, p) = dist.sample(u);
@@ -157,5 +167,50 @@ impl EnvLight {
             return None;
         }
         Some(LightSample { dir, dist: f32::INFINITY, li, pdf, delta: false })
+    }
+}
+
+/// The density with which a constant environment is sampled toward unit `dir` from a point
+/// with unit normal `n` (zero: none), see [`EnvLight::sample`].
+#[inline]
+fn constant_pdf(dir: Vec3, n: Vec3) -> f32 {
+    if n == Vec3::ZERO {
+        1.0 / (4.0 * PI)
+    } else {
+        n.dot(dir).max(0.0) / PI
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Affine3A;
+
+    #[test]
+    fn a_constant_sky_is_sampled_by_the_cosine_about_the_normal() {
+        let sky = EnvLight::new(&Environment { scale: Vec3::splat(0.7), image: None, to_world: Affine3A::IDENTITY }).expect("a sky");
+        let n = Vec3::new(0.3, 0.9, -0.2).normalize();
+        let mut irradiance = 0.0f64;
+        let k = 64;
+        for i in 0..k {
+            for j in 0..k {
+                let u = ((i as f32 + 0.5) / k as f32, (j as f32 + 0.5) / k as f32);
+                let s = sky.sample(u, n).expect("a direction above the surface");
+                assert!(s.dir.dot(n) >= 0.0 && (s.dir.length() - 1.0).abs() < 1e-5);
+                // The density it reports is the one a BSDF's direction is weighed with.
+                let (le, pdf) = sky.eval_pdf(s.dir, n);
+                assert!((pdf - s.pdf).abs() <= 1e-4 * s.pdf.max(1.0), "{pdf} vs {}", s.pdf);
+                assert_eq!(le, s.li);
+                irradiance += f64::from(s.li.x * s.dir.dot(n) / s.pdf);
+            }
+        }
+        // Every sample carries the irradiance of the sky exactly: π L.
+        let e = irradiance / f64::from(k * k);
+        assert!((e - std::f64::consts::PI * 0.7).abs() < 1e-3, "{e}");
+        // Behind the surface: density zero. Without a normal: uniform.
+        assert_eq!(sky.eval_pdf(-n, n).1, 0.0);
+        assert!((sky.eval_pdf(-n, Vec3::ZERO).1 - 1.0 / (4.0 * PI)).abs() < 1e-7);
+        let s = sky.sample((0.3, 0.8), Vec3::ZERO).expect("a direction");
+        assert!((s.pdf - 1.0 / (4.0 * PI)).abs() < 1e-7);
     }
 }

@@ -349,7 +349,7 @@ impl LightSet {
         let mut s = match &self.entries[i] {
             Entry::Area(a) => a.sample(p, u2, textures)?,
             Entry::Delta(k) => delta::sample(self.delta.get(*k)?, p)?,
-            Entry::Env => self.env.as_ref()?.1.sample(u2)?,
+            Entry::Env => self.env.as_ref()?.1.sample(u2, n)?,
             Entry::Custom(c) => {
                 // (Rays never meet it: no multiple importance sampling, its own density.)
                 let mut s = c.sample(p, u2)?;
@@ -418,7 +418,7 @@ impl LightSet {
             Entry::Area(a) => a.emit(u_pos, u_dir, textures)?,
             Entry::Delta(k) => delta::emit(self.delta.get(*k)?, u_dir, disk_start, disk_area)?,
             Entry::Env => {
-                let s = self.env.as_ref()?.1.sample(u_dir)?;
+                let s = self.env.as_ref()?.1.sample(u_dir, Vec3::ZERO)?;
                 let dir = -s.dir;
                 EmissionSample { p: disk_start(dir), dir, n: None, flux: s.li * (disk_area / s.pdf) }
             }
@@ -428,12 +428,12 @@ impl LightSet {
         (e.flux.is_finite() && e.flux.max_element() > 0.0 && e.dir != Vec3::ZERO && e.p.is_finite()).then_some(e)
     }
 
-    /// Radiance of the environment along unit `dir` and the density of that direction
-    /// once the environment is chosen (`None` without one): [`LightSet::env_radiance`]
+    /// Radiance of the environment along unit `dir` and the density of that direction,
+    /// from a point of normal `n`, once the environment is chosen (`None` without one): [`LightSet::env_radiance`]
     /// and the density of that direction as [`LightSet::sample`] picks it, over
     /// [`LightSet::env_choice`].
-    pub fn env_radiance_pdf(&self, dir: Vec3) -> Option<(Vec3, f32)> {
-        self.env.as_ref().map(|(_, e)| e.eval_pdf(dir))
+    pub fn env_radiance_pdf(&self, dir: Vec3, n: Vec3) -> Option<(Vec3, f32)> {
+        self.env.as_ref().map(|(_, e)| e.eval_pdf(dir, n))
     }
 
     /// The probability of choosing the environment from `p` (normal `n`).
