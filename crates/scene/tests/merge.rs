@@ -35,8 +35,10 @@ fn world_triangles(s: &Scene) -> Vec<Drawn> {
             let face = (nm * (o[1] - o[0]).cross(o[2] - o[0])).normalize();
             let mut corners: Vec<[i64; 3]> = p.iter().map(|&v| q(v)).collect();
             corners.sort_unstable();
-            let ns = mesh.normals.corners(t, c).map(|n| q((nm * n[0]).normalize()));
-            out.push((corners, q(face), mesh.material[t], ns));
+            // (Without normals a renderer shades with the face's: what a merged mesh
+            // gives such triangles.)
+            let ns = mesh.normals.corners(t, c).map_or(face, |n| (nm * n[0]).normalize());
+            out.push((corners, q(face), mesh.material[t], Some(q(ns))));
         }
     }
     out.sort();
@@ -65,18 +67,18 @@ fn single_use_meshes_merge_and_keep_what_they_draw() {
     }
     s.instances.push(Instance { geom: Geom::Shape { kind: ShapeKind::Sphere, material: 0 }, world_from_object: Affine3A::IDENTITY });
     let before = world_triangles(&s);
-    // The two meshes without normals merge; the one with normals is alone of its kind.
-    assert_eq!(s.merge_single_use_meshes(), 1);
+    // The three single-use meshes merge, with and without normals.
+    assert_eq!(s.merge_single_use_meshes(), 2);
     assert_eq!(world_triangles(&s), before);
-    assert_eq!(s.meshes.len(), 3, "the merged mesh, the lone one with normals, the shared one");
-    assert_eq!(s.instances.len(), 5);
+    assert_eq!(s.meshes.len(), 2, "the merged mesh, the shared one");
+    assert_eq!(s.instances.len(), 4);
     let shared: Vec<_> =
         s.instances.iter().filter(|i| matches!(i.geom, Geom::Mesh(m) if s.meshes[m as usize].material == vec![7])).collect();
     assert_eq!(shared.len(), 2, "the shared mesh keeps its two instances");
     assert!(s.instances.iter().any(|i| matches!(i.geom, Geom::Shape { .. })));
     // Texture coordinates follow their triangles.
-    let merged = s.meshes.iter().find(|m| m.indices.len() == 2).expect("a merged mesh of two triangles");
-    for t in 0..2 {
+    let merged = s.meshes.iter().find(|m| m.indices.len() == 3).expect("a merged mesh of three triangles");
+    for t in 0..3 {
         let uv = merged.uvs.corners(t, &merged.indices[t]).expect("uvs");
         let mut sorted = uv.map(|v| ((v.x * 10.0) as i32, (v.y * 10.0) as i32));
         sorted.sort_unstable();
@@ -96,4 +98,35 @@ fn an_animated_scene_is_left_alone() {
     s.animation = Some(std::sync::Arc::default());
     assert_eq!(s.merge_single_use_meshes(), 0);
     assert_eq!(s.meshes.len(), 3);
+}
+
+#[test]
+fn meshes_without_normals_or_uvs_get_their_faces_and_barycentrics() {
+    let mut s = Scene::default();
+    // A mesh with normals and no uvs beside one with uvs and no normals (a PLY model on a
+    // Mitsuba rectangle), the second mirrored.
+    let mut a = triangle(0, true);
+    a.uvs = Attr::default();
+    let mut b = triangle(1, false);
+    b.positions = vec![Vec3::new(0.0, 0.0, 2.0), Vec3::new(1.0, 0.0, 2.0), Vec3::new(0.0, 1.0, 2.0)];
+    s.add_mesh(a);
+    s.meshes.push(b);
+    s.instances.push(Instance { geom: Geom::Mesh(1), world_from_object: Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0)) });
+    let before = world_triangles(&s);
+    assert_eq!(s.merge_single_use_meshes(), 1);
+    assert_eq!(world_triangles(&s), before);
+    let m = &s.meshes[0];
+    for (t, c) in m.indices.iter().enumerate() {
+        let p = c.map(|k| m.positions[k as usize]);
+        let uv = m.uvs.corners(t, c).expect("uvs everywhere");
+        let n = m.normals.corners(t, c).expect("normals everywhere");
+        if m.material[t] == 0 {
+            // The first: its uvs are the barycentric corners, in its corners' order.
+            assert_eq!(uv, [Vec2::ZERO, Vec2::X, Vec2::Y]);
+        } else {
+            // The second (mirrored): its face normal still points along its turn.
+            let face = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+            assert!(n.iter().all(|&x| (x - face).length() < 1e-6), "{n:?} vs {face}");
+        }
+    }
 }
