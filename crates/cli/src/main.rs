@@ -377,7 +377,9 @@ enum BenchCmd {
     /// 64-sample relMSE, and Mitsuba's 64-sample time (its second render) when
     /// tools/mitsuba/python runs here (tools/mitsuba/setup makes it); and the ceiling:
     /// how many times faster lucent would be if only its rays cost time (the equal-error
-    /// render's rays traced again alone). Run from the checkout's root.
+    /// render's rays traced again alone). Then a cost table: nanoseconds per sample of the
+    /// scalar and the lane path tracer, the lane one split into traversal, shading and the
+    /// rest by its stage clocks, with how full its lanes were. Run from the checkout's root.
     Path {
         /// The reference scenes' folder.
         #[arg(long, default_value = "crates/render/tests/data/mitsuba")]
