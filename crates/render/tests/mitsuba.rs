@@ -122,3 +122,10 @@ fn bunny_mesh() {
 fn sponza_interior() {
     converges_to_mitsuba("sponza");
 }
+
+/// A room under five lights of four kinds (area panel, sphere and disk, a spot, a point),
+/// held out while the light choice by reach was written.
+#[test]
+fn lamps_room() {
+    converges_to_mitsuba("lamps");
+}
