@@ -480,83 +480,82 @@ impl Scene {
             }
         }
         // Instances to merge.
-        let mut groups: [Vec<usize>; 1] = Default::default();
-        for (k, i) in self.instances.iter().enumerate() {
-            if let Geom::Mesh(m) = i.geom {
-                if uses.get(m as usize) == Some(&1) && i.world_from_object.is_finite() {
-                    groups[0].push(k);
-                }
-            }
+        let group: Vec<usize> = (0..self.instances.len())
+            .filter(|&k| {
+                let i = &self.instances[k];
+                matches!(i.geom, Geom::Mesh(m) if uses.get(m as usize) == Some(&1)) && i.world_from_object.is_finite()
+            })
+            .collect();
+        if group.len() < 2 {
+            return 0;
         }
         let mut removed = vec![false; self.instances.len()];
         let mut taken = vec![false; self.meshes.len()];
         let mut merged = 0;
-        for group in groups.iter().filter(|g| g.len() > 1) {
-            let mut out = Mesh { name: format!("{} merged meshes", group.len()), ..Mesh::default() };
-            let (mut n_idx, mut uv_idx) = (Vec::new(), Vec::new());
-            let mesh_of = |k: usize| match self.instances[k].geom {
-                Geom::Mesh(m) => self.meshes.get(m as usize),
-                Geom::Shape { .. } => None,
-            };
-            let with_normals = group.iter().any(|&k| mesh_of(k).is_some_and(|m| !m.normals.values.is_empty()));
-            let with_uvs = group.iter().any(|&k| mesh_of(k).is_some_and(|m| !m.uvs.values.is_empty()));
-            // (The barycentric corners, for meshes without texture coordinates.)
-            let bary = if with_uvs {
-                out.uvs.values.extend([Vec2::ZERO, Vec2::X, Vec2::Y]);
-                0
-            } else {
-                u32::MAX
-            };
-            for &k in group {
-                let inst = &self.instances[k];
-                let Geom::Mesh(m) = inst.geom else { continue };
-                let mesh = std::mem::take(&mut self.meshes[m as usize]);
-                taken[m as usize] = true;
-                let t = inst.world_from_object;
-                let normal_m = glam::Mat3::from(t.matrix3).inverse().transpose();
-                let mirror = t.matrix3.determinant() < 0.0;
-                let order = |c: [u32; 3]| if mirror { [c[0], c[2], c[1]] } else { c };
-                let (p0, n0, u0) = (out.positions.len() as u32, out.normals.values.len() as u32, out.uvs.values.len() as u32);
-                out.positions.extend(mesh.positions.iter().map(|&p| t.transform_point3(p)));
-                out.normals.values.extend(mesh.normals.values.iter().map(|&n| (normal_m * n).normalize_or_zero()));
-                out.uvs.values.extend(&mesh.uvs.values);
-                for (tri, c) in mesh.indices.iter().enumerate() {
-                    let corners = order(c.map(|i| i + p0));
-                    out.indices.push(corners);
-                    if !mesh.normals.values.is_empty() {
-                        let ni = mesh.normals.indices.as_ref().and_then(|v| v.get(tri)).unwrap_or(c);
-                        n_idx.push(order(ni.map(|i| i + n0)));
-                    } else if with_normals {
-                        // The face's own normal, in world space, on the side its (ordered)
-                        // corners turn to.
-                        let p = corners.map(|i| out.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO));
-                        let k = out.normals.values.len() as u32;
-                        out.normals.values.push((p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero());
-                        n_idx.push([k, k, k]);
-                    }
-                    if !mesh.uvs.values.is_empty() {
-                        let ui = mesh.uvs.indices.as_ref().and_then(|v| v.get(tri)).unwrap_or(c);
-                        uv_idx.push(order(ui.map(|i| i + u0)));
-                    } else if with_uvs {
-                        uv_idx.push(order([bary, bary + 1, bary + 2]));
-                    }
-                    out.material.push(mesh.material.get(tri).copied().unwrap_or(0));
+        let mut out = Mesh { name: format!("{} merged meshes", group.len()), ..Mesh::default() };
+        let (mut n_idx, mut uv_idx) = (Vec::new(), Vec::new());
+        let mesh_of = |k: usize| match self.instances[k].geom {
+            Geom::Mesh(m) => self.meshes.get(m as usize),
+            Geom::Shape { .. } => None,
+        };
+        let with_normals = group.iter().any(|&k| mesh_of(k).is_some_and(|m| !m.normals.values.is_empty()));
+        let with_uvs = group.iter().any(|&k| mesh_of(k).is_some_and(|m| !m.uvs.values.is_empty()));
+        // (The barycentric corners, for meshes without texture coordinates.)
+        let bary = if with_uvs {
+            out.uvs.values.extend([Vec2::ZERO, Vec2::X, Vec2::Y]);
+            0
+        } else {
+            u32::MAX
+        };
+        for &k in &group {
+            let inst = &self.instances[k];
+            let Geom::Mesh(m) = inst.geom else { continue };
+            let mesh = std::mem::take(&mut self.meshes[m as usize]);
+            taken[m as usize] = true;
+            let t = inst.world_from_object;
+            let normal_m = glam::Mat3::from(t.matrix3).inverse().transpose();
+            let mirror = t.matrix3.determinant() < 0.0;
+            let order = |c: [u32; 3]| if mirror { [c[0], c[2], c[1]] } else { c };
+            let (p0, n0, u0) = (out.positions.len() as u32, out.normals.values.len() as u32, out.uvs.values.len() as u32);
+            out.positions.extend(mesh.positions.iter().map(|&p| t.transform_point3(p)));
+            out.normals.values.extend(mesh.normals.values.iter().map(|&n| (normal_m * n).normalize_or_zero()));
+            out.uvs.values.extend(&mesh.uvs.values);
+            for (tri, c) in mesh.indices.iter().enumerate() {
+                let corners = order(c.map(|i| i + p0));
+                out.indices.push(corners);
+                if !mesh.normals.values.is_empty() {
+                    let ni = mesh.normals.indices.as_ref().and_then(|v| v.get(tri)).unwrap_or(c);
+                    n_idx.push(order(ni.map(|i| i + n0)));
+                } else if with_normals {
+                    // The face's own normal, in world space, on the side its (ordered)
+                    // corners turn to.
+                    let p = corners.map(|i| out.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO));
+                    let k = out.normals.values.len() as u32;
+                    out.normals.values.push((p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero());
+                    n_idx.push([k, k, k]);
                 }
-                removed[k] = true;
-                merged += 1;
+                if !mesh.uvs.values.is_empty() {
+                    let ui = mesh.uvs.indices.as_ref().and_then(|v| v.get(tri)).unwrap_or(c);
+                    uv_idx.push(order(ui.map(|i| i + u0)));
+                } else if with_uvs {
+                    uv_idx.push(order([bary, bary + 1, bary + 2]));
+                }
+                out.material.push(mesh.material.get(tri).copied().unwrap_or(0));
             }
-            if !out.normals.values.is_empty() {
-                out.normals.indices = Some(n_idx);
-            }
-            if !out.uvs.values.is_empty() {
-                out.uvs.indices = Some(uv_idx);
-            }
-            merged -= 1;
-            let id = self.meshes.len() as u32;
-            self.meshes.push(out);
-            self.instances.push(Instance { geom: Geom::Mesh(id), world_from_object: Affine3A::IDENTITY });
-            removed.push(false);
+            removed[k] = true;
+            merged += 1;
         }
+        if !out.normals.values.is_empty() {
+            out.normals.indices = Some(n_idx);
+        }
+        if !out.uvs.values.is_empty() {
+            out.uvs.indices = Some(uv_idx);
+        }
+        merged -= 1;
+        let id = self.meshes.len() as u32;
+        self.meshes.push(out);
+        self.instances.push(Instance { geom: Geom::Mesh(id), world_from_object: Affine3A::IDENTITY });
+        removed.push(false);
         let mut k = 0;
         self.instances.retain(|_| {
             k += 1;
