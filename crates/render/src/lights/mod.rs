@@ -184,13 +184,8 @@ impl LightSet {
         for e in 1..=s.entries.len() {
             if e == s.entries.len() || group[e] != group[start] {
                 let ids = start..e;
-                let total: f64 = power[ids.clone()].iter().sum();
-                let mut acc = 0.0;
-                for k in ids.clone() {
-                    acc += power[k];
-                    s.group_of.push(s.groups.len() as u32);
-                    s.within.push(if k + 1 == e { 1.0 } else { (acc / total.max(f64::MIN_POSITIVE)) as f32 });
-                }
+                s.group_of.extend(ids.clone().map(|_| s.groups.len() as u32));
+                s.within.extend(cumulative(&power[ids.clone()]));
                 reaches.push(s.reach(&s.entries[ids.clone()], &power[ids.clone()]));
                 s.groups.push(start as u32..e as u32);
                 start = e;
@@ -428,10 +423,10 @@ impl LightSet {
         (e.flux.is_finite() && e.flux.max_element() > 0.0 && e.dir != Vec3::ZERO && e.p.is_finite()).then_some(e)
     }
 
-    /// Radiance of the environment along unit `dir` and the density of that direction,
-    /// from a point of normal `n`, once the environment is chosen (`None` without one): [`LightSet::env_radiance`]
-    /// and the density of that direction as [`LightSet::sample`] picks it, over
-    /// [`LightSet::env_choice`].
+    /// Radiance of the environment along unit `dir` ([`LightSet::env_radiance`]) and the
+    /// density with which [`LightSet::sample`] from a point of normal `n` picks that
+    /// direction once it has chosen the environment (`None` without one); times
+    /// [`LightSet::env_choice`], the whole density.
     pub fn env_radiance_pdf(&self, dir: Vec3, n: Vec3) -> Option<(Vec3, f32)> {
         self.env.as_ref().map(|(_, e)| e.eval_pdf(dir, n))
     }
