@@ -100,19 +100,23 @@ impl EnvLight {
     /// columns centred at (i + ½) / w (wrapping) and rows at j / (h − 1), pole to pole.
     pub(crate) fn eval(&self, dir: Vec3) -> Vec3 {
         let Some((img, _)) = &self.map else { return self.scale };
-        let d = self.to_local.transform_vector3(dir).normalize_or_zero();
-        let u = atan2(d.x, -d.z) * (0.5 / PI);
-        let v = acos(d.y) / PI;
+        let (_, u, v) = self.map_uv(dir);
         self.lookup(img, u, v) * self.scale
+    }
+
+    /// World direction `dir` in the map's frame (unit), and its (u, v) there (u not yet
+    /// wrapped into [0, 1)).
+    #[inline]
+    fn map_uv(&self, dir: Vec3) -> (Vec3, f32, f32) {
+        let d = self.to_local.transform_vector3(dir).normalize_or_zero();
+        (d, atan2(d.x, -d.z) * (0.5 / PI), acos(d.y) / PI)
     }
 
     /// [`EnvLight::eval`] of one direction and the density of [`EnvLight::sample`] for it,
     /// the angles found once.
     pub(crate) fn eval_pdf(&self, dir: Vec3, n: Vec3) -> (Vec3, f32) {
         let Some((img, dist)) = &self.map else { return (self.scale, constant_pdf(dir, n)) };
-        let d = self.to_local.transform_vector3(dir).normalize_or_zero();
-        let u = atan2(d.x, -d.z) * (0.5 / PI);
-        let v = acos(d.y) / PI;
+        let (d, u, v) = self.map_uv(dir);
         let le = self.lookup(img, u, v) * self.scale;
         let st = (1.0 - d.y * d.y).max(0.0).sqrt();
         let pdf = if st <= 0.0 { 0.0 } else { dist.pdf(Vec2::new(u - u.floor(), v)) / (2.0 * PI * PI * st) };
