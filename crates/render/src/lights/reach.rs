@@ -77,30 +77,25 @@ struct Lane {
     sin_o: f32,
     cos_e: f32,
     intensity: f32,
-    /// 1: the receiving cosine counts; 0: it does not (the environment).
-    recv: f32,
-    /// 1: the weight is `intensity` alone (the environment).
+    /// 1: the weight is `intensity` alone, no cosine (the environment).
     everywhere: f32,
 }
 
 impl Lane {
     fn of(r: &Reach) -> Self {
-        let l = Self::unscaled(r);
-        Lane { inv_r2: 1.0 / (l.radius * l.radius).max(1e-12), ..l }
-    }
-
-    fn unscaled(r: &Reach) -> Self {
-        match *r {
+        let mut l = match *r {
             Reach::Local { centre, radius, axis, cos_o, sin_o, cos_e, intensity } => {
-                Lane { c: centre, m: 1.0, radius, inv_r2: 0.0, axis, cos_o, sin_o, cos_e, intensity, recv: 1.0, everywhere: 0.0 }
+                Lane { c: centre, m: 1.0, radius, inv_r2: 0.0, axis, cos_o, sin_o, cos_e, intensity, everywhere: 0.0 }
             }
             Reach::Directional { toward, irradiance } => {
-                Lane { c: toward, m: 0.0, cos_o: -1.0, cos_e: -2.0, intensity: irradiance, recv: 1.0, ..Lane::default() }
+                Lane { c: toward, m: 0.0, cos_o: -1.0, cos_e: -2.0, intensity: irradiance, ..Lane::default() }
             }
             Reach::Everywhere { irradiance } => {
                 Lane { cos_o: -1.0, cos_e: -2.0, intensity: irradiance, everywhere: 1.0, ..Lane::default() }
             }
-        }
+        };
+        l.inv_r2 = 1.0 / (l.radius * l.radius).max(1e-12);
+        l
     }
 }
 
@@ -129,7 +124,7 @@ fn lane_weight(l: &Lane, p: Vec3, n: Vec3, has_n: bool) -> f32 {
     let cos_i = n.dot(w).abs().min(1.0);
     let sin_i = (1.0 - cos_i * cos_i).max(0.0).sqrt();
     let ci = if cos_i >= cos_b { 1.0 } else { cos_i * cos_b + sin_i * sin_b };
-    let recv = if has_n && l.recv > 0.0 { ci.max(FLOOR) } else { 1.0 };
+    let recv = if has_n { ci.max(FLOOR) } else { 1.0 };
     let v = l.intensity * c2.max(FLOOR) * recv * (inv_d * inv_d);
     let v = if c2 < l.cos_e { 0.0 } else { v };
     // Inside the light's bounds no angle bounds it.
@@ -161,7 +156,6 @@ pub(crate) struct Lanes {
     sin_o: [f32; WIDTH],
     cos_e: [f32; WIDTH],
     intensity: [f32; WIDTH],
-    recv: [f32; WIDTH],
     everywhere: [f32; WIDTH],
 }
 
@@ -190,14 +184,13 @@ impl Lanes {
             sin_o: z,
             cos_e: z,
             intensity: z,
-            recv: z,
             everywhere: z,
         };
         for (i, r) in reaches.iter().take(WIDTH).enumerate() {
             let l = Lane::of(r);
             (s.cx[i], s.cy[i], s.cz[i], s.m[i], s.radius[i], s.inv_r2[i]) = (l.c.x, l.c.y, l.c.z, l.m, l.radius, l.inv_r2);
             (s.ax[i], s.ay[i], s.az[i], s.cos_o[i], s.sin_o[i], s.cos_e[i]) = (l.axis.x, l.axis.y, l.axis.z, l.cos_o, l.sin_o, l.cos_e);
-            (s.intensity[i], s.recv[i], s.everywhere[i]) = (l.intensity, l.recv, l.everywhere);
+            (s.intensity[i], s.everywhere[i]) = (l.intensity, l.everywhere);
         }
         s
     }
@@ -221,7 +214,6 @@ impl Lanes {
                     sin_o: s.sin_o[i],
                     cos_e: s.cos_e[i],
                     intensity: s.intensity[i],
-                    recv: s.recv[i],
                     everywhere: s.everywhere[i],
                 };
                 out[i] = lane_weight(&l, p, n, has_n);
