@@ -98,7 +98,8 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
     // The previous bounce: its BSDF pdf (solid angle) and whether it was a delta lobe.
     let (mut prev_pdf, mut prev_delta) = (0.0f32, true);
     let mut prev_p = ray.org;
-    // (The previous bounce's shading normal: where the light choice was weighed.)
+    // (The previous bounce's light normal, `light_normal`: where the light choice was
+    // weighed and the sky sampled.)
     let mut prev_n = Vec3::ZERO;
     let mut depth = 0u32;
     // The relative index of refraction along the path so far (for roulette).
@@ -154,9 +155,10 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         let ns = shading_normal(w, &ray, &hit, &surf);
         let (bsdf, fr) = bsdf_frame(w, &surf, ns, d);
         let wo = fr.to_local(-d);
+        let light_n = light_normal(&bsdf, &fr);
         // Next-event estimation.
         if !bsdf.is_delta() && !lights.is_empty() && s.sampling != LightSampling::Bsdf {
-            if let Some(ls) = lights.sample(surf.p, light_normal(&bsdf, &fr), choice_at(depth, 0), dims(base), textures) {
+            if let Some(ls) = lights.sample(surf.p, light_n, choice_at(depth, 0), dims(base), textures) {
                 let wi = fr.to_local(ls.dir);
                 let f = bsdf.eval(wo, wi);
                 if f.max_element() > 0.0 {
@@ -180,7 +182,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         prev_pdf = bs.pdf;
         prev_delta = bs.delta;
         prev_p = surf.p;
-        prev_n = light_normal(&bsdf, &fr);
+        prev_n = light_n;
         ray = surf.spawn(fr.to_world(bs.wi));
         depth += 1;
         // Russian roulette.

@@ -94,7 +94,8 @@ struct Wave<'w> {
     prev_pdf: [f32; CAP],
     prev_delta: [bool; CAP],
     prev_p: Rows,
-    /// (Its shading normal: where the light choice was weighed.)
+    /// (Its light normal, `light_normal`: where the light choice was weighed and the
+    /// sky sampled.)
     prev_n: Rows,
     depth: [u32; CAP],
     eta: [f32; CAP],
