@@ -105,11 +105,13 @@ pub fn run(data: &Path, scenes_dir: &Path, only: &[String]) -> Result<()> {
             ..RenderSettings::new(w, h)
         };
         let settings = |spp: u32, seed: u32| settings_with(spp, seed, true);
-        let shot = |spp: u32, seed: u32| {
+        // One render's seconds and relMSE, with the lane integrator or the scalar one.
+        let shot_with = |spp: u32, seed: u32, lanes: bool| {
             let t = Instant::now();
-            let f = render(&world, &camera, &settings(spp, seed), &|_| {}).0;
+            let f = render(&world, &camera, &settings_with(spp, seed, lanes), &|_| {}).0;
             (t.elapsed().as_secs_f64(), f.rel_mse(&reference).unwrap_or(f64::INFINITY))
         };
+        let shot = |spp: u32, seed: u32| shot_with(spp, seed, true);
         let _ = shot(4, 0); // warm-up
         let runs: Vec<(f64, f64)> = (1..=16).map(|seed| shot(64, seed)).collect();
         let (t64, e64) =
@@ -130,21 +132,12 @@ pub fn run(data: &Path, scenes_dir: &Path, only: &[String]) -> Result<()> {
             ms / t_rays
         );
         std::io::Write::flush(&mut std::io::stdout())?;
-        // The cost table's figures: both integrators at the equal-error spp (medians of
-        // three), then one profiled lane render for the shares.
+        // The cost table's figures: the scalar integrator at the equal-error spp, as the
+        // lane one was timed above (`t_eq`, medians of three seeds), then one profiled lane
+        // render for the shares.
         let samples = f64::from(w * h) * f64::from(spp_eq);
         let thread_ns = |s: f64| s * 1e9 * rayon::current_num_threads() as f64 / samples;
-        let timed = |lanes: bool| {
-            let mut t: Vec<f64> = (0..3)
-                .map(|_| {
-                    let t = Instant::now();
-                    std::hint::black_box(render(&world, &camera, &settings_with(spp_eq, 1, lanes), &|_| {}));
-                    t.elapsed().as_secs_f64()
-                })
-                .collect();
-            median(&mut t)
-        };
-        let (t_scalar, t_lanes) = (timed(false), timed(true));
+        let t_scalar = median(&mut (1..=3).map(|seed| shot_with(spp_eq, seed, false).0).collect::<Vec<_>>());
         wave_profile::begin();
         std::hint::black_box(render(&world, &camera, &settings(spp_eq, 1), &|_| {}));
         let profile = wave_profile::end();
@@ -152,7 +145,7 @@ pub fn run(data: &Path, scenes_dir: &Path, only: &[String]) -> Result<()> {
             name: format!("{name} ({spp_eq} spp)"),
             scalar: thread_ns(t_scalar),
             rays: thread_ns(t_rays),
-            lanes: thread_ns(t_lanes),
+            lanes: thread_ns(t_eq),
             profile,
         });
         eprintln!(
