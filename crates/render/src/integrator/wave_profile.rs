@@ -116,13 +116,6 @@ pub(crate) fn on() -> bool {
     ON.load(Ordering::Relaxed)
 }
 
-/// Adds one block's counts to the total.
-pub(crate) fn merge(p: &WaveProfile) {
-    if let Some(t) = TOTAL.lock().unwrap_or_else(std::sync::PoisonError::into_inner).as_mut() {
-        t.add(p);
-    }
-}
-
 /// The clock's count now.
 #[inline(always)]
 pub(crate) fn now() -> u64 {
@@ -179,7 +172,9 @@ impl Watch {
     /// Adds this block's counts to the total.
     pub(crate) fn finish(self) {
         if let Some(p) = &self.p {
-            merge(p);
+            if let Some(t) = TOTAL.lock().unwrap_or_else(std::sync::PoisonError::into_inner).as_mut() {
+                t.add(p);
+            }
         }
     }
 }

@@ -947,16 +947,8 @@ impl<'a, 'd> Cx<'a, 'd> {
                 };
                 return Ok(Some(vec![(Geom::Mesh(mesh), m)]));
             }
-            "rectangle" => {
-                let mut mesh = rectangle(mat);
-                if flip {
-                    flip_mesh(&mut mesh);
-                }
-                self.scene.meshes.push(mesh);
-                Geom::Mesh((self.scene.meshes.len() - 1) as u32)
-            }
-            "cube" => {
-                let mut mesh = cube(mat);
+            "rectangle" | "cube" => {
+                let mut mesh = if kind == "cube" { cube(mat) } else { rectangle(mat) };
                 if flip {
                     flip_mesh(&mut mesh);
                 }
