@@ -203,11 +203,12 @@ impl Scene {
                 }
                 let mut s = self.write();
                 s.build()?;
-                drop(s);
-                let s = self.read();
+                // (Downgraded, not dropped and taken again: an edit from another thread in
+                // between would leave the world unbuilt.)
+                let s = RwLockWriteGuard::downgrade(s);
                 match s.world() {
                     Some(w) => Ok(f(&s, w)),
-                    None => Err("the scene was edited while it was being built".to_string()),
+                    None => Err("the scene has no world after its build".to_string()),
                 }
             })
         })?;
