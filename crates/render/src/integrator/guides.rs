@@ -1,7 +1,11 @@
 //! The guides of a denoiser ([`render_aovs`]): per pixel, the albedo, shading normal,
-//! distance and emission of the first surface its rays meet.
+//! distance and emission of the first surface its rays meet that is not a mirror or glass:
+//! through a delta BSDF the guides follow its dominant lobe ([`through_specular`]) and
+//! carry the chain's throughput in the albedo and emission, as Intel Open Image Denoise
+//! asks of its guides, so that what is seen in a mirror or through glass keeps its own
+//! edges instead of being filtered as the smooth surface in front of it.
 
-use super::hit::{emission_at, packet_first_hits, shading_normal};
+use super::hit::{bsdf_frame, emission_at, packet_first_hits, shading_normal};
 use crate::camera::Camera;
 use crate::film::{Aovs, Film};
 use crate::tiles::NO_RAYS;
@@ -68,7 +72,7 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> Aovs {
                     let (x, y) = at[j];
                     let g = &mut rows[((y - y0) * width + x) as usize];
                     if k == 0 {
-                        (g.1, g.2, g.3) = centre_guides(w, &rays[j], first);
+                        (g.1, g.2, g.3) = centre_guides(w, first);
                     } else {
                         let (a, e, n) = quarter_guides(w, first);
                         g.0 += a;
@@ -95,32 +99,68 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> Aovs {
     }
 }
 
+/// Most mirrors and glass surfaces the guides follow (as the VPL integrator's camera paths).
+const SPECULAR_DEPTH: u32 = 8;
+
+/// The first surface past mirrors and glass: from a camera ray's first hit `first` (as
+/// [`World::intersect_solid`] finds it), each delta BSDF's dominant lobe is followed (its
+/// sample with the lobe choice at ½: glass refracts unless its Fresnel reflectance passes
+/// ½), up to [`SPECULAR_DEPTH`] of them. Returns the hit where that ends, the chain's
+/// throughput, and the length of the path before that hit's own segment. A chain that
+/// leaves the scene ends at its last mirror or glass surface instead (`None` only for a
+/// camera ray that meets nothing): a sky seen through glass is lit by the glass's other,
+/// noisy lobes (its reflection of the sun), which the denoiser must still see as a surface
+/// to filter.
+pub(crate) fn through_specular(w: &World, first: Option<(Ray, Hit)>) -> (Option<(Ray, Hit)>, Vec3, f32) {
+    let (mut at, mut beta, mut dist) = (first, Vec3::ONE, 0.0f32);
+    for _ in 0..SPECULAR_DEPTH {
+        let Some((r, hit)) = at else { break };
+        let surf = w.surface(&r, &hit);
+        let d = r.dir.normalize();
+        let ns = shading_normal(w, &r, &hit, &surf);
+        let (bsdf, frame) = bsdf_frame(w, &surf, ns, d);
+        if !bsdf.is_delta() || emission_at(w, &r, &surf) != Vec3::ZERO {
+            break;
+        }
+        let Some(s) = bsdf.sample(frame.to_local(-d), 0.5, (0.5, 0.5)) else { break };
+        let next = beta * s.weight;
+        if !next.is_finite() || next.max_element() <= 0.0 {
+            break;
+        }
+        let Some(hit_next) = w.intersect_solid(&surf.spawn(frame.to_world(s.wi))) else { break };
+        beta = next;
+        dist += (surf.p - r.org).length();
+        at = Some(hit_next);
+    }
+    (at, beta, dist)
+}
+
 /// A denoiser's guides from the ray through a pixel's centre: the shading normal, the
-/// distance and the emitted radiance of its first visible surface (zero, infinity and zero
-/// where it meets nothing).
+/// distance (along mirrors and glass) and the emitted radiance of its first visible surface
+/// that is neither ([`through_specular`]; zero, infinity and zero where it meets nothing).
 /// `first`: what the ray meets first (as [`World::intersect_solid`] finds it).
-pub(crate) fn centre_guides(w: &World, ray: &Ray, first: Option<(Ray, Hit)>) -> (Vec3, f32, Vec3) {
-    let Some((r, hit)) = first else {
+pub(crate) fn centre_guides(w: &World, first: Option<(Ray, Hit)>) -> (Vec3, f32, Vec3) {
+    let (Some((r, hit)), beta, dist) = through_specular(w, first) else {
         return (Vec3::ZERO, f32::INFINITY, Vec3::ZERO);
     };
     let surf = w.surface(&r, &hit);
     let ns = shading_normal(w, &r, &hit, &surf);
-    let depth = (surf.p - ray.org).length();
-    (ns, depth, emission_at(w, &r, &surf))
+    let depth = dist + (surf.p - r.org).length();
+    (ns, depth, beta * emission_at(w, &r, &surf))
 }
 
 /// What a denoiser's guides take from each quarter point of a pixel (beside
 /// [`centre_guides`]): the albedo, the emitted radiance and the shading normal of the
-/// first surface a ray meets (the background's colour, zero and
-/// `None` where it meets nothing); `first`: what the ray meets first (as
-/// [`World::intersect_solid`] finds it).
+/// first surface a ray meets past mirrors and glass (the background's colour, zero and
+/// `None` where it meets nothing), the first two times the chain's throughput; `first`:
+/// what the ray meets first (as [`World::intersect_solid`] finds it).
 pub(crate) fn quarter_guides(w: &World, first: Option<(Ray, Hit)>) -> (Vec3, Vec3, Option<Vec3>) {
-    let Some((r, hit)) = first else {
+    let (Some((r, hit)), beta, _) = through_specular(w, first) else {
         return (w.scene.background, Vec3::ZERO, None);
     };
     let surf = w.surface(&r, &hit);
     let ns = shading_normal(w, &r, &hit, &surf);
-    (w.prepared(surf.material).albedo(&w.scene.textures, surf.uv), emission_at(w, &r, &surf), Some(ns))
+    (beta * w.prepared(surf.material).albedo(&w.scene.textures, surf.uv), beta * emission_at(w, &r, &surf), Some(ns))
 }
 
 #[cfg(test)]
@@ -143,7 +183,7 @@ mod tests {
             for x in 0..wd {
                 let i = (y * wd + x) as usize;
                 let r = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
-                let (mut normal, depth, mut emission) = centre_guides(&w, &r, w.intersect_solid(&r));
+                let (mut normal, depth, mut emission) = centre_guides(&w, w.intersect_solid(&r));
                 let mut albedo = Vec3::ZERO;
                 for (dx, dy) in [(0.25, 0.25), (0.75, 0.25), (0.75, 0.75), (0.25, 0.75)] {
                     let (al, e, n) = quarter_guides(&w, w.intersect_solid(&cam.ray(x as f32 + dx, y as f32 + dy)));

@@ -307,8 +307,8 @@ impl Shade<'_> {
 }
 
 /// Follows a camera ray (its first hit given, when known) through delta lobes to its
-/// shading point: the emission on the way into `l.emitted`, the first surface's normal
-/// and distance into `l`; returns the shading point and its direct light.
+/// shading point: the emission on the way into `l.emitted`, the shading point's normal and
+/// distance along the way into `l`; returns the shading point and its direct light.
 fn camera_path<'w>(
     w: &'w World,
     camera_ray: &Ray,
@@ -324,6 +324,7 @@ fn camera_path<'w>(
     let mut beta = Vec3::ONE;
     let mut ray = *camera_ray;
     let mut first = first;
+    let mut dist = 0.0f32;
     l.depth = f32::INFINITY;
     for depth in 0..=SPECULAR_DEPTH {
         let found = w.first_hit(&ray, first.take());
@@ -340,12 +341,14 @@ fn camera_path<'w>(
             l.emitted += beta * emitted(w, mat, surf.uv);
         }
         let ns = shading_normal(w, &ray, &hit, &surf);
-        if depth == 0 {
-            l.normal = ns;
-            l.depth = (surf.p - camera_ray.org).length();
-        }
+        dist += (surf.p - ray.org).length();
         let (bsdf, fr) = bsdf_frame(w, &surf, ns, d);
         let wo = fr.to_local(-d);
+        // The guides of the surface lit, past mirrors and glass (as the path tracer's
+        // guides, `guides::through_specular`): its normal, the distance along the way; the
+        // last mirror's or glass's where the way leaves the scene.
+        l.normal = ns;
+        l.depth = dist;
         if !bsdf.is_delta() {
             // Direct light: next-event estimation alone (emitters met through delta lobes
             // counted above; no BSDF-sampled direct light to weigh against).
