@@ -75,10 +75,15 @@ pub struct RenderArgs {
     /// Path: the sampler's seed (another seed, another equally good set of samples).
     #[arg(long)]
     pub seed: Option<u32>,
-    /// Denoise the image (an edge-avoiding à-trous filter guided by the first surface's
-    /// albedo, normal and distance): a few samples per pixel look like many more.
-    #[arg(long)]
+    /// Denoise the image (an edge-avoiding à-trous filter guided by the albedo, normal and
+    /// distance of the first surface each pixel sees, through mirrors and glass): a few
+    /// samples per pixel look like many more. A built-in scene (no scene file) is denoised
+    /// by default when path traced or lit by VPLs, at 8 samples per pixel unless --spp says.
+    #[arg(long, conflicts_with = "no_denoise")]
     pub denoise: bool,
+    /// Do not denoise a built-in scene (see --denoise).
+    #[arg(long)]
+    pub no_denoise: bool,
     /// VPL: virtual point lights per frame (each sample of a pixel is a frame with its own
     /// set).
     #[arg(long, default_value_t = VplSettings::default().count)]
@@ -257,6 +262,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
         (None, None, "path" | "path-scalar" | "vpl") => DemoArg { demo: Some(Demo::Studio), ..a.demo },
         _ => a.demo,
     };
+    // A built-in scene is denoised unless told not to (issue 55: the first image a newcomer
+    // sees is a clean one), at 8 samples per pixel (the studio at 640 × 480 in about five
+    // seconds on two cores) unless --spp says.
+    let built_in_denoise = a.scene.is_none() && !a.no_denoise && !a.denoise && matches!(name.as_str(), "path" | "path-scalar" | "vpl");
+    let denoise = a.denoise || built_in_denoise;
+    let spp = a.spp.or((built_in_denoise && name != "vpl" && a.time.is_none()).then_some(8));
     let scene = load_scene(a.scene.as_deref(), &demo)?;
     let load_s = t0.elapsed().as_secs_f64();
     let Some(integrator) = lucent_render::setup::integrator_named(&name, &scene, a.max_depth, a.rr_depth, a.hide_emitters, a.no_shadows)
@@ -295,7 +306,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let recipe = lucent_render::setup::Recipe {
         integrator,
         size: a.size,
-        spp: a.spp,
+        spp,
         view,
         ortho: a.ortho,
         mesh: MeshOptions {
@@ -363,13 +374,16 @@ pub fn run(a: RenderArgs) -> Result<()> {
         println!("mpi: every rank ready after {:.1} ms (loading and building their scenes)", (t2.elapsed().as_secs_f64() - render_s) * 1e3);
     }
     let t3 = Instant::now();
-    let aovs = (a.aovs || a.denoise).then(|| lucent_render::render_aovs(&world, &cam, w, h));
+    let aovs = (a.aovs || denoise).then(|| lucent_render::render_aovs(&world, &cam, w, h));
     let film = match &aovs {
-        Some(aovs) if a.denoise => {
+        Some(aovs) if denoise => {
             let t = Instant::now();
             let f = lucent_render::denoise(&film, aovs, &lucent_render::DenoiseSettings::default());
             let ms = t.elapsed().as_secs_f64() * 1e3;
             println!("denoised in {ms:.1} ms (guides included: {:.1} ms)", t3.elapsed().as_secs_f64() * 1e3);
+            if built_in_denoise {
+                println!("(a built-in scene is denoised by default; --no-denoise shows the raw samples)");
+            }
             f
         }
         _ => film,

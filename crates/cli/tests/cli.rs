@@ -599,3 +599,35 @@ fn a_decoder_panic_is_a_warning() {
     assert!(!err.contains("panicked"), "{err}");
     assert!(err.contains("/images/1: not loaded") && err.contains("the image decoder failed"), "{err}");
 }
+
+/// A built-in scene is denoised by default (issue 55), at 8 samples unless --spp says, and
+/// says so; --no-denoise shows the raw samples, which are noisier (neighbouring pixels of
+/// the back wall differ more); --denoise with --no-denoise is refused.
+#[test]
+fn the_built_in_scene_is_denoised_by_default() {
+    let d = tempfile::tempdir().expect("tmp");
+    let run = |extra: &[&str], name: &str| {
+        let out = d.path().join(name);
+        let o = lucent().args(["render", "--size", "96x72", "--threads", "2"]).args(extra).arg("-o").arg(&out).output().expect("run");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (String::from_utf8_lossy(&o.stdout).into_owned(), image::open(&out).expect("png").to_rgb8())
+    };
+    let (text, clean) = run(&[], "clean.png");
+    assert!(text.contains("denoised in") && text.contains("--no-denoise") && text.contains("8 spp"), "{text}");
+    let (text, raw) = run(&["--no-denoise"], "raw.png");
+    assert!(!text.contains("denoised"), "{text}");
+    // The back wall: the mean absolute difference of horizontal neighbours.
+    let roughness = |img: &image::RgbImage| {
+        let mut s = 0.0;
+        for y in 20..36 {
+            for x in 36..60 {
+                let (a, b) = (img.get_pixel(x, y).0, img.get_pixel(x + 1, y).0);
+                s += a.iter().zip(b).map(|(p, q)| (f32::from(*p) - f32::from(q)).abs()).sum::<f32>();
+            }
+        }
+        s
+    };
+    assert!(roughness(&clean) * 3.0 < roughness(&raw), "denoised {} against raw {}", roughness(&clean), roughness(&raw));
+    let o = lucent().args(["render", "--denoise", "--no-denoise", "-o"]).arg(d.path().join("x.png")).output().expect("run");
+    assert!(!o.status.success());
+}
