@@ -212,9 +212,40 @@ fn dark_surfaces_are_filtered_among_themselves() {
 /// mirror tilted 45° sees a red wall in it, so the guides of the mirror's pixels are the
 /// wall's (its normal, its red albedo times the mirror's reflectance, the distance along
 /// the reflected ray), not the mirror's; a pixel past the mirror's edge sees the grey
-/// floor behind it directly.
+/// floor behind it directly. A nearly smooth metal (α 0.05) counts as a mirror; a glossy
+/// one (α 0.3) is a surface of its own.
 #[test]
 fn guides_follow_mirrors_to_what_they_show() {
+    let mirror = r#"<bsdf type="conductor"><string name="material" value="none"/></bsdf>"#;
+    let near = r#"<bsdf type="roughconductor"><float name="alpha" value="0.05"/><string name="material" value="none"/></bsdf>"#;
+    let glossy = r#"<bsdf type="roughconductor"><float name="alpha" value="0.3"/><string name="material" value="none"/></bsdf>"#;
+    for bsdf in [mirror, near] {
+        let aovs = mirror_scene(bsdf);
+        let c = 16 * 32 + 16;
+        let n = aovs.normal.pixels[c];
+        assert!((n - Vec3::new(-1.0, 0.0, 0.0)).length() < 1e-3, "normal through {bsdf}: {n}");
+        let a = aovs.albedo.pixels[c];
+        assert!((a - Vec3::new(0.8, 0.1, 0.1)).abs().max_element() < 1e-3, "albedo through {bsdf}: {a}");
+    }
+    let aovs = mirror_scene(glossy);
+    let n = aovs.normal.pixels[16 * 32 + 16];
+    assert!((n - Vec3::new(1.0, 0.0, 1.0).normalize()).length() < 1e-3, "a glossy metal's own normal: {n}");
+    let aovs = mirror_scene(mirror);
+    let at = |x: u32, y: u32| (y * 32 + x) as usize;
+    let c = at(16, 16);
+    // 5 to the mirror's centre, then 3 to the wall.
+    let d = aovs.depth[c];
+    assert!((d - 8.0).abs() < 0.05, "distance along the reflection: {d}");
+    // A corner pixel misses the mirror: the grey floor straight behind, 9 away.
+    let e = at(1, 1);
+    let a = aovs.albedo.pixels[e];
+    assert!((a - Vec3::splat(0.3)).abs().max_element() < 1e-3, "albedo past the mirror: {a}");
+    assert!((aovs.normal.pixels[e] - Vec3::Z).length() < 1e-3);
+}
+
+/// The guides of a 32 × 32 view of a mirror of BSDF `bsdf` (Mitsuba XML) tilted 45° toward
+/// a red wall, in front of a grey floor.
+fn mirror_scene(bsdf: &str) -> Aovs {
     let dir = tempfile::tempdir().expect("tmp");
     let xml = r#"<scene version="3.0.0">
         <sensor type="perspective">
@@ -224,7 +255,7 @@ fn guides_follow_mirrors_to_what_they_show() {
         </sensor>
         <shape type="rectangle">
             <transform name="to_world"><scale value="0.8"/><rotate y="1" angle="45"/></transform>
-            <bsdf type="conductor"><string name="material" value="none"/></bsdf>
+            BSDF
         </shape>
         <shape type="rectangle">
             <transform name="to_world"><scale value="20"/><rotate y="1" angle="-90"/><translate x="3"/></transform>
@@ -235,27 +266,12 @@ fn guides_follow_mirrors_to_what_they_show() {
             <bsdf type="diffuse"><rgb name="reflectance" value="0.3, 0.3, 0.3"/></bsdf>
         </shape>
         <emitter type="constant"><rgb name="radiance" value="1, 1, 1"/></emitter>
-    </scene>"#;
+    </scene>"#
+        .replace("BSDF", bsdf);
     let path = dir.path().join("mirror.xml");
     std::fs::write(&path, xml).expect("write");
     let scene = lucent_scene::load_mitsuba_with(&path, &[]).expect("scene");
     let cam = Camera::new(&scene.camera.expect("camera"), 32, 32);
     let w = World::new(scene, MeshOptions::default()).expect("world");
-    let aovs = render_aovs(&w, &cam, 32, 32);
-    let at = |x: u32, y: u32| (y * 32 + x) as usize;
-    // The centre: the mirror (normal (-1, 0, 1)/√2 toward the camera's side) reflects the
-    // view ray (0, 0, -1) to +x, onto the wall at x = 3, whose normal faces −x.
-    let c = at(16, 16);
-    let n = aovs.normal.pixels[c];
-    assert!((n - Vec3::new(-1.0, 0.0, 0.0)).length() < 1e-3, "normal through the mirror: {n}");
-    let a = aovs.albedo.pixels[c];
-    assert!((a - Vec3::new(0.8, 0.1, 0.1)).abs().max_element() < 1e-3, "albedo through the mirror: {a}");
-    // 5 to the mirror's centre, then 3 to the wall.
-    let d = aovs.depth[c];
-    assert!((d - 8.0).abs() < 0.05, "distance along the reflection: {d}");
-    // A corner pixel misses the mirror: the grey floor straight behind, 9 away.
-    let e = at(1, 1);
-    let a = aovs.albedo.pixels[e];
-    assert!((a - Vec3::splat(0.3)).abs().max_element() < 1e-3, "albedo past the mirror: {a}");
-    assert!((aovs.normal.pixels[e] - Vec3::Z).length() < 1e-3);
+    render_aovs(&w, &cam, 32, 32)
 }

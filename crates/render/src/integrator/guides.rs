@@ -6,6 +6,7 @@
 //! edges instead of being filtered as the smooth surface in front of it.
 
 use super::hit::{bsdf_frame, emission_at, packet_first_hits, shading_normal};
+use crate::bsdf::{Bsdf, Conductor, Dielectric};
 use crate::camera::Camera;
 use crate::film::{Aovs, Film};
 use crate::tiles::NO_RAYS;
@@ -102,9 +103,26 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> Aovs {
 /// Most mirrors and glass surfaces the guides follow (as the VPL integrator's camera paths).
 const SPECULAR_DEPTH: u32 = 8;
 
+/// Below this roughness (α) a conductor or a dielectric counts as a mirror or clear glass
+/// for the guides: what such a lobe reflects is nearly as sharp as a mirror's image.
+const NEAR_DELTA_ALPHA: f32 = 0.1;
+
+/// The mirror or clear glass the guides see `b` as: `b` itself when it is a delta BSDF, its
+/// smooth counterpart when it is a conductor or dielectric rougher than none but smoother
+/// than [`NEAR_DELTA_ALPHA`]; `None` for anything else.
+fn as_specular<'w>(b: Bsdf<'w>) -> Option<Bsdf<'w>> {
+    match b {
+        _ if b.is_delta() => Some(b),
+        Bsdf::Conductor(c) if c.mf.is_some_and(|m| m.alpha < NEAR_DELTA_ALPHA) => Some(Bsdf::Conductor(Conductor { mf: None, ..c })),
+        Bsdf::Dielectric(d) if d.mf.is_some_and(|m| m.alpha < NEAR_DELTA_ALPHA) => Some(Bsdf::Dielectric(Dielectric { mf: None, ..d })),
+        _ => None,
+    }
+}
+
 /// The first surface past mirrors and glass: from a camera ray's first hit `first` (as
-/// [`World::intersect_solid`] finds it), each delta BSDF's dominant lobe is followed (its
-/// sample with the lobe choice at ½: glass refracts unless its Fresnel reflectance passes
+/// [`World::intersect_solid`] finds it), the dominant lobe of each delta BSDF, or of the
+/// smooth counterpart of a nearly smooth metal or glass (`as_specular`), is followed: its
+/// sample with the lobe choice at ½ (glass refracts unless its Fresnel reflectance passes
 /// ½), up to [`SPECULAR_DEPTH`] of them. Returns the hit where that ends, the chain's
 /// throughput, and the length of the path before that hit's own segment. A chain that
 /// leaves the scene ends at its last mirror or glass surface instead (`None` only for a
@@ -119,9 +137,7 @@ pub(crate) fn through_specular(w: &World, first: Option<(Ray, Hit)>) -> (Option<
         let d = r.dir.normalize();
         let ns = shading_normal(w, &r, &hit, &surf);
         let (bsdf, frame) = bsdf_frame(w, &surf, ns, d);
-        if !bsdf.is_delta() || emission_at(w, &r, &surf) != Vec3::ZERO {
-            break;
-        }
+        let Some(bsdf) = as_specular(bsdf).filter(|_| emission_at(w, &r, &surf) == Vec3::ZERO) else { break };
         let Some(s) = bsdf.sample(frame.to_local(-d), 0.5, (0.5, 0.5)) else { break };
         let next = beta * s.weight;
         if !next.is_finite() || next.max_element() <= 0.0 {
