@@ -1,6 +1,6 @@
 //! Arbitrary output variables: the layers a pixel sample is made of (the emission seen,
-//! the reflected light over the albedo, the albedo, the first surface's normal and
-//! distance), which the VPL integrator's discontinuity buffer and the denoiser filter, and
+//! the reflected light over the albedo, the albedo, the normal and distance of the surface
+//! lit, past mirrors and glass), which the VPL integrator's discontinuity buffer and the denoiser filter, and
 //! the demodulation by the albedo both use: light reflected by a surface is divided by its
 //! albedo before filtering and multiplied back after, so textures stay sharp.
 
@@ -18,9 +18,10 @@ pub struct Layers {
     /// The albedo the indirect light is demodulated by (the shading point's, times the
     /// specular chain's throughput).
     pub albedo: Vec3,
-    /// Shading normal of the first surface (zero: none).
+    /// Shading normal of the shading point, past mirrors and glass (of the last mirror or
+    /// glass where the way leaves the scene; zero: none).
     pub normal: Vec3,
-    /// Distance to the first surface (infinite: none).
+    /// Distance to it along the way (infinite: none).
     pub depth: f32,
 }
 

@@ -28,9 +28,10 @@ pub enum OutputError {
     },
 }
 
-/// What a denoiser is guided by, per pixel: the first visible surface's albedo, its
-/// shading normal (world space, unit; zero where the ray meets nothing) and its distance
-/// along the ray (infinite where it meets nothing).
+/// What a denoiser is guided by, per pixel: the albedo of the first visible surface that is
+/// not a mirror or clear glass (seen through them: times their throughput), its shading
+/// normal (world space, unit; zero where the ray meets nothing) and its distance along the
+/// way (infinite where the ray meets nothing); see `render_aovs`.
 #[derive(Clone, Debug)]
 pub struct Aovs {
     /// Albedo (the background colour where nothing is met).

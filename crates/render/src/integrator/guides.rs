@@ -1,6 +1,6 @@
 //! The guides of a denoiser ([`render_aovs`]): per pixel, the albedo, shading normal,
 //! distance and emission of the first surface its rays meet that is not a mirror or glass:
-//! through a delta BSDF the guides follow its dominant lobe ([`through_specular`]) and
+//! through a delta BSDF the guides follow its dominant lobe (`through_specular`) and
 //! carry the chain's throughput in the albedo and emission, as Intel Open Image Denoise
 //! asks of its guides, so that what is seen in a mirror or through glass keeps its own
 //! edges instead of being filtered as the smooth surface in front of it.
