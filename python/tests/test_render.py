@@ -178,3 +178,15 @@ def test_the_stubs_type_check():
     api = pytest.importorskip("mypy.api")
     out, err, code = api.run(["--ignore-missing-imports", "-p", "lucent"])
     assert code == 0, out + err
+
+
+def test_a_crop_window_is_the_cli_image(tmp_path):
+    """A Mitsuba film's crop window: the image (and its AOVs) is the window, as the CLI writes it."""
+    path = ROOT / "crates/render/tests/data/mitsuba/crop_window/scene.xml"
+    scene = lucent.load(path)
+    img, aovs = lucent.render(scene, spp=3, aovs=["depth", "prim_id"])
+    assert img.shape == (36, 40, 3) and aovs["depth"].shape == (36, 40) and aovs["prim_id"].shape == (36, 40)
+    want = cli_image(tmp_path, [str(path), "--spp", "3"])
+    assert np.array_equal(same_through_exr(tmp_path, img), want)
+    # Given a size, the whole film.
+    assert lucent.render(scene, width=96, height=64, spp=1).shape == (64, 96, 3)

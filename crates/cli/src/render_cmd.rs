@@ -324,7 +324,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if prepared.headlight {
         tracing::info!("the scene has no lights: using a headlight at the camera");
     }
-    let lucent_render::setup::Prepared { mut world, desc, camera: cam, settings, .. } = prepared;
+    let lucent_render::setup::Prepared { mut world, desc, camera: cam, settings, crop, .. } = prepared;
     let (w, h) = (settings.width, settings.height);
     let build_s = t1.elapsed().as_secs_f64();
     if let Some(s) = session.as_ref().filter(|s| s.rank() != 0) {
@@ -362,7 +362,18 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} tiles {elapsed}")
                     .unwrap_or_else(|_| ProgressStyle::default_bar()),
             );
-            let (film, rays) = render(&world, &cam, &settings, &|n| bar.inc(n));
+            let (film, rays) = match crop {
+                // Only the window's pixels are traced (each pixel's samples are its own:
+                // the same values as in the whole image).
+                Some([x, y, cw, ch]) => {
+                    let region = Region { x0: x, y0: y, x1: x + cw, y1: y + ch, s0: 0, s1: settings.spp.max(1) };
+                    let (part, rays) = render_region(&world, &cam, &settings, region, &|n| bar.inc(n));
+                    let mut acc = lucent_render::FilmAccumulator::new(w, h);
+                    acc.merge(part)?;
+                    (acc.resolve(world.scene().background), rays)
+                }
+                None => render(&world, &cam, &settings, &|n| bar.inc(n)),
+            };
             bar.finish_and_clear();
             (film, rays, settings.spp)
         }
@@ -373,8 +384,19 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if cluster.is_some() {
         println!("mpi: every rank ready after {:.1} ms (loading and building their scenes)", (t2.elapsed().as_secs_f64() - render_s) * 1e3);
     }
+    // The scene file's crop window: the camera saw the whole film; the image is the window.
+    let film = match crop {
+        Some(c) => film.crop(c),
+        None => film,
+    };
     let t3 = Instant::now();
-    let aovs = (a.aovs || denoise).then(|| lucent_render::render_aovs(&world, &cam, w, h));
+    let aovs = (a.aovs || denoise).then(|| {
+        let g = lucent_render::render_aovs(&world, &cam, w, h);
+        match crop {
+            Some(c) => g.crop(c),
+            None => g,
+        }
+    });
     let film = match &aovs {
         Some(aovs) if denoise => {
             let t = Instant::now();
@@ -392,6 +414,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         film.save_exr_with_aovs(&a.output, aovs)?;
     } else {
         film.save(&a.output)?;
+    }
+    if let Some([x, y, cw, ch]) = crop {
+        println!("crop: the scene's film window {cw}x{ch} at ({x}, {y})");
     }
     println!("scene: {} triangles, {} instances, {} lights", st.triangles, st.instances, world.lights().len());
     println!(

@@ -631,3 +631,33 @@ fn the_built_in_scene_is_denoised_by_default() {
     let o = lucent().args(["render", "--denoise", "--no-denoise", "-o"]).arg(d.path().join("x.png")).output().expect("run");
     assert!(!o.status.success());
 }
+
+/// A Mitsuba film's crop window (issue 54): only the window is rendered and written, its
+/// pixels those of the whole film's image (bit for bit: each pixel's samples are its own);
+/// --size renders the whole film instead; a window outside the film is refused where it
+/// is written.
+#[test]
+fn a_crop_window_renders_that_part_of_the_film() {
+    let d = tempfile::tempdir().expect("tmp");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../render/tests/data/mitsuba/crop_window/scene.xml");
+    let (crop, full) = (d.path().join("crop.exr"), d.path().join("full.exr"));
+    for (out, extra) in [(&crop, &[][..]), (&full, &["--size", "96x64"][..])] {
+        let o =
+            lucent().arg("render").arg(&scene).args(["--spp", "3", "--threads", "2"]).args(extra).arg("-o").arg(out).output().expect("run");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let (c, f) = (lucent_render::Film::load(&crop).expect("crop"), lucent_render::Film::load(&full).expect("full"));
+    assert_eq!((c.width, c.height, f.width, f.height), (40, 36, 96, 64));
+    for y in 0..36 {
+        for x in 0..40 {
+            assert_eq!(c.get(x, y).to_array().map(f32::to_bits), f.get(x + 30, y + 20).to_array().map(f32::to_bits), "({x}, {y})");
+        }
+    }
+    let bad = d.path().join("bad.xml");
+    let text =
+        std::fs::read_to_string(&scene).expect("scene").replace(r#"name="crop_width" value="40""#, r#"name="crop_width" value="80""#);
+    std::fs::write(&bad, text).expect("write");
+    let o = lucent().arg("render").arg(&bad).arg("-o").arg(d.path().join("x.exr")).output().expect("run");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("crop window 80x36 at (30, 20)") && e.contains("bad.xml:"), "{e}");
+}

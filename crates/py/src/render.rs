@@ -112,6 +112,14 @@ fn render_bands(
     Ok(())
 }
 
+/// `film` cut to the scene file's crop window, if it has one (as `lucent render` writes).
+fn window(p: &lucent_render::setup::Prepared, film: Film) -> Film {
+    match p.crop {
+        Some(c) => film.crop(c),
+        None => film,
+    }
+}
+
 /// A film as an (H, W, 3) float32 array.
 fn film_array<'py>(py: Python<'py>, f: &Film) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     to_numpy(py, f.pixels.iter().flat_map(|p| p.to_array()).collect(), &[f.height as usize, f.width as usize, 3])
@@ -120,7 +128,9 @@ fn film_array<'py>(py: Python<'py>, f: &Film) -> PyResult<Bound<'py, PyArrayDyn<
 /// The AOV images asked for.
 fn aov_dict<'py>(py: Python<'py>, job: &Job, names: &[String], aovs: &Aovs, threads: Option<usize>) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    let (w, h) = (job.prepared.settings.width as usize, job.prepared.settings.height as usize);
+    // (The scene file's crop window, else the whole image.)
+    let [x0, y0, w, h] = job.prepared.crop.unwrap_or([0, 0, job.prepared.settings.width, job.prepared.settings.height]);
+    let (w, h) = (w as usize, h as usize);
     let ids = names.iter().any(|n| n.ends_with("_id"));
     let hits = if ids {
         let (world, cam) = (&job.prepared.world, &job.prepared.camera);
@@ -130,8 +140,10 @@ fn aov_dict<'py>(py: Python<'py>, job: &Job, names: &[String], aovs: &Aovs, thre
                 (0..h)
                     .into_par_iter()
                     .flat_map_iter(|y| {
-                        (0..w)
-                            .map(move |x| world.accel().intersect(&cam.ray(x as f32 + 0.5, y as f32 + 0.5)).map(|hit| (hit.prim, hit.inst)))
+                        let y = (y + y0 as usize) as f32 + 0.5;
+                        (0..w).map(move |x| {
+                            world.accel().intersect(&cam.ray((x + x0 as usize) as f32 + 0.5, y)).map(|hit| (hit.prim, hit.inst))
+                        })
                     })
                     .collect::<Vec<_>>()
             })
@@ -210,9 +222,14 @@ pub fn render<'py>(
     let (w, h) = (p.settings.width, p.settings.height);
     let mut acc = FilmAccumulator::new(w, h);
     render_bands(py, &p.world, &p.camera, &p.settings, 0, p.settings.spp, &mut acc, threads)?;
-    let mut film = acc.resolve(p.world.scene().background);
-    let guides = (!aov_names.is_empty() || denoise)
-        .then(|| py.detach(|| crate::threads::run(threads, || lucent_render::render_aovs(&p.world, &p.camera, w, h))));
+    let mut film = window(p, acc.resolve(p.world.scene().background));
+    let guides = (!aov_names.is_empty() || denoise).then(|| {
+        let g = py.detach(|| crate::threads::run(threads, || lucent_render::render_aovs(&p.world, &p.camera, w, h)));
+        match p.crop {
+            Some(c) => g.crop(c),
+            None => g,
+        }
+    });
     if let (true, Some(g)) = (denoise, &guides) {
         film = py.detach(|| crate::threads::run(threads, || lucent_render::denoise(&film, g, &lucent_render::DenoiseSettings::default())));
     }
@@ -293,7 +310,7 @@ impl Renderer {
     #[getter]
     fn image<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
         let g = self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        film_array(py, &g.acc.resolve(g.job.prepared.world.scene().background))
+        film_array(py, &window(&g.job.prepared, g.acc.resolve(g.job.prepared.world.scene().background)))
     }
 
     /// Samples per pixel so far.

@@ -45,6 +45,17 @@ pub struct Aovs {
     pub emission: Film,
 }
 
+impl Aovs {
+    /// The window `[x, y, width, height]` of every layer (see [`Film::crop`]).
+    #[must_use]
+    pub fn crop(&self, window: [u32; 4]) -> Aovs {
+        let (w, h) = (self.albedo.width, self.albedo.height);
+        let depth = Film { width: w, height: h, pixels: self.depth.iter().map(|&d| Vec3::splat(d)).collect() };
+        let depth = depth.crop(window).pixels.iter().map(|p| p.x).collect();
+        Aovs { albedo: self.albedo.crop(window), normal: self.normal.crop(window), depth, emission: self.emission.crop(window) }
+    }
+}
+
 /// A rendered image in linear RGB.
 #[derive(Clone, Debug)]
 pub struct Film {
@@ -57,6 +68,18 @@ pub struct Film {
 }
 
 impl Film {
+    /// The window `[x, y, width, height]` of the image (clipped to it: a window past the
+    /// image's edge keeps what lies inside).
+    #[must_use]
+    pub fn crop(&self, [x, y, cw, ch]: [u32; 4]) -> Film {
+        let (x0, y0) = (x.min(self.width), y.min(self.height));
+        let (x1, y1) = (x.saturating_add(cw).min(self.width), y.saturating_add(ch).min(self.height));
+        let w = self.width as usize;
+        let row = |r: u32| self.pixels.get(r as usize * w + x0 as usize..r as usize * w + x1 as usize).unwrap_or(&[]);
+        let pixels = (y0..y1).flat_map(|r| row(r).iter().copied()).collect();
+        Film { width: x1 - x0, height: y1 - y0, pixels }
+    }
+
     /// A black film.
     #[must_use]
     pub fn new(width: u32, height: u32) -> Self {

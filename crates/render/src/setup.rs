@@ -124,6 +124,9 @@ pub struct Prepared {
     pub sky: bool,
     /// A headlight at the camera was added: nothing else lights the scene.
     pub headlight: bool,
+    /// The window of the image to keep (x, y, width, height): the scene file's crop, unless
+    /// the recipe gives its own size.
+    pub crop: Option<[u32; 4]>,
 }
 
 /// Prepares `scene` for rendering by `recipe`, as `lucent render` does.
@@ -161,7 +164,8 @@ pub fn prepare(mut scene: Scene, recipe: &Recipe) -> Result<Prepared, SetupError
             }
         }
     }
-    Ok(Prepared { world, desc, camera, settings, sky, headlight })
+    let crop = if recipe.size.is_none() { hints.and_then(|h| h.crop) } else { None };
+    Ok(Prepared { world, desc, camera, settings, sky, headlight, crop })
 }
 
 #[cfg(test)]

@@ -63,7 +63,9 @@ fn converges_to_mitsuba(dir: &str) {
     let hints = scene.hints.expect("a Mitsuba scene has render hints");
     let cam_desc = scene.camera.expect("camera");
     let reference = Film::load(&data(&format!("{dir}/reference_4096spp.exr"))).expect("reference EXR");
-    assert_eq!((reference.width, reference.height), (hints.width, hints.height));
+    // (A film with a crop window: Mitsuba's image is the window.)
+    let window = hints.crop.unwrap_or([0, 0, hints.width, hints.height]);
+    assert_eq!((reference.width, reference.height), (window[2], window[3]));
     let world = World::new(scene, MeshOptions::default()).expect("world");
     let cam = Camera::new(&cam_desc, hints.width, hints.height).with_clip(hints.clip.0, hints.clip.1);
     let render_at = |spp: u32, seed: u32| {
@@ -75,7 +77,7 @@ fn converges_to_mitsuba(dir: &str) {
             ..PathSettings::default()
         };
         let st = RenderSettings { spp, integrator: Integrator::Path(path), ..RenderSettings::new(hints.width, hints.height) };
-        render(&world, &cam, &st, &|_| {}).0
+        render(&world, &cam, &st, &|_| {}).0.crop(window)
     };
     let mut at64: Vec<f64> = (1..=5).map(|seed| render_at(64, seed).rel_mse(&reference).expect("same size")).collect();
     at64.sort_by(f64::total_cmp);
@@ -121,6 +123,13 @@ fn bunny_mesh() {
 #[test]
 fn sponza_interior() {
     converges_to_mitsuba("sponza");
+}
+
+/// The Cornell box on a wider film of which only a window is rendered (hdrfilm's crop):
+/// the camera sees the whole film, the image is the window, as Mitsuba's.
+#[test]
+fn crop_window() {
+    converges_to_mitsuba("crop_window");
 }
 
 /// A room under five lights of four kinds (area panel, sphere and disk, a spot, a point),

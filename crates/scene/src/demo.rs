@@ -290,6 +290,7 @@ pub fn studio_scene() -> Scene {
         lens: None,
         clip: (0.0, f32::INFINITY),
         filter: crate::model::PixelFilter::Box,
+        crop: None,
     });
     s
 }

@@ -271,6 +271,11 @@ pub struct RenderHints {
     pub clip: (f32, f32),
     /// The film's reconstruction filter.
     pub filter: PixelFilter,
+    /// The window of the film that is rendered and written, as x, y, width, height in
+    /// pixels (Mitsuba's `hdrfilm` `crop_offset_x`, `crop_offset_y`, `crop_width`,
+    /// `crop_height`): the camera sees the whole film, the image is the window. `None`:
+    /// the whole film.
+    pub crop: Option<[u32; 4]>,
 }
 
 /// How a pixel weighs the image around it (the film's reconstruction filter, separable in

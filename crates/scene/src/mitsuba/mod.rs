@@ -14,7 +14,8 @@
 //! - emitters `area`, `point`, `spot`, `directional`, `constant`, `envmap`;
 //! - the sensor `perspective` (`fov`, `fov_axis`, `focal_length`, `near_clip`,
 //!   `far_clip`), `thinlens` (`aperture_radius`, `focus_distance`) and `orthographic`; the
-//!   `hdrfilm`'s size; the sampler's `sample_count`; the `path` integrator's `max_depth`,
+//!   `hdrfilm`'s size and crop window (`crop_offset_x`, `crop_offset_y`, `crop_width`,
+//!   `crop_height`); the sampler's `sample_count`; the `path` integrator's `max_depth`,
 //!   `rr_depth`, `hide_emitters` ([`RenderHints`]);
 //! - `<default name value>` and `$name` in attribute values.
 //!
@@ -104,6 +105,7 @@ pub fn parse_mitsuba_with(path: &Path, base: &Path, text: &str, defines: &[(Stri
             clip: (0.01, 10000.0),
             // (Mitsuba's film default; a film of the scene's sets its own.)
             filter: PixelFilter::Gaussian { stddev: 0.5 },
+            crop: None,
         },
         shapes: 0,
     };
@@ -735,6 +737,13 @@ impl<'a, 'd> Cx<'a, 'd> {
                 return Err(self.err(film, format!("film size {w}x{h}: expected 1 to 65536 pixels a side")));
             }
             (self.hints.width, self.hints.height) = (w as u32, h as u32);
+            // The crop window (inside the film; the whole film when it names none).
+            let (cx, cy) = (self.integer(film, "crop_offset_x", 0)?, self.integer(film, "crop_offset_y", 0)?);
+            let (cw, ch) = (self.integer(film, "crop_width", w - cx)?, self.integer(film, "crop_height", h - cy)?);
+            if cx < 0 || cy < 0 || cw < 1 || ch < 1 || cx + cw > w || cy + ch > h {
+                return Err(self.err(film, format!("crop window {cw}x{ch} at ({cx}, {cy}): expected inside the {w}x{h} film")));
+            }
+            self.hints.crop = ((cx, cy, cw, ch) != (0, 0, w, h)).then_some([cx as u32, cy as u32, cw as u32, ch as u32]);
             // The film's reconstruction filter, Mitsuba's Gaussian when it names none.
             self.hints.filter = match film.children().find(|c| c.tag_name().name() == "rfilter") {
                 Some(f) => {
