@@ -87,6 +87,11 @@ pub fn run(data: &Path, scenes_dir: &Path, only: &[String]) -> Result<()> {
         let recorded: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("mitsuba.json"))?)?;
         let m_err = recorded["relmse_64"].as_f64().context("mitsuba.json: relmse_64")?;
         let hints = scene.hints.context("a Mitsuba scene has render hints")?;
+        if hints.crop.is_some() {
+            // (A test of the film's crop window, not a scene to time.)
+            println!("| {name} | (a crop-window test scene: not timed) | | | | | | |");
+            continue;
+        }
         let desc = scene.camera.context("the scene has no sensor")?;
         let reference = Film::load(&dir.join("reference_4096spp.exr"))?;
         let (w, h) = (hints.width, hints.height);
