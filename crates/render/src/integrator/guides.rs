@@ -10,6 +10,7 @@ use crate::bsdf::{Bsdf, Conductor, Dielectric};
 use crate::camera::Camera;
 use crate::film::{Aovs, Film};
 use crate::tiles::NO_RAYS;
+use crate::world::surface::Surface;
 use crate::world::World;
 use glam::Vec3;
 use lucent_accel::{Hit, Ray};
@@ -119,36 +120,48 @@ fn as_specular<'w>(b: Bsdf<'w>) -> Option<Bsdf<'w>> {
     }
 }
 
+/// Where a camera ray's way past mirrors and glass ends ([`through_specular`]): the ray and
+/// hit there, and the surface point and shading normal rebuilt from them.
+pub(crate) struct End {
+    r: Ray,
+    surf: Surface,
+    ns: Vec3,
+}
+
 /// The first surface past mirrors and glass: from a camera ray's first hit `first` (as
 /// [`World::intersect_solid`] finds it), the dominant lobe of each delta BSDF, or of the
 /// smooth counterpart of a nearly smooth metal or glass (`as_specular`), is followed: its
 /// sample with the lobe choice at ½ (glass refracts unless its Fresnel reflectance passes
-/// ½), up to [`SPECULAR_DEPTH`] of them. Returns the hit where that ends, the chain's
-/// throughput, and the length of the path before that hit's own segment. A chain that
-/// leaves the scene ends at its last mirror or glass surface instead (`None` only for a
-/// camera ray that meets nothing): a sky seen through glass is lit by the glass's other,
-/// noisy lobes (its reflection of the sun), which the denoiser must still see as a surface
-/// to filter.
-pub(crate) fn through_specular(w: &World, first: Option<(Ray, Hit)>) -> (Option<(Ray, Hit)>, Vec3, f32) {
-    let (mut at, mut beta, mut dist) = (first, Vec3::ONE, 0.0f32);
-    for _ in 0..SPECULAR_DEPTH {
-        let Some((r, hit)) = at else { break };
+/// ½), up to [`SPECULAR_DEPTH`] of them. Returns where that ends, the chain's throughput,
+/// and the length of the path before that hit's own segment. A chain that leaves the scene
+/// ends at its last mirror or glass surface instead (`None` only for a camera ray that
+/// meets nothing): a sky seen through glass is lit by the glass's other, noisy lobes (its
+/// reflection of the sun), which the denoiser must still see as a surface to filter.
+pub(crate) fn through_specular(w: &World, first: Option<(Ray, Hit)>) -> (Option<End>, Vec3, f32) {
+    let Some((mut r, mut hit)) = first else { return (None, Vec3::ONE, 0.0) };
+    let (mut beta, mut dist, mut followed) = (Vec3::ONE, 0.0f32, 0);
+    loop {
         let surf = w.surface(&r, &hit);
-        let d = r.dir.normalize();
         let ns = shading_normal(w, &r, &hit, &surf);
-        let (bsdf, frame) = bsdf_frame(w, &surf, ns, d);
-        let Some(bsdf) = as_specular(bsdf).filter(|_| emission_at(w, &r, &surf) == Vec3::ZERO) else { break };
-        let Some(s) = bsdf.sample(frame.to_local(-d), 0.5, (0.5, 0.5)) else { break };
-        let next = beta * s.weight;
-        if !next.is_finite() || next.max_element() <= 0.0 {
-            break;
-        }
-        let Some(hit_next) = w.intersect_solid(&surf.spawn(frame.to_world(s.wi))) else { break };
-        beta = next;
+        let next = (followed < SPECULAR_DEPTH).then(|| {
+            let d = r.dir.normalize();
+            let (bsdf, frame) = bsdf_frame(w, &surf, ns, d);
+            let bsdf = as_specular(bsdf).filter(|_| emission_at(w, &r, &surf) == Vec3::ZERO)?;
+            let s = bsdf.sample(frame.to_local(-d), 0.5, (0.5, 0.5))?;
+            let b = beta * s.weight;
+            if !b.is_finite() || b.max_element() <= 0.0 {
+                return None;
+            }
+            Some((b, w.intersect_solid(&surf.spawn(frame.to_world(s.wi)))?))
+        });
+        let Some((b, (r_next, hit_next))) = next.flatten() else {
+            return (Some(End { r, surf, ns }), beta, dist);
+        };
+        beta = b;
         dist += (surf.p - r.org).length();
-        at = Some(hit_next);
+        (r, hit) = (r_next, hit_next);
+        followed += 1;
     }
-    (at, beta, dist)
 }
 
 /// A denoiser's guides from the ray through a pixel's centre: the shading normal, the
@@ -156,11 +169,9 @@ pub(crate) fn through_specular(w: &World, first: Option<(Ray, Hit)>) -> (Option<
 /// that is neither ([`through_specular`]; zero, infinity and zero where it meets nothing).
 /// `first`: what the ray meets first (as [`World::intersect_solid`] finds it).
 pub(crate) fn centre_guides(w: &World, first: Option<(Ray, Hit)>) -> (Vec3, f32, Vec3) {
-    let (Some((r, hit)), beta, dist) = through_specular(w, first) else {
+    let (Some(End { r, surf, ns }), beta, dist) = through_specular(w, first) else {
         return (Vec3::ZERO, f32::INFINITY, Vec3::ZERO);
     };
-    let surf = w.surface(&r, &hit);
-    let ns = shading_normal(w, &r, &hit, &surf);
     let depth = dist + (surf.p - r.org).length();
     (ns, depth, beta * emission_at(w, &r, &surf))
 }
@@ -171,11 +182,9 @@ pub(crate) fn centre_guides(w: &World, first: Option<(Ray, Hit)>) -> (Vec3, f32,
 /// `None` where it meets nothing), the first two times the chain's throughput; `first`:
 /// what the ray meets first (as [`World::intersect_solid`] finds it).
 pub(crate) fn quarter_guides(w: &World, first: Option<(Ray, Hit)>) -> (Vec3, Vec3, Option<Vec3>) {
-    let (Some((r, hit)), beta, _) = through_specular(w, first) else {
+    let (Some(End { r, surf, ns }), beta, _) = through_specular(w, first) else {
         return (w.scene.background, Vec3::ZERO, None);
     };
-    let surf = w.surface(&r, &hit);
-    let ns = shading_normal(w, &r, &hit, &surf);
     (beta * w.prepared(surf.material).albedo(&w.scene.textures, surf.uv), beta * emission_at(w, &r, &surf), Some(ns))
 }
 
