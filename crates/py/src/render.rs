@@ -85,23 +85,24 @@ fn prepare_job(
     Ok(Job { prepared, ids, inst_geom })
 }
 
-/// Renders samples `s0..s1` of every pixel band by band into `acc`, checking Python's
-/// signals between bands.
+/// Renders samples `s0..s1` of every pixel of `window` (x, y, width, height) band by band
+/// into `acc`, checking Python's signals between bands.
 #[allow(clippy::too_many_arguments)]
 fn render_bands(
     py: Python<'_>,
     world: &World,
     cam: &lucent_render::Camera,
     settings: &RenderSettings,
+    [x0, wy, ww, wh]: [u32; 4],
     s0: u32,
     s1: u32,
     acc: &mut FilmAccumulator,
     threads: Option<usize>,
 ) -> PyResult<()> {
-    let (w, h) = (settings.width, settings.height);
-    let mut y0 = 0;
+    let (x1, h) = (x0 + ww, wy + wh);
+    let mut y0 = wy;
     while y0 < h {
-        let region = Region { x0: 0, y0, x1: w, y1: (y0 + BAND).min(h), s0, s1 };
+        let region = Region { x0, y0, x1, y1: (y0 + BAND).min(h), s0, s1 };
         let part = py.detach(|| {
             guard("render", || crate::threads::run(threads, || lucent_render::render_region(world, cam, settings, region, &|_| {}).0))
         })?;
@@ -110,6 +111,12 @@ fn render_bands(
         y0 += BAND;
     }
     Ok(())
+}
+
+/// The pixels rendered: the scene file's crop window, else the whole image (x, y, width,
+/// height).
+fn rendered(p: &lucent_render::setup::Prepared) -> [u32; 4] {
+    p.crop.unwrap_or([0, 0, p.settings.width, p.settings.height])
 }
 
 /// `film` cut to the scene file's crop window, if it has one (as `lucent render` writes).
@@ -128,8 +135,7 @@ fn film_array<'py>(py: Python<'py>, f: &Film) -> PyResult<Bound<'py, PyArrayDyn<
 /// The AOV images asked for.
 fn aov_dict<'py>(py: Python<'py>, job: &Job, names: &[String], aovs: &Aovs, threads: Option<usize>) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    // (The scene file's crop window, else the whole image.)
-    let [x0, y0, w, h] = job.prepared.crop.unwrap_or([0, 0, job.prepared.settings.width, job.prepared.settings.height]);
+    let [x0, y0, w, h] = rendered(&job.prepared);
     let (w, h) = (w as usize, h as usize);
     let ids = names.iter().any(|n| n.ends_with("_id"));
     let hits = if ids {
@@ -221,7 +227,7 @@ pub fn render<'py>(
     let p = &job.prepared;
     let (w, h) = (p.settings.width, p.settings.height);
     let mut acc = FilmAccumulator::new(w, h);
-    render_bands(py, &p.world, &p.camera, &p.settings, 0, p.settings.spp, &mut acc, threads)?;
+    render_bands(py, &p.world, &p.camera, &p.settings, rendered(p), 0, p.settings.spp, &mut acc, threads)?;
     let mut film = window(p, acc.resolve(p.world.scene().background));
     let guides = (!aov_names.is_empty() || denoise).then(|| {
         let g = py.detach(|| crate::threads::run(threads, || lucent_render::render_aovs(&p.world, &p.camera, w, h)));
@@ -293,7 +299,8 @@ impl Renderer {
         // the samplers (stratification over the whole count).
         let settings = RenderSettings { spp: s1, ..p.job.prepared.settings };
         let before = p.acc.clone();
-        let r = render_bands(py, &p.job.prepared.world, &p.job.prepared.camera, &settings, s0, s1, &mut p.acc, self.threads);
+        let prep = &p.job.prepared;
+        let r = render_bands(py, &prep.world, &prep.camera, &settings, rendered(prep), s0, s1, &mut p.acc, self.threads);
         match r {
             Ok(()) => {
                 p.spp = s1;

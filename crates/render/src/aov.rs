@@ -1,8 +1,9 @@
 //! Arbitrary output variables: the layers a pixel sample is made of (the emission seen,
 //! the reflected light over the albedo, the albedo, the normal and distance of the surface
-//! lit, past mirrors and glass), which the VPL integrator's discontinuity buffer and the denoiser filter, and
-//! the demodulation by the albedo both use: light reflected by a surface is divided by its
-//! albedo before filtering and multiplied back after, so textures stay sharp.
+//! lit, past mirrors and glass), which the VPL integrator's discontinuity buffer and the
+//! denoiser filter, and the demodulation by the albedo both use: light reflected by a
+//! surface is divided by its albedo before filtering and multiplied back after, so
+//! textures stay sharp.
 
 use glam::Vec3;
 

@@ -8,8 +8,9 @@
 //! the depth's own slope, and normals by `max(0, n·n')^σn`.
 //!
 //! The colour is demodulated first: what reflects at the first surface (past mirrors and
-//! glass: `render_aovs` follows them) is divided by its albedo (and its own emission kept apart), filtered, and multiplied back, so textures
-//! stay sharp ([`crate::film::Aovs`] gives albedo, normal, distance and emission). Pixels
+//! glass: `render_aovs` follows them) is divided by its albedo (and its own emission kept
+//! apart), filtered, and multiplied back, so textures stay sharp ([`crate::film::Aovs`]
+//! gives albedo, normal, distance and emission). Pixels
 //! that see no surface or an emitter pass through. Surfaces darker than
 //! [`crate::aov::FILTER_ALBEDO_MIN`] (black glossy plastic, dark metal: their
 //! light is not proportional to their albedo) are filtered in radiance, among themselves

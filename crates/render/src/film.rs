@@ -49,11 +49,19 @@ impl Aovs {
     /// The window `[x, y, width, height]` of every layer (see [`Film::crop`]).
     #[must_use]
     pub fn crop(&self, window: [u32; 4]) -> Aovs {
-        let (w, h) = (self.albedo.width, self.albedo.height);
-        let depth = Film { width: w, height: h, pixels: self.depth.iter().map(|&d| Vec3::splat(d)).collect() };
-        let depth = depth.crop(window).pixels.iter().map(|p| p.x).collect();
+        let (_, depth) = crop_rows(&self.depth, self.albedo.width, self.albedo.height, window);
         Aovs { albedo: self.albedo.crop(window), normal: self.normal.crop(window), depth, emission: self.emission.crop(window) }
     }
+}
+
+/// The window `[x, y, width, height]` of a `width` × `height` row-major image `v`, clipped
+/// to it: its size and its values.
+fn crop_rows<T: Copy>(v: &[T], width: u32, height: u32, [x, y, cw, ch]: [u32; 4]) -> ((u32, u32), Vec<T>) {
+    let (x0, y0) = (x.min(width), y.min(height));
+    let (x1, y1) = (x.saturating_add(cw).min(width), y.saturating_add(ch).min(height));
+    let w = width as usize;
+    let row = |r: u32| v.get(r as usize * w + x0 as usize..r as usize * w + x1 as usize).unwrap_or(&[]);
+    ((x1 - x0, y1 - y0), (y0..y1).flat_map(|r| row(r).iter().copied()).collect())
 }
 
 /// A rendered image in linear RGB.
@@ -71,13 +79,9 @@ impl Film {
     /// The window `[x, y, width, height]` of the image (clipped to it: a window past the
     /// image's edge keeps what lies inside).
     #[must_use]
-    pub fn crop(&self, [x, y, cw, ch]: [u32; 4]) -> Film {
-        let (x0, y0) = (x.min(self.width), y.min(self.height));
-        let (x1, y1) = (x.saturating_add(cw).min(self.width), y.saturating_add(ch).min(self.height));
-        let w = self.width as usize;
-        let row = |r: u32| self.pixels.get(r as usize * w + x0 as usize..r as usize * w + x1 as usize).unwrap_or(&[]);
-        let pixels = (y0..y1).flat_map(|r| row(r).iter().copied()).collect();
-        Film { width: x1 - x0, height: y1 - y0, pixels }
+    pub fn crop(&self, window: [u32; 4]) -> Film {
+        let ((width, height), pixels) = crop_rows(&self.pixels, self.width, self.height, window);
+        Film { width, height, pixels }
     }
 
     /// A black film.

@@ -42,10 +42,11 @@
 //! Unbiased; at 512 × 384 it leaves 74% of the rays of a Conference frame and 49% of a
 //! kitchen frame, the frames take 1/1.15 and 1/1.27 of the time (medians of five
 //! interleaved pairs), and the VPL images' relMSE against path tracing is unchanged to the
-//! fourth digit on the Cornell box, Sponza and both kitchens (`bench vpl`, stop 62). (The terms on lanes,
-//! the pixels' BSDFs packed by model as the lane path tracer's, were measured and dropped:
-//! 1.17x the scalar terms' time on the kitchen, 0.93-0.97x with the microfacet lobes forced
-//! inline; 16 pixels per VPL do not fill the lanes enough to pay for the packing.)
+//! fourth digit on the Cornell box, Sponza and both kitchens (`bench vpl`, stop 62). (The
+//! terms on lanes, the pixels' BSDFs packed by model as the lane path tracer's, were
+//! measured and dropped: 1.17x the scalar terms' time on the kitchen, 0.93-0.97x with the
+//! microfacet lobes forced inline; 16 pixels per VPL do not fill the lanes enough to pay
+//! for the packing.)
 //!
 //! Random numbers: light paths from the [`Sampler`] (Owen-scrambled Sobol'), path `i` of
 //! frame `k` its index `i` in a sequence scrambled per frame, so each frame (sample index)
@@ -457,6 +458,12 @@ fn roulette_bar(terms: impl Iterator<Item = Vec3>) -> f32 {
         sum += luminance(c);
         n += 1;
     }
+    bar_of(sum, n)
+}
+
+/// The shadow roulette's bar for `n` terms whose luminances sum to `sum`.
+#[inline]
+fn bar_of(sum: f32, n: u32) -> f32 {
     if n == 0 {
         0.0
     } else {
@@ -583,13 +590,11 @@ pub fn trace_layers(w: &World, cam: &Camera, job: &Job, set: &VplSet, r: Region,
                                 all_terms.push(t);
                             }
                         }
-                        let bar: Vec<f32> = sums[..cm]
-                            .iter()
-                            .zip(&counts[..cm])
-                            .map(|(&t, &n)| if n == 0 { 0.0 } else { SHADOW_ROULETTE * t / n as f32 })
-                            .collect();
-                        let pixels: Vec<PixelSampler> =
-                            who[c..c + cm].iter().map(|&j| s.sampler().pixel(coords[j].0, coords[j].1)).collect();
+                        let (mut bar, mut pixels) = ([0f32; 64], [PixelSampler::default(); 64]);
+                        for (jj, &j) in who[c..c + cm].iter().enumerate() {
+                            bar[jj] = bar_of(sums[jj], counts[jj]);
+                            pixels[jj] = s.sampler().pixel(coords[j].0, coords[j].1);
+                        }
                         for (vi, chunk_terms) in all_terms.chunks(cm).enumerate() {
                             let mut rays = NO_RAYS;
                             let mut terms = [(0usize, Vec3::ZERO); 64];
