@@ -26,9 +26,17 @@ import numpy as np  # noqa: E402
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, "..", ".."))
 OUT = os.path.join(ROOT, "crates", "render", "tests", "data", "mitsuba")
-SCENES = ["cornell_box", "materials", "envmap", "bunny", "sponza", "lamps", "crop_window"]
+SCENES = ["cornell_box", "materials", "envmap", "bunny", "sponza", "lamps", "crop_window", "serialized"]
 # Files a scene reads beside it.
-EXTRA = {"envmap": ["sky.exr"]}
+EXTRA = {
+    "envmap": ["sky.exr"],
+    "serialized": [
+        "matpreview_plane_interior.serialized",
+        "rectangle_normals_uv.serialized",
+        "rectangle_uv.serialized",
+        "rectangle_normals.serialized",
+    ],
+}
 
 
 def rel_mse(x, ref):

@@ -38,6 +38,7 @@ pub const TARGETS: &[(&str, Harness)] = &[
     ("ws", websocket),
     ("http", http),
     ("xml", mitsuba),
+    ("serialized", serialized),
     ("cluster", cluster),
 ];
 
@@ -94,6 +95,18 @@ pub fn mitsuba(data: &[u8]) {
     let Ok(text) = std::str::from_utf8(data) else { return };
     if let Ok(scene) = lucent_scene::parse_mitsuba(Path::new("fuzz.xml"), Path::new(NOWHERE), text) {
         build_all(&scene);
+    }
+}
+
+/// Mitsuba's `.serialized` meshes, in memory: the first and the second mesh of the file,
+/// then built.
+pub fn serialized(data: &[u8]) {
+    for index in 0..2 {
+        if let Ok(m) = lucent_scene::parse_serialized(data, index) {
+            if let Ok(bvh) = lucent_accel::MeshBvh::build(&m.positions, &m.indices, lucent_accel::MeshOptions::default()) {
+                let _ = bvh.intersect(&lucent_accel::Ray::new(lucent_accel::glam::Vec3::splat(-1.0), lucent_accel::glam::Vec3::ONE));
+            }
+        }
     }
 }
 
@@ -293,6 +306,7 @@ pub fn target_for(path: &Path) -> Option<&'static str> {
         "rdr" | "asm" | "s" => "asm",
         "mem" => "mem",
         "xml" => "xml",
+        "serialized" => "serialized",
         _ => return None,
     })
 }

@@ -81,7 +81,7 @@ fn every_shared_file_goes_through_its_target() {
         }
     }
     eprintln!("shared files per target: {per:?}");
-    for t in ["obj", "mtl", "ply", "gltf", "glb", "image", "asm", "mem", "xml"] {
+    for t in ["obj", "mtl", "ply", "gltf", "glb", "image", "asm", "mem", "xml", "serialized"] {
         assert!(per.get(t).is_some_and(|&n| n > 0), "no shared file for {t}: {per:?}");
     }
 }

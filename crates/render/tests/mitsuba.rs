@@ -138,3 +138,11 @@ fn crop_window() {
 fn lamps_room() {
     converges_to_mitsuba("lamps");
 }
+
+/// Mitsuba's `.serialized` meshes, files Mitsuba wrote (format versions 3 and 4; meshes
+/// picked by `shape_index`, with and without normals and texture coordinates, face
+/// normals), textured by checkerboards (so a flipped texture coordinate shows).
+#[test]
+fn serialized_meshes() {
+    converges_to_mitsuba("serialized");
+}

@@ -27,6 +27,7 @@ pub use camera::CameraDesc;
 pub use demo::{demo_scene, studio_scene, torus};
 pub use error::ImportError;
 pub use gltf::{load_gltf, load_gltf_with, parse_gltf, parse_gltf_with};
+pub use mitsuba::serialized::{parse_serialized, serialized_count, SerializedMesh};
 pub use mitsuba::{load_hdr, load_mitsuba, load_mitsuba_with, parse_mitsuba, parse_mitsuba_with};
 pub use model::*;
 pub use obj::{load_obj, parse_obj, parse_obj_with};

@@ -232,6 +232,30 @@ pub fn spectrum_to_rgb(wavelengths: &[f32], values: &[f32], usage: SpectrumUse) 
 /// [`spectrum_to_rgb`]'s (that gives 1.204884, 0.948229, 0.909267).
 pub const EQUAL_ENERGY_EMISSION: Vec3 = Vec3::new(1.204_794, 0.948_291, 0.908_916);
 
+/// Planck's law: the spectral radiance of a black body at `temperature` kelvin, in
+/// W m⁻² sr⁻¹ nm⁻¹, at 360, 361, ..., 830 nm (Mitsuba's `blackbody` spectrum, with its
+/// constants). `None` for a temperature that is not positive and finite.
+#[must_use]
+pub fn blackbody(temperature: f32) -> Option<(Vec<f32>, Vec<f32>)> {
+    if !(temperature > 0.0 && temperature.is_finite()) {
+        return None;
+    }
+    const C: f64 = 2.997_924_58e8; // speed of light, m/s
+    const H: f64 = 6.626_070_04e-34; // Planck's constant, J s
+    const K: f64 = 1.380_648_52e-23; // Boltzmann's constant, J/K
+    let t = f64::from(temperature);
+    let w: Vec<f32> = (LAMBDA_MIN as u32..=LAMBDA_MAX as u32).map(|l| l as f32).collect();
+    let v = w
+        .iter()
+        .map(|&l| {
+            let l = f64::from(l) * 1e-9;
+            // (Per metre of wavelength, then per nanometre.)
+            (2.0 * H * C * C / (l.powi(5) * ((H * C / (l * K * t)).exp_m1())) * 1e-9) as f32
+        })
+        .collect();
+    Some((w, v))
+}
+
 /// Parses `400:0.34, 404:0.35, ...` into wavelengths and values; `Err` names the bad
 /// pair.
 pub fn parse_pairs(s: &str) -> Result<(Vec<f32>, Vec<f32>), String> {

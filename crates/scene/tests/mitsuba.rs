@@ -222,6 +222,43 @@ fn spectra_read_as_mitsuba_reads_them() {
     assert!(e.contains("t.xml:1:") && e.contains("wavelengths must increase"), "{e}");
 }
 
+/// Spectrum plugins: a black body's colour as Mitsuba 3.9.1's spectral variant renders an
+/// emitter of it (`llvm_ad_spectral`, 65,536 samples a pixel over 16 pixels, so about
+/// 0.5% noise; its RGB variants refuse black bodies); `d65` and `uniform` as its RGB
+/// variants read them (white, times `scale` or `value`); `regular` and `irregular` as the
+/// same samples written as pairs.
+#[test]
+fn spectrum_plugins() {
+    let emitted = |spectrum: &str| -> Result<Vec3, String> {
+        let xml = format!(r#"<scene version="3.0.0"><shape type="sphere"><emitter type="area">{spectrum}</emitter></shape></scene>"#);
+        let s = parse(&xml).map_err(|e| e.to_string())?;
+        Ok(s.materials.last().expect("material").emission)
+    };
+    for (t, mitsuba) in [
+        (3000, [733.78, 349.93, 112.82]),
+        (5000, [15277.1, 12095.0, 9603.3]),
+        (6504, [44055.9, 41552.8, 43769.2]),
+        (10000, [158561.5, 180894.3, 260343.1]),
+    ] {
+        let c = emitted(&format!(r#"<spectrum type="blackbody" name="radiance"><float name="temperature" value="{t}"/></spectrum>"#))
+            .expect("blackbody");
+        let m = Vec3::from(mitsuba);
+        assert!(((c - m) / m).abs().max_element() < 0.01, "{t} K: {c} against Mitsuba's {m}");
+    }
+    let e = emitted(r#"<spectrum type="blackbody" name="radiance"/>"#).expect_err("no temperature");
+    assert!(e.contains("t.xml:1:") && e.contains("temperature"), "{e}");
+    let d65 = emitted(r#"<spectrum type="d65" name="radiance"><float name="scale" value="3"/></spectrum>"#).expect("d65");
+    assert_eq!(d65, Vec3::splat(3.0));
+    let uniform = emitted(r#"<spectrum type="uniform" name="radiance"><float name="value" value="5"/></spectrum>"#).expect("uniform");
+    assert_eq!(uniform, Vec3::splat(5.0), "Mitsuba's RGB render of this emitter: 5, 5, 5");
+    let pairs = emitted(r#"<spectrum name="radiance" value="400:10, 500:15, 600:20"/>"#).expect("pairs");
+    let irregular = emitted(r#"<spectrum type="irregular" name="radiance"><string name="wavelengths" value="400, 500, 600"/><string name="values" value="10, 15, 20"/></spectrum>"#).expect("irregular");
+    let regular = emitted(r#"<spectrum type="regular" name="radiance"><float name="wavelength_min" value="400"/><float name="wavelength_max" value="600"/><string name="values" value="10, 15, 20"/></spectrum>"#).expect("regular");
+    assert_eq!((irregular, regular), (pairs, pairs));
+    let e = emitted(r#"<spectrum type="rainbow" name="radiance"/>"#).expect_err("unknown type");
+    assert!(e.contains("t.xml:1:") && e.contains("'rainbow'"), "{e}");
+}
+
 /// `<include>` (nested, relative to the including file, errors naming the included file
 /// and line), `<path>` (a folder searched for files) and `<alias>`.
 #[test]
@@ -293,4 +330,44 @@ fn includes_of_devices_are_refused() {
         .expect_err("device")
         .to_string();
     assert!(e.contains("not a regular file"), "{e}");
+}
+
+/// `.serialized` meshes Mitsuba wrote (tools/mitsuba/scenes: its material-preview meshes in
+/// format version 3, rectangles of its test data in version 4), picked by `shape_index`;
+/// an index past the file's meshes is an error at the shape's line.
+#[test]
+fn serialized_meshes_mitsuba_wrote() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/mitsuba/scenes");
+    let xml = |file: &str, index: u32, extra: &str| {
+        format!(
+            r#"<scene version="3.0.0">
+    <shape type="serialized"><string name="filename" value="{file}"/><integer name="shape_index" value="{index}"/>{extra}</shape>
+</scene>"#
+        )
+    };
+    let load = |file: &str, index: u32, extra: &str| parse_mitsuba(&dir.join("t.xml"), &dir, &xml(file, index, extra));
+    let plane = load("matpreview_plane_interior.serialized", 0, "").expect("plane");
+    let m = &plane.meshes[0];
+    assert_eq!((m.positions.len(), m.indices.len()), (289, 512));
+    assert_eq!((m.normals.values.len(), m.uvs.values.len()), (289, 289), "the plane has normals and texture coordinates");
+    let inner = load("matpreview_plane_interior.serialized", 1, "").expect("interior").meshes.remove(0);
+    assert!(inner.indices.len() > 1000 && inner.positions.len() != 289, "mesh 1 is another mesh");
+    for (file, normals, uvs) in [
+        ("rectangle_normals_uv.serialized", true, true),
+        ("rectangle_uv.serialized", false, true),
+        ("rectangle_normals.serialized", true, false),
+    ] {
+        let m = load(file, 0, "").expect(file).meshes.remove(0);
+        assert_eq!((m.positions.len(), m.indices.len()), (4, 2), "{file}");
+        // (A mesh without normals gets smooth ones, as in Mitsuba.)
+        assert_eq!(m.normals.values.len(), 4, "{file}: normals {normals}");
+        assert_eq!(m.uvs.values.len(), if uvs { 4 } else { 0 }, "{file}");
+        assert!(m.positions.iter().all(|p| p.y == 0.0), "{file}: the rectangle lies in y = 0");
+    }
+    let flat = load("rectangle_normals.serialized", 0, r#"<boolean name="face_normals" value="true"/>"#).expect("face normals");
+    assert!(flat.meshes[0].normals.values.is_empty(), "face_normals drops the file's normals");
+    let e = load("matpreview_plane_interior.serialized", 2, "").expect_err("index past the meshes").to_string();
+    assert!(e.contains("t.xml:2:5") && e.contains("holds 2 meshes"), "{e}");
+    let e = load("serialized.xml", 0, "").expect_err("not a .serialized file").to_string();
+    assert!(e.contains("t.xml:2:5") && e.contains("not the .serialized format"), "{e}");
 }

@@ -3,7 +3,8 @@
 //! defaults):
 //!
 //! - shapes `obj`, `ply` (through lucent's readers; the file's own materials give way to
-//!   the shape's BSDF, as in Mitsuba), `rectangle`, `cube` (as the meshes Mitsuba makes),
+//!   the shape's BSDF, as in Mitsuba), `serialized` (`shape_index`; [`serialized`]),
+//!   `rectangle`, `cube` (as the meshes Mitsuba makes),
 //!   `sphere` (`center`, `radius`), `disk`, `cylinder` (`p0`, `p1`, `radius`, open),
 //!   `shapegroup` and `instance`; `to_world` of `translate`, `rotate`, `scale`, `matrix`,
 //!   `lookat`; `flip_normals`, `face_normals`;
@@ -25,6 +26,7 @@
 //! lucent's box filter).
 
 mod files;
+pub mod serialized;
 
 use crate::bsdf::{named_conductor, named_ior, Alpha, Bsdf, ColorTex, Distribution, FloatTex, Rough, Sides};
 use crate::camera::CameraDesc;
@@ -158,8 +160,9 @@ struct Cx<'a, 'd> {
     warned: HashSet<String>,
     /// Shape groups: their geometry and object-to-group transforms.
     groups: HashMap<String, Vec<(Geom, Affine3A)>>,
-    /// Meshes read from files: (file, material, face normals, flipped) to mesh index.
-    meshes: HashMap<(PathBuf, u32, bool, bool), u32>,
+    /// Meshes read from files: (file, mesh in the file, material, face normals, flipped)
+    /// to mesh index.
+    meshes: HashMap<(PathBuf, u32, u32, bool, bool), u32>,
     hints: RenderHints,
     shapes: usize,
 }
@@ -410,6 +413,7 @@ impl<'a, 'd> Cx<'a, 'd> {
                     SpectrumUse::Reflectance
                 };
                 let (w, v) = match (p.attribute("filename"), p.attribute("value")) {
+                    _ if p.attribute("type").is_some() => return self.spectrum_plugin(p, usage),
                     (Some(_), _) => {
                         let file = self.attr(p, "filename")?;
                         let path = self.find(p, &file);
@@ -433,6 +437,42 @@ impl<'a, 'd> Cx<'a, 'd> {
             }
             other => Err(self.err(p, format!("expected <rgb>, <spectrum> or <float>, found <{other}>"))),
         }
+    }
+
+    /// A `<spectrum type=...>` plugin: `uniform` and `d65` (white in Mitsuba's RGB
+    /// variants, times `scale`), `blackbody` (`temperature`), `regular` and `irregular`
+    /// (sampled spectra, converted as `<spectrum value>` pairs are). Mitsuba's RGB variants
+    /// refuse the last three; lucent converts them as its spectral variants see them.
+    fn spectrum_plugin(&mut self, p: Node<'a, 'd>, usage: SpectrumUse) -> R<Vec3> {
+        let kind = self.attr(p, "type")?;
+        let list = |cx: &Self, name: &str| -> R<Vec<f32>> {
+            let v = cx.string(p, name)?.ok_or_else(|| cx.err(p, format!("a '{kind}' spectrum needs '{name}'")))?;
+            cx.numbers(p, &v)
+        };
+        let (w, v) = match kind.as_str() {
+            "uniform" => return Ok(Vec3::splat(self.float(p, "value", 1.0)?)),
+            "d65" => return Ok(Vec3::splat(self.float(p, "scale", 1.0)?)),
+            "blackbody" => {
+                let t = self.float(p, "temperature", f32::NAN)?;
+                crate::spectrum::blackbody(t)
+                    .ok_or_else(|| self.err(p, format!("a blackbody needs a positive 'temperature' in kelvin (got {t})")))?
+            }
+            "irregular" => (list(self, "wavelengths")?, list(self, "values")?),
+            "regular" => {
+                let (lo, hi) = (self.float(p, "wavelength_min", f32::NAN)?, self.float(p, "wavelength_max", f32::NAN)?);
+                let v = list(self, "values")?;
+                if !(lo < hi) || v.len() < 2 {
+                    return Err(self.err(p, "a 'regular' spectrum needs wavelength_min < wavelength_max and two or more values"));
+                }
+                let n = (v.len() - 1) as f32;
+                ((0..v.len()).map(|i| lo + (hi - lo) * i as f32 / n).collect(), v)
+            }
+            other => return Err(self.err(p, format!("spectrum type '{other}': expected uniform, d65, blackbody, regular or irregular"))),
+        };
+        let scale = if kind == "blackbody" { 1.0 } else { self.float(p, "scale", 1.0)? };
+        crate::spectrum::spectrum_to_rgb(&w, &v, usage)
+            .map(|c| c * scale)
+            .ok_or_else(|| self.err(p, "a spectrum needs as many values as wavelengths, the wavelengths increasing"))
     }
 
     fn color(&mut self, plugin: Node<'a, 'd>, name: &str, default: Vec3) -> R<Vec3> {
@@ -923,21 +963,37 @@ impl<'a, 'd> Cx<'a, 'd> {
         let m = self.to_world(n)?;
         let flip = self.boolean(n, "flip_normals", false)?;
         let geom = match kind.as_str() {
-            "obj" | "ply" => {
+            "obj" | "ply" | "serialized" => {
                 let file = self.string(n, "filename")?.ok_or_else(|| self.err(n, format!("a '{kind}' shape needs a 'filename'")))?;
                 let path = self.find(n, &file);
                 self.regular_file(n, &path)?;
-                let face_normals = self.boolean(n, "face_normals", false)?;
-                let key = (path.clone(), mat, face_normals, flip);
+                let mut face_normals = self.boolean(n, "face_normals", false)?;
+                let index = match kind.as_str() {
+                    "serialized" => u32::try_from(self.integer(n, "shape_index", 0)?)
+                        .map_err(|_| self.err(n, "shape_index must be 0 or more (and below 2^32)"))?,
+                    _ => 0,
+                };
+                let key = (path.clone(), index, mat, face_normals, flip);
                 let mesh = match self.meshes.get(&key) {
                     Some(&i) => i,
                     None => {
-                        let loaded = match kind.as_str() {
-                            "obj" => crate::obj::load_obj(&path),
-                            _ => crate::ply::load_ply(&path),
-                        }
-                        .map_err(|e| self.err(n, format!("{}: {e}", path.display())))?;
-                        let mut mesh = merge_meshes(&loaded, mat);
+                        let mut mesh = match kind.as_str() {
+                            "serialized" => {
+                                let bytes = std::fs::read(&path).map_err(|e| self.err(n, format!("{}: {e}", path.display())))?;
+                                let m = serialized::parse_serialized(&bytes, index)
+                                    .map_err(|e| self.err(n, format!("{}: {e}", path.display())))?;
+                                face_normals |= m.face_normals;
+                                serialized_mesh(m, mat)
+                            }
+                            _ => {
+                                let loaded = match kind.as_str() {
+                                    "obj" => crate::obj::load_obj(&path),
+                                    _ => crate::ply::load_ply(&path),
+                                }
+                                .map_err(|e| self.err(n, format!("{}: {e}", path.display())))?;
+                                merge_meshes(&loaded, mat)
+                            }
+                        };
                         if face_normals {
                             mesh.normals = Default::default();
                         } else if mesh.normals.values.is_empty() {
@@ -1102,6 +1158,19 @@ fn merge_meshes(s: &Scene, mat: u32) -> Mesh {
         out.material.extend(std::iter::repeat_n(mat, n));
     }
     out
+}
+
+/// A `.serialized` mesh as lucent's, every triangle of material `mat`.
+fn serialized_mesh(m: serialized::SerializedMesh, mat: u32) -> Mesh {
+    Mesh {
+        name: m.name,
+        material: vec![mat; m.indices.len()],
+        positions: m.positions,
+        normals: crate::model::Attr { values: m.normals, indices: None },
+        uvs: crate::model::Attr { values: m.uvs, indices: None },
+        indices: m.indices,
+        ..Mesh::default()
+    }
 }
 
 /// Smooth vertex normals, each the sum of its triangles' unit normals weighted by the
