@@ -111,9 +111,11 @@ pub struct RenderArgs {
     #[arg(long)]
     pub single_rays: bool,
     /// The film's reconstruction filter: `box` (each pixel the mean of the samples in its
-    /// square), `tent[:RADIUS]` (radius 1 pixel unless given) or `gaussian[:STDDEV]`
-    /// (σ 0.5 pixel, out to 4σ: Mitsuba's default). Default: the scene file's (Mitsuba
-    /// XML's film), else box.
+    /// square), `tent[:RADIUS]` (radius 1 pixel unless given), `gaussian[:STDDEV]`
+    /// (σ 0.5 pixel, out to 4σ: Mitsuba's default), or the sharper filters with negative
+    /// lobes, `mitchell` (B = C = 1/3), `catmullrom` and `lanczos[:LOBES]` (3 unless given),
+    /// whose samples carry signed weights (the VPL integrator takes box for these).
+    /// Default: the scene file's (Mitsuba XML's film), else box.
     #[arg(long, value_parser = parse_filter)]
     pub filter: Option<lucent_scene::PixelFilter>,
     /// BVH quality: `high` (binned SAH, then insertion-based optimization: the
@@ -228,7 +230,8 @@ pub fn choose_camera(scene: &Scene, camera: Option<&[f32]>, ortho: bool) -> Resu
     })
 }
 
-/// `--filter`'s value: `box`, `tent[:RADIUS]` or `gaussian[:STDDEV]`.
+/// `--filter`'s value: `box`, `tent[:RADIUS]`, `gaussian[:STDDEV]`, `mitchell`,
+/// `catmullrom` or `lanczos[:LOBES]`.
 fn parse_filter(s: &str) -> Result<lucent_scene::PixelFilter, String> {
     let (name, size) = match s.split_once(':') {
         Some((n, v)) => (n, Some(v.parse::<f32>().map_err(|_| format!("'{v}' is not a number"))?)),
@@ -241,7 +244,13 @@ fn parse_filter(s: &str) -> Result<lucent_scene::PixelFilter, String> {
         "box" if size.is_none() => Ok(lucent_scene::PixelFilter::Box),
         "tent" => Ok(lucent_scene::PixelFilter::Tent { radius: size.unwrap_or(1.0) }),
         "gaussian" => Ok(lucent_scene::PixelFilter::Gaussian { stddev: size.unwrap_or(0.5) }),
-        _ => Err(format!("'{s}' is not box, tent[:RADIUS] or gaussian[:STDDEV]")),
+        "mitchell" if size.is_none() => Ok(lucent_scene::PixelFilter::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }),
+        "catmullrom" if size.is_none() => Ok(lucent_scene::PixelFilter::Mitchell { b: 0.0, c: 0.5 }),
+        "lanczos" => match size.unwrap_or(3.0) {
+            l if l.fract() == 0.0 && l <= 16.0 => Ok(lucent_scene::PixelFilter::Lanczos { lobes: l }),
+            l => Err(format!("lanczos needs a whole number of lobes, 1 to 16 (got {l})")),
+        },
+        _ => Err(format!("'{s}' is not box, tent[:RADIUS], gaussian[:STDDEV], mitchell, catmullrom or lanczos[:LOBES]")),
     }
 }
 

@@ -235,6 +235,15 @@ fn put_settings(o: &mut Out, s: &RenderSettings) {
             o.u8(2);
             o.f32(stddev);
         }
+        PixelFilter::Mitchell { b, c } => {
+            o.u8(3);
+            o.f32(b);
+            o.f32(c);
+        }
+        PixelFilter::Lanczos { lobes } => {
+            o.u8(4);
+            o.f32(lobes);
+        }
     }
 }
 
@@ -299,6 +308,22 @@ fn get_settings(i: &mut In) -> Result<RenderSettings, DecodeError> {
             } else {
                 PixelFilter::Gaussian { stddev: r }
             }
+        }
+        3 => {
+            let at = i.at;
+            let (b, c) = (i.f32("the filter's B")?, i.f32("the filter's C")?);
+            if !(b.is_finite() && c.is_finite() && b.abs() < 16.0 && c.abs() < 16.0) {
+                return Err(invalid(at, format!("Mitchell filter B {b}, C {c}: expected finite values below 16")));
+            }
+            PixelFilter::Mitchell { b, c }
+        }
+        4 => {
+            let at = i.at;
+            let lobes = i.f32("the filter's lobes")?;
+            if !(1.0..=16.0).contains(&lobes) || lobes.fract() != 0.0 {
+                return Err(invalid(at, format!("Lanczos filter of {lobes} lobes: expected 1 to 16")));
+            }
+            PixelFilter::Lanczos { lobes }
         }
         v => return Err(invalid(at, format!("filter {v} does not exist"))),
     };
@@ -462,7 +487,17 @@ mod tests {
             Integrator::Normals,
         ]
         .into_iter()
-        .zip([PixelFilter::Box, PixelFilter::Gaussian { stddev: 0.5 }, PixelFilter::Tent { radius: 1.5 }].into_iter().cycle())
+        .zip(
+            [
+                PixelFilter::Box,
+                PixelFilter::Gaussian { stddev: 0.5 },
+                PixelFilter::Tent { radius: 1.5 },
+                PixelFilter::Mitchell { b: 0.0, c: 0.5 },
+                PixelFilter::Lanczos { lobes: 3.0 },
+            ]
+            .into_iter()
+            .cycle(),
+        )
         .map(|(integrator, filter)| RenderSettings {
             spp: 9,
             integrator,

@@ -25,7 +25,8 @@ pub struct RenderSettings {
     pub integrator: Integrator,
     /// How they are traced.
     pub traversal: Traversal,
-    /// The film's reconstruction filter (box: each pixel the mean of samples in its square).
+    /// The film's reconstruction filter (box: each pixel the mean of samples in its square;
+    /// the others spread each sample over the pixels around it, as Mitsuba's film does).
     pub filter: lucent_scene::PixelFilter,
 }
 
@@ -62,7 +63,7 @@ pub fn render_pixel(w: &World, cam: &Camera, s: &RenderSettings, x: u32, y: u32)
         let (jx, jy) = cs.pixel(x, y, k);
         let r = cam.ray(x as f32 + jx, y as f32 + jy);
         let r = if cam.has_lens() { cam.through_lens(&r, cs.lens(x, y, k)) } else { r };
-        c += s.integrator.li(w, &r, (x, y), k);
+        c += s.integrator.li(w, &r, (x, y), k) * cs.weight(x, y, k);
     }
     c / spp as f32
 }

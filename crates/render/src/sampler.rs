@@ -99,7 +99,8 @@ pub fn jitter(x: u32, y: u32, s: u32) -> (f32, f32) {
 
 /// An offset from a pixel's centre (in pixels) distributed as `f` along one axis, from a
 /// uniform `u` in [0, 1): the tent's inverse CDF in closed form, the Gaussian's from a
-/// table of its cumulative integral (one table for σ = 1, scaled).
+/// table of its cumulative integral (one table for σ = 1, scaled), a filter with negative
+/// lobes as |f| (see [`signed_sample`] for the weight that goes with it).
 #[must_use]
 pub fn filter_offset(f: PixelFilter, u: f32) -> f32 {
     match f {
@@ -112,7 +113,75 @@ pub fn filter_offset(f: PixelFilter, u: f32) -> f32 {
             }
         }
         PixelFilter::Gaussian { stddev } => stddev * (8.0 * gaussian_table().sample(u).0 - 4.0),
+        PixelFilter::Mitchell { .. } | PixelFilter::Lanczos { .. } => signed_sample(f, u).0,
     }
+}
+
+/// A filter with negative lobes as a table: |f| over [−r, r] in bins (each weighted by
+/// its integral, Simpson's rule) to sample offsets from, and ∫f to normalise the weights.
+struct SignedTable {
+    dist: Distribution1D,
+    radius: f32,
+    integral: f32,
+}
+
+/// Bins of a signed filter's table.
+const SIGNED_BINS: usize = 4096;
+
+impl SignedTable {
+    fn new(f: PixelFilter) -> Self {
+        let r = f64::from(f.radius());
+        let h = 2.0 * r / SIGNED_BINS as f64;
+        let g = |x: f64| f64::from(f.eval(x as f32));
+        let mut integral = 0.0;
+        let bins: Vec<f32> = (0..SIGNED_BINS)
+            .map(|i| {
+                let (a, b) = (-r + i as f64 * h, -r + (i + 1) as f64 * h);
+                integral += h / 6.0 * (g(a) + 4.0 * g(0.5 * (a + b)) + g(b));
+                (h / 6.0 * (g(a).abs() + 4.0 * g(0.5 * (a + b)).abs() + g(b).abs())) as f32
+            })
+            .collect();
+        Self { dist: Distribution1D::new(&bins), radius: r as f32, integral: integral as f32 }
+    }
+}
+
+/// The table of signed filter `f` (built once per filter and kept: a process sees few).
+fn signed_table(f: PixelFilter) -> &'static SignedTable {
+    thread_local! {
+        static LAST: std::cell::Cell<Option<(PixelFilter, &'static SignedTable)>> = const { std::cell::Cell::new(None) };
+    }
+    if let Some((g, t)) = LAST.with(std::cell::Cell::get) {
+        if g == f {
+            return t;
+        }
+    }
+    static ALL: std::sync::Mutex<Vec<(PixelFilter, &'static SignedTable)>> = std::sync::Mutex::new(Vec::new());
+    let mut all = ALL.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let t = match all.iter().find(|(g, _)| *g == f) {
+        Some(&(_, t)) => t,
+        None => {
+            let t: &'static SignedTable = Box::leak(Box::new(SignedTable::new(f)));
+            all.push((f, t));
+            t
+        }
+    };
+    LAST.with(|c| c.set(Some((f, t))));
+    t
+}
+
+/// For a filter with negative lobes: an offset from the pixel's centre distributed as |f|
+/// for `u`, and the sample's weight along this axis, f / (p ∫f) (about ±∫|f| / ∫f): the
+/// pixel is the mean of its samples' weighted values, an unbiased estimate of the
+/// filtered image (filter importance sampling with signed weights, as pbrt-v4's
+/// `FilterSampler`).
+#[must_use]
+pub fn signed_sample(f: PixelFilter, u: f32) -> (f32, f32) {
+    let t = signed_table(f);
+    let (s, pdf, _) = t.dist.sample(u);
+    let x = (2.0 * s - 1.0) * t.radius;
+    let p = pdf / (2.0 * t.radius);
+    let w = if p > 0.0 && t.integral != 0.0 { f.eval(x) / (p * t.integral) } else { 0.0 };
+    (x, w)
 }
 
 /// Bins of the Gaussian's tabulated integral over [−4, 4].
@@ -152,10 +221,16 @@ pub struct CameraSamples {
     pub sobol: Option<Sampler>,
     /// Every sample at its pixel's centre.
     pub centred: bool,
-    /// The film's reconstruction filter: samples are placed around the pixel's centre in
-    /// proportion to it (filter importance sampling, as pbrt-v4's `FilterSampler` does
-    /// for positive filters: every sample then weighs the same, so a pixel is still the
-    /// mean of its own samples and regions still merge bit for bit).
+    /// The film's reconstruction filter, for the renderers that keep each pixel to its
+    /// own samples ([`crate::render_pixel`], VPL frames): samples are placed around the
+    /// pixel's centre in proportion to it (filter importance sampling, as pbrt-v4's
+    /// `FilterSampler`: for a positive filter every sample then weighs the same, so a
+    /// pixel is still the mean of its own samples; a filter with negative lobes places them
+    /// by |f| and gives each a signed weight, [`CameraSamples::weight`], a pure function
+    /// of pixel and sample). The tile renderer splats instead (see
+    /// `crate::tiles::render_blocks`): its pixels then average their neighbours' samples
+    /// too, about a third of the variance for Mitsuba's Gaussian (measured: relMSE 4.3×
+    /// lower on the Cornell box at 64 samples a pixel).
     pub filter: PixelFilter,
 }
 
@@ -173,6 +248,22 @@ impl CameraSamples {
             PixelFilter::Box => (u, v),
             f => (0.5 + filter_offset(f, u), 0.5 + filter_offset(f, v)),
         }
+    }
+
+    /// The weight of sample `k` of pixel (x, y) in its pixel's mean: one, but for a
+    /// filter with negative lobes (see [`signed_sample`]), whose samples carry signed
+    /// weights.
+    #[inline]
+    #[must_use]
+    pub fn weight(&self, x: u32, y: u32, k: u32) -> f32 {
+        if !self.filter.signed() || self.centred {
+            return 1.0;
+        }
+        let (u, v) = match self.sobol {
+            Some(s) => s.get2(x, y, k, 0),
+            None => jitter(x, y, k),
+        };
+        signed_sample(self.filter, u).1 * signed_sample(self.filter, v).1
     }
 
     /// Where on the lens sample `k` of pixel (x, y) passes, in [0, 1)².

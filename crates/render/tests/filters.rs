@@ -12,11 +12,16 @@ const RHO: f32 = 0.15;
 /// A 9 × 9 orthographic view, one world unit per pixel, of an emitting sphere of radius
 /// `RHO` at the centre of pixel (4, 4), rendered with `filter`.
 fn footprint(filter: PixelFilter, spp: u32) -> Vec<f32> {
+    footprint_at(filter, spp, 0.0)
+}
+
+/// [`footprint`] with the disk moved `dx` pixels to the right.
+fn footprint_at(filter: PixelFilter, spp: u32, dx: f32) -> Vec<f32> {
     let mut s = Scene::default();
     s.materials.push(Material { emission: Vec3::ONE, diffuse: Vec3::ZERO, ..Material::default() });
     s.instances.push(Instance {
         geom: Geom::Shape { kind: ShapeKind::Sphere, material: 0 },
-        world_from_object: Affine3A::from_scale_rotation_translation(Vec3::splat(RHO), glam::Quat::IDENTITY, Vec3::new(0.0, 0.0, -5.0)),
+        world_from_object: Affine3A::from_scale_rotation_translation(Vec3::splat(RHO), glam::Quat::IDENTITY, Vec3::new(dx, 0.0, -5.0)),
     });
     let desc = CameraDesc { eye: Vec3::ZERO, look_at: -Vec3::Z, up: Vec3::Y, vfov_deg: 45.0, ortho_height: Some(9.0) };
     let cam = Camera::new(&desc, 9, 9);
@@ -71,6 +76,47 @@ fn the_gaussian_and_tent_profiles_show_around_a_point() {
     let img = footprint(PixelFilter::Box, 1024);
     assert!(img[4 * 9 + 4] > 0.0);
     assert!(img.iter().enumerate().all(|(k, &v)| k == 4 * 9 + 4 || v == 0.0));
+}
+
+/// Filters with negative lobes (Mitchell-Netravali, Catmull-Rom, Lanczos): with the disk
+/// half a pixel right of pixel (4, 4)'s centre, pixel (4 + i, 4 + j) holds the filter at
+/// offsets 0.5 − i and −j, negative lobes included (pixel (6, 4) is negative for all
+/// three), each sample carrying its signed weight.
+#[test]
+fn negative_lobes_show_around_a_point() {
+    let spp = 1 << 16;
+    for f in [
+        PixelFilter::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 },
+        PixelFilter::Mitchell { b: 0.0, c: 0.5 },
+        PixelFilter::Lanczos { lobes: 3.0 },
+    ] {
+        let img = footprint_at(f, spp, 0.5);
+        let expected = |i: f32, j: f32| {
+            let n = 200;
+            let mut sum = 0.0f64;
+            for a in 0..n {
+                for b in 0..n {
+                    let (x, y) = ((a as f32 + 0.5) / n as f32 * 2.0 - 1.0, (b as f32 + 0.5) / n as f32 * 2.0 - 1.0);
+                    if x * x + y * y <= 1.0 {
+                        sum += f64::from(f.eval(0.5 + x * RHO - i) * f.eval(y * RHO - j));
+                    }
+                }
+            }
+            sum
+        };
+        let c = img[4 * 9 + 4];
+        let e0 = expected(0.0, 0.0);
+        for (i, j) in [(1, 0), (2, 0), (-1, 0), (0, 1), (1, 1), (2, 1)] {
+            let got = img[(4 + j) as usize * 9 + (4 + i) as usize] / c;
+            let want = (expected(i as f32, j as f32) / e0) as f32;
+            assert!((got - want).abs() < 0.1 * want.abs() + 0.004, "{f:?} ({i}, {j}): {got} against {want}");
+        }
+        assert!(img[4 * 9 + 6] < 0.0, "{f:?}: the negative lobe at pixel (6, 4): {}", img[4 * 9 + 6]);
+        // The image's total is the disk's (the weights are normalised by ∫f).
+        let total: f32 = img.iter().sum();
+        let disk = std::f32::consts::PI * RHO * RHO;
+        assert!((total / disk - 1.0).abs() < 0.03, "{f:?}: total {total} against the disk's {disk}");
+    }
 }
 
 /// The offsets follow the filters' distributions (their CDFs at a few points, from a

@@ -76,7 +76,12 @@ fn converges_to_mitsuba(dir: &str) {
             seed,
             ..PathSettings::default()
         };
-        let st = RenderSettings { spp, integrator: Integrator::Path(path), ..RenderSettings::new(hints.width, hints.height) };
+        let st = RenderSettings {
+            spp,
+            integrator: Integrator::Path(path),
+            filter: hints.filter,
+            ..RenderSettings::new(hints.width, hints.height)
+        };
         render(&world, &cam, &st, &|_| {}).0.crop(window)
     };
     let mut at64: Vec<f64> = (1..=5).map(|seed| render_at(64, seed).rel_mse(&reference).expect("same size")).collect();
@@ -145,4 +150,18 @@ fn lamps_room() {
 #[test]
 fn serialized_meshes() {
     converges_to_mitsuba("serialized");
+}
+
+/// Reconstruction filters with negative lobes (the Cornell box through Mitsuba's `lanczos`
+/// and `mitchell`): lucent's signed sample weights against Mitsuba's splatting.
+#[test]
+fn filters_with_negative_lobes() {
+    converges_to_mitsuba("filter_lanczos");
+    converges_to_mitsuba("filter_mitchell");
+}
+
+/// Mitsuba's default reconstruction filter, the Gaussian of σ 0.5 (the Cornell box).
+#[test]
+fn gaussian_filter() {
+    converges_to_mitsuba("filter_gaussian");
 }

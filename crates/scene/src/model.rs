@@ -295,6 +295,21 @@ pub enum PixelFilter {
         /// Standard deviation σ in pixels.
         stddev: f32,
     },
+    /// Mitchell and Netravali's cubic ("Reconstruction filters in computer graphics",
+    /// 1988) of radius 2 (Mitsuba's `mitchell`, B = C = 1/3; its `catmullrom` is B = 0,
+    /// C = 1/2). Negative lobes: samples carry signed weights.
+    Mitchell {
+        /// B.
+        b: f32,
+        /// C.
+        c: f32,
+    },
+    /// The Lanczos-windowed sinc, `sinc(x) sinc(x/lobes)` out to `lobes` pixels (Mitsuba's
+    /// `lanczos`, 3 lobes). Negative lobes: samples carry signed weights.
+    Lanczos {
+        /// Lobes (the radius in pixels).
+        lobes: f32,
+    },
 }
 
 impl PixelFilter {
@@ -305,7 +320,45 @@ impl PixelFilter {
             Self::Box => 0.5,
             Self::Tent { radius } => radius,
             Self::Gaussian { stddev } => 4.0 * stddev,
+            Self::Mitchell { .. } => 2.0,
+            Self::Lanczos { lobes } => lobes,
         }
+    }
+
+    /// The filter's weight at `x` pixels from the centre (along one axis).
+    #[must_use]
+    pub fn eval(self, x: f32) -> f32 {
+        let x = x.abs();
+        if x > self.radius() {
+            return 0.0;
+        }
+        match self {
+            Self::Box => 1.0,
+            Self::Tent { radius } => 1.0 - x / radius,
+            Self::Gaussian { stddev } => ((-0.5 * x * x / (stddev * stddev)).exp() - (-8.0f32).exp()).max(0.0),
+            Self::Mitchell { b, c } => {
+                let (x2, x3) = (x * x, x * x * x);
+                let v = if x < 1.0 {
+                    (12.0 - 9.0 * b - 6.0 * c) * x3 + (-18.0 + 12.0 * b + 6.0 * c) * x2 + (6.0 - 2.0 * b)
+                } else {
+                    (-b - 6.0 * c) * x3 + (6.0 * b + 30.0 * c) * x2 + (-12.0 * b - 48.0 * c) * x + (8.0 * b + 24.0 * c)
+                };
+                v / 6.0
+            }
+            Self::Lanczos { lobes } => {
+                if x < 1e-6 {
+                    return 1.0;
+                }
+                let (a, b) = (std::f32::consts::PI * x, std::f32::consts::PI * x / lobes);
+                a.sin() * b.sin() / (a * b)
+            }
+        }
+    }
+
+    /// Whether the filter has negative lobes (its samples carry signed weights).
+    #[must_use]
+    pub fn signed(self) -> bool {
+        matches!(self, Self::Mitchell { .. } | Self::Lanczos { .. })
     }
 }
 

@@ -371,3 +371,31 @@ fn serialized_meshes_mitsuba_wrote() {
     let e = load("serialized.xml", 0, "").expect_err("not a .serialized file").to_string();
     assert!(e.contains("t.xml:2:5") && e.contains("not the .serialized format"), "{e}");
 }
+
+/// Reconstruction filters: Mitsuba's names and defaults, errors at the filter's line.
+#[test]
+fn reconstruction_filters() {
+    let film = |rfilter: &str| {
+        format!(
+            r#"<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/>{rfilter}</film></sensor></scene>"#
+        )
+    };
+    let filter = |rfilter: &str| parse(&film(rfilter)).map(|s| s.hints.expect("hints").filter);
+    use lucent_scene::PixelFilter as F;
+    assert_eq!(filter("").expect("default"), F::Gaussian { stddev: 0.5 });
+    assert_eq!(filter(r#"<rfilter type="mitchell"/>"#).expect("mitchell"), F::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 });
+    assert_eq!(
+        filter(r#"<rfilter type="mitchell"><float name="B" value="0.5"/><float name="C" value="0.25"/></rfilter>"#).expect("mitchell"),
+        F::Mitchell { b: 0.5, c: 0.25 }
+    );
+    assert_eq!(filter(r#"<rfilter type="catmullrom"/>"#).expect("catmullrom"), F::Mitchell { b: 0.0, c: 0.5 });
+    assert_eq!(filter(r#"<rfilter type="lanczos"/>"#).expect("lanczos"), F::Lanczos { lobes: 3.0 });
+    assert_eq!(filter(r#"<rfilter type="lanczos"><integer name="lobes" value="2"/></rfilter>"#).expect("lanczos"), F::Lanczos { lobes: 2.0 });
+    let e = filter(r#"<rfilter type="lanczos"><integer name="lobes" value="0"/></rfilter>"#).expect_err("no lobes").to_string();
+    assert!(e.contains("t.xml:1:") && e.contains("lobes"), "{e}");
+    // The filters' profiles: Mitchell-Netravali's value at 0 is (6 − 2B)/6, Lanczos' zeros
+    // fall on whole pixels.
+    assert!((F::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }.eval(0.0) - 8.0 / 9.0).abs() < 1e-6);
+    assert!(F::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }.eval(2.0).abs() < 1e-6 && F::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }.eval(2.01) == 0.0);
+    assert!(F::Lanczos { lobes: 3.0 }.eval(1.0).abs() < 1e-6 && F::Lanczos { lobes: 3.0 }.eval(1.5) < -0.1);
+}

@@ -179,4 +179,11 @@ impl BlockShader for Integrator {
             _ => shade_samples(self, s, block, sums),
         }
     }
+
+    fn shade_each(&self, s: &SampleBlock, block: &Block, out: &mut [Vec3]) {
+        match self {
+            Self::Path(p) if p.lanes => wave::shade_each(p, s, block, out),
+            _ => crate::tiles::shade_each(self, s, block, out),
+        }
+    }
 }

@@ -498,7 +498,10 @@ pub fn trace_layers(w: &World, cam: &Camera, job: &Job, set: &VplSet, r: Region,
         return 0;
     }
     let d_min2 = d_min2(w, s);
-    let cs = CameraSamples { filter: job.filter, ..set.settings.camera_samples(job.spp.max(1)) };
+    // (A filter with negative lobes would need signed weights through the discontinuity
+    // buffer: VPL frames take the box filter instead.)
+    let filter = if job.filter.signed() { lucent_scene::PixelFilter::Box } else { job.filter };
+    let cs = CameraSamples { filter, ..set.settings.camera_samples(job.spp.max(1)) };
     let packets = job.traversal.packets;
     // Bands of VPL_TILE rows, tiles of VPL_TILE columns; per band, the tile's buffers.
     const N: usize = (VPL_TILE * VPL_TILE) as usize;
@@ -779,7 +782,8 @@ pub fn render(
 pub fn frame_rays(w: &World, cam: &Camera, job: &Job, set: &VplSet) -> (Vec<Vec<Ray>>, Vec<Vec<Ray>>) {
     let (s, k) = (&set.settings, set.frame);
     let d_min2 = d_min2(w, s);
-    let cs = CameraSamples { filter: job.filter, ..s.camera_samples(job.spp.max(1)) };
+    let filter = if job.filter.signed() { lucent_scene::PixelFilter::Box } else { job.filter };
+    let cs = CameraSamples { filter, ..s.camera_samples(job.spp.max(1)) };
     let (mut primary, mut shadow) = (Vec::new(), Vec::new());
     for ty in (0..job.height).step_by(VPL_TILE as usize) {
         for tx in (0..job.width).step_by(VPL_TILE as usize) {

@@ -434,6 +434,29 @@ impl<'w> Models<'w> {
 /// Renders the samples `s.range` of `block`'s pixels with `settings`, each pixel's sum (in
 /// order of the sample index) into `sums`.
 pub(crate) fn shade_samples(settings: &PathSettings, s: &SampleBlock, block: &Block, sums: &mut [Vec3]) {
+    let samples = s.range.len();
+    shade_with(settings, s, block, |j, kk, v| {
+        if samples == 1 {
+            sums[j] = v;
+        } else {
+            if kk == 0 {
+                sums[j] = Vec3::ZERO;
+            }
+            sums[j] += v;
+        }
+    });
+}
+
+/// Renders the samples `s.range` of `block`'s pixels with `settings`, each sample's value
+/// into `out[j · n + kk]` (see [`crate::tiles::BlockShader::shade_each`]).
+pub(crate) fn shade_each(settings: &PathSettings, s: &SampleBlock, block: &Block, out: &mut [Vec3]) {
+    let samples = s.range.len();
+    shade_with(settings, s, block, |j, kk, v| out[j * samples + kk] = v);
+}
+
+/// Renders the samples `s.range` of `block`'s pixels, handing each value to `emit(pixel,
+/// sample - s.range.start, value)`, pixel by pixel in order of the sample index.
+fn shade_with(settings: &PathSettings, s: &SampleBlock, block: &Block, mut emit: impl FnMut(usize, usize, Vec3)) {
     let w = s.world;
     let samples = s.range.len();
     let total = block.pixels.len() * samples;
@@ -467,16 +490,7 @@ pub(crate) fn shade_samples(settings: &PathSettings, s: &SampleBlock, block: &Bl
         }
         // The chunk's values, pixel by pixel in order of the sample index.
         for e in chunk.clone() {
-            let (j, kk) = (e / samples, e % samples);
-            let v = vals[e - chunk.start];
-            if samples == 1 {
-                sums[j] = v;
-            } else {
-                if kk == 0 {
-                    sums[j] = Vec3::ZERO;
-                }
-                sums[j] += v;
-            }
+            emit(e / samples, e % samples, vals[e - chunk.start]);
         }
         next = end;
         watch.lap(Part::Film);

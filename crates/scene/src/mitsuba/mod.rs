@@ -16,14 +16,15 @@
 //! - the sensor `perspective` (`fov`, `fov_axis`, `focal_length`, `near_clip`,
 //!   `far_clip`), `thinlens` (`aperture_radius`, `focus_distance`) and `orthographic`; the
 //!   `hdrfilm`'s size and crop window (`crop_offset_x`, `crop_offset_y`, `crop_width`,
-//!   `crop_height`); the sampler's `sample_count`; the `path` integrator's `max_depth`,
+//!   `crop_height`) and reconstruction filter (`box`, `tent`, `gaussian`, `mitchell`,
+//!   `catmullrom`, `lanczos`); the sampler's `sample_count`; the `path` integrator's `max_depth`,
 //!   `rr_depth`, `hide_emitters` ([`RenderHints`]);
 //! - `<default name value>` and `$name` in attribute values.
 //!
 //! Malformed input is an error with line:column and what was expected. A plugin lucent
 //! does not have is one warning per kind with the fallback taken (an unknown BSDF is a
-//! grey diffuse one, an unknown emitter or shape is left out, reconstruction filters are
-//! lucent's box filter).
+//! grey diffuse one, an unknown emitter or shape is left out, an unknown reconstruction
+//! filter is Mitsuba's default Gaussian).
 
 mod files;
 pub mod serialized;
@@ -461,7 +462,7 @@ impl<'a, 'd> Cx<'a, 'd> {
             "regular" => {
                 let (lo, hi) = (self.float(p, "wavelength_min", f32::NAN)?, self.float(p, "wavelength_max", f32::NAN)?);
                 let v = list(self, "values")?;
-                if !(lo < hi) || v.len() < 2 {
+                if lo.partial_cmp(&hi) != Some(std::cmp::Ordering::Less) || v.len() < 2 {
                     return Err(self.err(p, "a 'regular' spectrum needs wavelength_min < wavelength_max and two or more values"));
                 }
                 let n = (v.len() - 1) as f32;
@@ -792,11 +793,28 @@ impl<'a, 'd> Cx<'a, 'd> {
                         "box" => PixelFilter::Box,
                         "tent" => PixelFilter::Tent { radius: self.positive(f, "radius", 1.0)? },
                         "gaussian" => PixelFilter::Gaussian { stddev: self.positive(f, "stddev", 0.5)? },
+                        "mitchell" => {
+                            let (b, c) = (self.float(f, "B", 1.0 / 3.0)?, self.float(f, "C", 1.0 / 3.0)?);
+                            if !(b.abs() < 16.0 && c.abs() < 16.0) {
+                                return Err(self.err(f, format!("mitchell B {b}, C {c}: expected finite values below 16")));
+                            }
+                            PixelFilter::Mitchell { b, c }
+                        }
+                        "catmullrom" => PixelFilter::Mitchell { b: 0.0, c: 0.5 },
+                        "lanczos" => {
+                            let lobes = self.integer(f, "lobes", 3)?;
+                            if !(1..=16).contains(&lobes) {
+                                return Err(self.err(f, format!("lanczos lobes {lobes}: expected 1 to 16")));
+                            }
+                            PixelFilter::Lanczos { lobes: lobes as f32 }
+                        }
                         other => {
                             self.warn(
                                 f,
                                 "rfilter",
-                                &format!("rfilter '{other}' is not supported (box, tent, gaussian are); a Gaussian of σ 0.5 instead"),
+                                &format!(
+                                    "rfilter '{other}' is not supported (box, tent, gaussian, mitchell, catmullrom, lanczos are); a Gaussian of σ 0.5 instead"
+                                ),
                             );
                             PixelFilter::Gaussian { stddev: 0.5 }
                         }
@@ -1169,7 +1187,6 @@ fn serialized_mesh(m: serialized::SerializedMesh, mat: u32) -> Mesh {
         normals: crate::model::Attr { values: m.normals, indices: None },
         uvs: crate::model::Attr { values: m.uvs, indices: None },
         indices: m.indices,
-        ..Mesh::default()
     }
 }
 

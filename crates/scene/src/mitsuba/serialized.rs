@@ -241,8 +241,8 @@ mod tests {
             out.extend(MAGIC.to_le_bytes());
             out.extend(version.to_le_bytes());
             let mut e = ZlibEncoder::new(Vec::new(), Compression::default());
-            e.write_all(s).unwrap();
-            out.extend(e.finish().unwrap());
+            e.write_all(s).expect("zlib");
+            out.extend(e.finish().expect("zlib"));
         }
         for o in &offsets {
             if version == 4 {
@@ -293,14 +293,14 @@ mod tests {
             for flags in [0x1000, 0x1003, 0x200B, 0x1010] {
                 let f = file(version, &[triangle_stream(version, flags, 0.0), triangle_stream(version, flags, 5.0)]);
                 assert_eq!(serialized_count(&f), Ok(2));
-                let m = parse_serialized(&f, 1).unwrap();
+                let m = parse_serialized(&f, 1).expect("mesh 1");
                 assert_eq!(m.positions, vec![Vec3::splat(5.0), Vec3::new(6.0, 5.0, 5.0), Vec3::new(5.0, 6.0, 5.0)]);
                 assert_eq!(m.indices, vec![[0, 1, 2]]);
                 assert_eq!(m.normals.len(), if flags & HAS_NORMALS != 0 { 3 } else { 0 });
                 assert_eq!(m.uvs.len(), if flags & HAS_UVS != 0 { 3 } else { 0 });
                 assert_eq!(m.face_normals, flags & FACE_NORMALS != 0);
                 assert_eq!(m.name, if version == 4 { "tri" } else { "" });
-                assert_eq!(parse_serialized(&f, 0).unwrap().positions[0], Vec3::ZERO);
+                assert_eq!(parse_serialized(&f, 0).expect("mesh 0").positions[0], Vec3::ZERO);
             }
         }
     }
@@ -308,11 +308,11 @@ mod tests {
     #[test]
     fn damaged_files_are_errors_that_say_where() {
         let good = file(4, &[triangle_stream(4, 0x1003, 0.0)]);
-        let e = parse_serialized(&good, 1).unwrap_err();
+        let e = parse_serialized(&good, 1).expect_err("no mesh 1");
         assert!(e.contains("holds 1 meshes"), "{e}");
         let mut bad = good.clone();
         bad[0] = 0;
-        assert!(parse_serialized(&bad, 0).unwrap_err().contains("byte 0"));
+        assert!(parse_serialized(&bad, 0).expect_err("bad magic").contains("byte 0"));
         // Every cut into the mesh's data is an error, never a panic (past it, only the
         // dictionary is cut, which mesh 0 does not need).
         for cut in 0..good.len() - 12 {
@@ -323,14 +323,14 @@ mod tests {
         // A count the stream does not back.
         let mut s = triangle_stream(4, 0x1000, 0.0);
         s[8..16].copy_from_slice(&(1u64 << 40).to_le_bytes());
-        assert!(parse_serialized(&file(4, &[s]), 0).unwrap_err().contains("more than lucent reads"));
+        assert!(parse_serialized(&file(4, &[s]), 0).expect_err("damaged").contains("more than lucent reads"));
         let mut s = triangle_stream(4, 0x1000, 0.0);
         s[8..16].copy_from_slice(&(1u64 << 20).to_le_bytes());
-        assert!(parse_serialized(&file(4, &[s]), 0).unwrap_err().contains("the stream ends in the positions"));
+        assert!(parse_serialized(&file(4, &[s]), 0).expect_err("damaged").contains("the stream ends in the positions"));
         // An index past the vertices.
         let mut s = triangle_stream(4, 0x1000, 0.0);
         let n = s.len();
         s[n - 4..].copy_from_slice(&7u32.to_le_bytes());
-        assert!(parse_serialized(&file(4, &[s]), 0).unwrap_err().contains("triangle 0 names vertex 7 of 3"));
+        assert!(parse_serialized(&file(4, &[s]), 0).expect_err("damaged").contains("triangle 0 names vertex 7 of 3"));
     }
 }
