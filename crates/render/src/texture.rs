@@ -1,4 +1,4 @@
-//! Bilinear texture lookup with wrap modes.
+//! Texture lookup (bilinear, or the nearest texel) with wrap modes.
 
 use glam::{Vec2, Vec4};
 use lucent_scene::{Texture, Wrap};
@@ -45,9 +45,23 @@ fn footprint(t: &Texture, uv: Vec2) -> Option<(i64, i64, f32, f32)> {
     Some((x0 as i64, y0 as i64, x - x0, y - y0))
 }
 
-/// Bilinearly filtered RGBA at `uv` (v = 0 at the bottom of the image).
+/// The texel `uv` falls in (nearest lookups), wrapped; `None` as [`footprint`].
+fn nearest(t: &Texture, uv: Vec2) -> Option<Vec4> {
+    if t.width == 0 || t.height == 0 || !uv.is_finite() {
+        return None;
+    }
+    let x = (uv.x * t.width as f32).floor() as i64;
+    let y = ((1.0 - uv.y) * t.height as f32).floor() as i64;
+    Some(t.texel_at(wrap(x, t.width, t.wrap_u), wrap(y, t.height, t.wrap_v)))
+}
+
+/// Bilinearly filtered RGBA at `uv` (v = 0 at the bottom of the image), or the nearest
+/// texel's for a texture of nearest lookups.
 #[must_use]
 pub fn sample(t: &Texture, uv: Vec2) -> Vec4 {
+    if t.nearest {
+        return nearest(t, uv).unwrap_or(Vec4::ONE);
+    }
     let Some((x0, y0, fx, fy)) = footprint(t, uv) else { return Vec4::ONE };
     let (xa, xb) = pair(x0, t.width, t.wrap_u);
     let (ya, yb) = pair(y0, t.height, t.wrap_v);
@@ -61,6 +75,9 @@ pub fn sample(t: &Texture, uv: Vec2) -> Vec4 {
 /// tested against.
 #[must_use]
 pub fn sample_reference(t: &Texture, uv: Vec2) -> Vec4 {
+    if t.nearest {
+        return nearest(t, uv).unwrap_or(Vec4::ONE);
+    }
     let Some((xi, yi, fx, fy)) = footprint(t, uv) else { return Vec4::ONE };
     let texel = |xi: i64, yi: i64| t.texel_at(wrap(xi, t.width, t.wrap_u), wrap(yi, t.height, t.wrap_v));
     let top = texel(xi, yi).lerp(texel(xi + 1, yi), fx);

@@ -165,3 +165,10 @@ fn filters_with_negative_lobes() {
 fn gaussian_filter() {
     converges_to_mitsuba("filter_gaussian");
 }
+
+/// Texture coordinates as Mitsuba reads them on each kind of shape (it turns an OBJ
+/// file's v over, and keeps the others'), images and checkerboards.
+#[test]
+fn uv_conventions() {
+    converges_to_mitsuba("uv_conventions");
+}

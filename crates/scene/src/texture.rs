@@ -4,7 +4,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// How texture coordinates outside [0, 1] are treated.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 pub enum Wrap {
     /// Tile.
     #[default]
@@ -41,6 +41,9 @@ pub struct Texture {
     pub wrap_u: Wrap,
     /// Wrap mode in v.
     pub wrap_v: Wrap,
+    /// Lookups take the nearest texel (Mitsuba's `filter_type` `nearest`), else blend the
+    /// four around bilinearly.
+    pub nearest: bool,
 }
 
 impl Texture {
@@ -66,7 +69,7 @@ impl Texture {
                 }
             }
         }
-        Self { name, width, height, texels: tiled, blocks_x, lut, wrap_u, wrap_v }
+        Self { name, width, height, texels: tiled, blocks_x, lut, wrap_u, wrap_v, nearest: false }
     }
 
     #[inline(always)]
@@ -187,20 +190,29 @@ pub fn texture_from_image(name: String, img: image::DynamicImage, wrap_u: Wrap, 
 }
 
 /// Loads each texture file once; missing or broken files give a warning and no texture.
+/// (A file read with other settings, wrap mode, sRGB or nearest lookups, is another
+/// texture.)
 #[derive(Default)]
 pub(crate) struct TextureCache {
-    by_path: HashMap<PathBuf, Option<u32>>,
+    by_path: HashMap<(PathBuf, Wrap, bool, bool), Option<u32>>,
     textures: Vec<Texture>,
 }
 
 impl TextureCache {
     pub(crate) fn load(&mut self, path: &Path, wrap: Wrap, srgb: bool, referrer: &str) -> Option<u32> {
-        if let Some(&id) = self.by_path.get(path) {
+        self.load_with(path, wrap, srgb, false, referrer)
+    }
+
+    pub(crate) fn load_with(&mut self, path: &Path, wrap: Wrap, srgb: bool, nearest: bool, referrer: &str) -> Option<u32> {
+        let key = (path.to_path_buf(), wrap, srgb, nearest);
+        if let Some(&id) = self.by_path.get(&key) {
             return id;
         }
         let id = match open_image(path) {
             Ok(img) => {
-                self.textures.push(texture_from_image(path.display().to_string(), img, wrap, wrap, srgb));
+                let mut t = texture_from_image(path.display().to_string(), img, wrap, wrap, srgb);
+                t.nearest = nearest;
+                self.textures.push(t);
                 Some((self.textures.len() - 1) as u32)
             }
             Err(e) => {
@@ -208,7 +220,7 @@ impl TextureCache {
                 None
             }
         };
-        self.by_path.insert(path.to_path_buf(), id);
+        self.by_path.insert(key, id);
         id
     }
 

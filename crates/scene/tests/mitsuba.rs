@@ -390,12 +390,17 @@ fn reconstruction_filters() {
     );
     assert_eq!(filter(r#"<rfilter type="catmullrom"/>"#).expect("catmullrom"), F::Mitchell { b: 0.0, c: 0.5 });
     assert_eq!(filter(r#"<rfilter type="lanczos"/>"#).expect("lanczos"), F::Lanczos { lobes: 3.0 });
-    assert_eq!(filter(r#"<rfilter type="lanczos"><integer name="lobes" value="2"/></rfilter>"#).expect("lanczos"), F::Lanczos { lobes: 2.0 });
+    assert_eq!(
+        filter(r#"<rfilter type="lanczos"><integer name="lobes" value="2"/></rfilter>"#).expect("lanczos"),
+        F::Lanczos { lobes: 2.0 }
+    );
     let e = filter(r#"<rfilter type="lanczos"><integer name="lobes" value="0"/></rfilter>"#).expect_err("no lobes").to_string();
     assert!(e.contains("t.xml:1:") && e.contains("lobes"), "{e}");
     // The filters' profiles: Mitchell-Netravali's value at 0 is (6 − 2B)/6, Lanczos' zeros
     // fall on whole pixels.
     assert!((F::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }.eval(0.0) - 8.0 / 9.0).abs() < 1e-6);
-    assert!(F::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }.eval(2.0).abs() < 1e-6 && F::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }.eval(2.01) == 0.0);
+    assert!(
+        F::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }.eval(2.0).abs() < 1e-6 && F::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }.eval(2.01) == 0.0
+    );
     assert!(F::Lanczos { lobes: 3.0 }.eval(1.0).abs() < 1e-6 && F::Lanczos { lobes: 3.0 }.eval(1.5) < -0.1);
 }

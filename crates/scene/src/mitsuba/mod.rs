@@ -10,7 +10,7 @@
 //!   `lookat`; `flip_normals`, `face_normals`;
 //! - BSDFs `diffuse`, `conductor`, `roughconductor`, `dielectric`, `roughdielectric`,
 //!   `thindielectric`, `plastic`, `roughplastic`, `twosided` (one or two BSDFs), by `id`
-//!   and `ref`; textures `bitmap` (`filename`, `raw`, `wrap_mode`, `to_uv`) and
+//!   and `ref`; textures `bitmap` (`filename`, `raw`, `wrap_mode`, `filter_type`, `to_uv`) and
 //!   `checkerboard`;
 //! - emitters `area`, `point`, `spot`, `directional`, `constant`, `envmap`;
 //! - the sensor `perspective` (`fov`, `fov_axis`, `focal_length`, `near_clip`,
@@ -516,7 +516,15 @@ impl<'a, 'd> Cx<'a, 'd> {
                 };
                 let path = self.find(t, &file);
                 let at = format!("{}:{}", self.paths.get(self.file_of(t)).cloned().unwrap_or_default().display(), self.pos(t).0);
-                match self.textures.load(&path, wrap, !raw, &at) {
+                // Mitsuba looks images up with v = 0 at their first row, lucent (as OBJ)
+                // at their last: v is turned over after the texture's own transform.
+                let to_uv = Affine2::from_cols_array(&[1.0, 0.0, 0.0, -1.0, 0.0, 1.0]) * to_uv;
+                let nearest = match self.string(t, "filter_type")?.as_deref() {
+                    None | Some("bilinear") => false,
+                    Some("nearest") => true,
+                    Some(f) => return Err(self.err(t, format!("filter_type '{f}': expected bilinear or nearest"))),
+                };
+                match self.textures.load_with(&path, wrap, !raw, nearest, &at) {
                     Some(tex) => Ok(ColorTex::Image { tex, scale: Vec3::ONE, to_uv }),
                     None => Ok(ColorTex::grey(0.5)),
                 }
@@ -1009,7 +1017,14 @@ impl<'a, 'd> Cx<'a, 'd> {
                                     _ => crate::ply::load_ply(&path),
                                 }
                                 .map_err(|e| self.err(n, format!("{}: {e}", path.display())))?;
-                                merge_meshes(&loaded, mat)
+                                let mut mesh = merge_meshes(&loaded, mat);
+                                if kind == "obj" {
+                                    // (Mitsuba's OBJ reader turns v over; its other shapes keep it.)
+                                    for uv in &mut mesh.uvs.values {
+                                        uv.y = 1.0 - uv.y;
+                                    }
+                                }
+                                mesh
                             }
                         };
                         if face_normals {

@@ -191,7 +191,8 @@ fn read_mesh(stream: &[u8], version: u16) -> Result<SerializedMesh, String> {
 /// `len` bytes of the stream, handed to `f` in pieces of whole records (the buffer grows
 /// only as the stream delivers, so a count the stream does not back costs no memory).
 fn chunks(z: &mut impl Read, len: usize, what: &str, mut f: impl FnMut(&[u8])) -> Result<(), String> {
-    const PIECE: usize = 1 << 16; // (a multiple of 8, 12, 16, 24: whole records)
+    // (A multiple of 8, 12, 16 and 24 bytes: pieces hold whole records of every kind.)
+    const PIECE: usize = 48 << 11;
     let mut buf = vec![0u8; PIECE.min(len)];
     let mut left = len;
     while left > 0 {
@@ -303,6 +304,29 @@ mod tests {
                 assert_eq!(parse_serialized(&f, 0).expect("mesh 0").positions[0], Vec3::ZERO);
             }
         }
+    }
+
+    /// A mesh whose arrays span several of the reader's pieces (98,304 bytes), records
+    /// straddling their ends.
+    #[test]
+    fn large_meshes_read_whole() {
+        let (nv, nt) = (30_001u64, 20_000u64);
+        let mut s = 0x1000u32.to_le_bytes().to_vec();
+        s.extend(b"big\0");
+        s.extend(nv.to_le_bytes());
+        s.extend(nt.to_le_bytes());
+        for i in 0..nv * 3 {
+            s.extend((i as f32).to_le_bytes());
+        }
+        for t in 0..nt as u32 {
+            for k in 0..3 {
+                s.extend(((t + k * 7) % nv as u32).to_le_bytes());
+            }
+        }
+        let m = parse_serialized(&file(4, &[s]), 0).expect("mesh");
+        assert_eq!((m.positions.len(), m.indices.len()), (nv as usize, nt as usize));
+        assert!(m.positions.iter().enumerate().all(|(i, p)| *p == Vec3::new(3.0 * i as f32, 3.0 * i as f32 + 1.0, 3.0 * i as f32 + 2.0)));
+        assert!(m.indices.iter().enumerate().all(|(t, idx)| *idx == [t as u32, t as u32 + 7, t as u32 + 14]));
     }
 
     #[test]
