@@ -189,6 +189,34 @@ impl Shape {
         }
     }
 
+    /// The derivatives ∂p/∂u and ∂p/∂v (object space) of [`Shape::uv_local`]'s
+    /// parameters at a point of part `part` (zero where they do not exist: a sphere's
+    /// poles).
+    #[must_use]
+    pub fn uv_tangents_local(self, p: Vec3, part: u32) -> (Vec3, Vec3) {
+        use std::f32::consts::{PI, TAU};
+        let around = Vec3::new(-p.y, p.x, 0.0) * TAU;
+        match self {
+            Shape::Sphere => {
+                let r = p.x.hypot(p.y);
+                let dv = if r > 0.0 { Vec3::new(p.z * p.x / r, p.z * p.y / r, -r) * PI } else { Vec3::ZERO };
+                (around, dv)
+            }
+            Shape::Cylinder | Shape::Cone => (around, Vec3::Z),
+            Shape::CappedCylinder | Shape::Tube if part == 0 => (around, Vec3::Z * 2.0),
+            Shape::CappedCone if part == 0 => (around, Vec3::Z),
+            Shape::Box => {
+                let axis = part as usize / 2;
+                let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+                let (mut du, mut dv) = (Vec3::ZERO, Vec3::ZERO);
+                du[a] = 2.0;
+                dv[b] = 2.0;
+                (du, dv)
+            }
+            _ => (Vec3::X * 2.0, Vec3::Y * 2.0),
+        }
+    }
+
     /// Outward surface normal (object space, not normalized) at a point of part `part`.
     #[must_use]
     #[inline]

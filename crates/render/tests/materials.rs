@@ -80,7 +80,7 @@ fn a_normal_map_bends_the_shading_normal() {
     };
     let n = Vec3::new(2.0 * 204.0 / 255.0 - 1.0, 2.0 * 128.0 / 255.0 - 1.0, 2.0 * 230.0 / 255.0 - 1.0).normalize();
     let want = |cos: f32| 0.5 * 2.0 * cos * std::f32::consts::FRAC_1_PI;
-    let (flat, bent) = (radiance(None), radiance(Some(NormalMap { tex: 0, scale: 1.0 })));
+    let (flat, bent) = (radiance(None), radiance(Some(NormalMap::gltf(0, 1.0))));
     assert!((flat - want(l.z)).abs() < 1e-4 * want(l.z) + 1e-6, "flat {flat}, want {}", want(l.z));
     assert!((bent - want(n.dot(l))).abs() < 2e-3 * want(n.dot(l)), "bent {bent}, want {}", want(n.dot(l)));
 }

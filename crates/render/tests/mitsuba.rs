@@ -172,3 +172,10 @@ fn gaussian_filter() {
 fn uv_conventions() {
     converges_to_mitsuba("uv_conventions");
 }
+
+/// Mitsuba's `normalmap` adapter on rough plastic and a rough conductor, on a rectangle
+/// and a sphere.
+#[test]
+fn normal_maps() {
+    converges_to_mitsuba("normalmap");
+}

@@ -231,13 +231,28 @@ pub enum Sides {
     Back(Box<Bsdf>),
 }
 
-/// A normal map (tangent space, as glTF's `normalTexture`).
+/// A normal map (tangent space: x along ∂p/∂u, z along the shading normal), as glTF's
+/// `normalTexture` or Mitsuba's `normalmap`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NormalMap {
     /// Texture index (linear).
     pub tex: u32,
     /// Scale of the map's x and y.
     pub scale: f32,
+    /// Texture coordinates to the map's (after the texture's own transform).
+    pub to_uv: glam::Affine2,
+    /// Mitsuba's conventions: y along n × x (glTF's: along ∂p/∂v), and a bent normal that
+    /// turns the surface away from the viewer has its tangent part reversed (Mitsuba's
+    /// `flip_invalid_normals`, after Schüssler et al. 2017).
+    pub mitsuba: bool,
+}
+
+impl NormalMap {
+    /// A glTF normal map of texture `tex`, its x and y scaled by `scale`.
+    #[must_use]
+    pub fn gltf(tex: u32, scale: f32) -> Self {
+        Self { tex, scale, to_uv: glam::Affine2::IDENTITY, mitsuba: false }
+    }
 }
 
 /// Which parts of a surface exist (glTF `alphaMode`).
@@ -389,6 +404,25 @@ impl Default for WhittedTerms {
 }
 
 impl Bsdf {
+    /// Whether the BSDF reads texture coordinates (a texture of any of its parameters).
+    #[must_use]
+    pub fn uses_uv(&self) -> bool {
+        let c = |t: &ColorTex| !matches!(t, ColorTex::Const(_));
+        let f = |t: &FloatTex| !matches!(t, FloatTex::Const(_));
+        let r = |t: &Option<Rough>| t.as_ref().is_some_and(|r| f(&r.alpha));
+        match self {
+            Self::Diffuse { reflectance } => c(reflectance),
+            Self::Conductor { specular, rough, .. } => c(specular) || r(rough),
+            Self::Dielectric { reflectance, transmittance, rough, .. } => c(reflectance) || c(transmittance) || r(rough),
+            Self::ThinDielectric { reflectance, transmittance, .. } => c(reflectance) || c(transmittance),
+            Self::Plastic { diffuse, specular, .. } => c(diffuse) || c(specular),
+            Self::MetallicRoughness { base_color, metallic, roughness, transmission, .. } => {
+                c(base_color) || f(metallic) || f(roughness) || f(transmission)
+            }
+            Self::DiffuseGlossy { diffuse, .. } => c(diffuse),
+        }
+    }
+
     /// A rough Phong-like reading for Whitted's fields from this BSDF (the inverse
     /// direction, for scenes whose materials are physically based, e.g. Mitsuba's): the
     /// diffuse colour, mirror reflectance, transmittance, index and Phong exponent that

@@ -75,24 +75,78 @@ pub(crate) fn textured_kd(w: &World, mat: &Material, uv: glam::Vec2) -> Vec3 {
 }
 /// The shading normal at a surface point: the interpolated one, bent by the material's
 /// tangent-space normal map when it has one (tangents from the triangle's texture
-/// coordinates: x along ∂p/∂u, y along ∂p/∂v, as glTF's maps are authored).
+/// coordinates: x along ∂p/∂u, y along ∂p/∂v, as glTF's maps are authored, or along
+/// n × x with a bent normal facing the viewer, as Mitsuba's: see
+/// [`lucent_scene::NormalMap`]).
 pub(crate) fn shading_normal(w: &World, ray: &Ray, hit: &Hit, surf: &Surface) -> Vec3 {
     let mat = material(w, surf.material);
     let Some(nm) = mat.normal_map else { return surf.ns };
     let Some(tex) = w.scene.textures.get(nm.tex as usize) else { return surf.ns };
     let Some((dpdu, dpdv)) = w.uv_tangents(ray, hit) else { return surf.ns };
-    let c = sample(tex, surf.uv).truncate() * 2.0 - Vec3::ONE;
+    let c = sample(tex, nm.to_uv.transform_point2(surf.uv)).truncate() * 2.0 - Vec3::ONE;
     let n = surf.ns;
     let t = (dpdu - n * n.dot(dpdu)).normalize_or_zero();
-    let b = (dpdv - n * n.dot(dpdv) - t * t.dot(dpdv)).normalize_or_zero();
+    let b = if nm.mitsuba { n.cross(t) } else { (dpdv - n * n.dot(dpdv) - t * t.dot(dpdv)).normalize_or_zero() };
     if t == Vec3::ZERO || b == Vec3::ZERO {
         return n;
     }
-    let bent = (t * (c.x * nm.scale) + b * (c.y * nm.scale) + n * c.z).normalize_or_zero();
+    let mut bent = (t * (c.x * nm.scale) + b * (c.y * nm.scale) + n * c.z).normalize_or_zero();
+    if nm.mitsuba {
+        // (The viewer below the bent normal: its tangent part reversed.)
+        let wi = -ray.dir;
+        if wi.dot(n) * wi.dot(bent) <= 0.0 {
+            bent = 2.0 * bent.dot(n) * n - bent;
+        }
+    }
     if bent == Vec3::ZERO || !bent.is_finite() {
         n
     } else {
         bent
+    }
+}
+
+/// What Mitsuba's `normalmap` adapter adds to its BSDF (a material whose normal map has
+/// [`lucent_scene::NormalMap::mitsuba`]): light must lie on the same side of the
+/// unperturbed and the bent normal, and the BSDF's value is damped toward grazing light by
+/// the microfacet shadowing term of Conty Estevez, Lecocq and Stein ("A Microfacet-Based
+/// Shadowing Function to Solve the Bump Terminator Problem", Ray Tracing Gems, 2019),
+/// whose roughness grows with the bend: α² = min(tan²θ_bend / 8, 1), G = 2 / (1 +
+/// √(1 + α² tan²θ_light)). Sampling densities are unchanged (as Mitsuba's).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Bend {
+    n0: Vec3,
+    n: Vec3,
+    /// α², or below zero: no bend (the weight is one).
+    alpha2: f32,
+}
+
+impl Bend {
+    pub(crate) const NONE: Self = Self { n0: Vec3::ZERO, n: Vec3::ZERO, alpha2: -1.0 };
+
+    /// The bend of shading normal `ns` at `surf` (none without a Mitsuba normal map).
+    pub(crate) fn of(w: &World, surf: &Surface, ns: Vec3) -> Self {
+        match material(w, surf.material).normal_map {
+            Some(nm) if nm.mitsuba && ns != surf.ns => {
+                let c = ns.dot(surf.ns).clamp(-1.0, 1.0);
+                let tan2 = ((1.0 - c * c) / (c * c)).max(0.0);
+                Self { n0: surf.ns, n: ns, alpha2: (0.125 * tan2).min(1.0) }
+            }
+            _ => Self::NONE,
+        }
+    }
+
+    /// The factor on the BSDF's value for light from world direction `wi`.
+    #[inline]
+    pub(crate) fn weight(self, wi: Vec3) -> f32 {
+        if self.alpha2 < 0.0 {
+            return 1.0;
+        }
+        let c0 = wi.dot(self.n0);
+        if c0 * wi.dot(self.n) <= 0.0 {
+            return 0.0;
+        }
+        let tan2 = ((1.0 - c0 * c0) / (c0 * c0)).max(0.0);
+        2.0 / (1.0 + (1.0 + self.alpha2 * tan2).sqrt())
     }
 }
 

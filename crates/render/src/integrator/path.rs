@@ -23,7 +23,7 @@
 //! without an environment, rays that leave the scene see the background colour
 //! (a constant environment that next-event estimation does not sample).
 
-use super::hit::{bsdf_frame, emitted, light_normal, material, shading_normal};
+use super::hit::{bsdf_frame, emitted, light_normal, material, shading_normal, Bend};
 use crate::sampler::Sampler;
 pub use crate::sampler::DEFAULT_SEED;
 use crate::sampling::power_heuristic;
@@ -154,13 +154,14 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         let base = 1 + depth.saturating_mul(PAIRS);
         let ns = shading_normal(w, &ray, &hit, &surf);
         let (bsdf, fr) = bsdf_frame(w, &surf, ns, d);
+        let bend = Bend::of(w, &surf, ns);
         let wo = fr.to_local(-d);
         let light_n = light_normal(&bsdf, &fr);
         // Next-event estimation.
         if !bsdf.is_delta() && !lights.is_empty() && s.sampling != LightSampling::Bsdf {
             if let Some(ls) = lights.sample(surf.p, light_n, choice_at(depth, 0), dims(base), textures) {
                 let wi = fr.to_local(ls.dir);
-                let f = bsdf.eval(wo, wi);
+                let f = bsdf.eval(wo, wi) * bend.weight(ls.dir);
                 if f.max_element() > 0.0 {
                     let shadow = surf.spawn(ls.dir);
                     let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
@@ -174,7 +175,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         }
         // The next direction.
         let Some(bs) = bsdf.sample(wo, choice_at(depth, 1), dims(base + 1)) else { break };
-        beta *= bs.weight;
+        beta *= bs.weight * bend.weight(fr.to_world(bs.wi));
         if !beta.is_finite() || beta.max_element() <= 0.0 {
             break;
         }

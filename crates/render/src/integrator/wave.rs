@@ -29,7 +29,7 @@
 // Lane loops index several arrays by the lane number; written so, they vectorize.
 #![allow(clippy::needless_range_loop)]
 
-use super::hit::{bsdf_frame, coherent, emitted, light_normal, material, shading_normal};
+use super::hit::{bsdf_frame, coherent, emitted, light_normal, material, shading_normal, Bend};
 use super::path::{LightSampling, PathSettings, CHOICES, PAIRS};
 use super::wave_profile::{now, Part, Watch};
 use crate::bsdf::{Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughPlastic};
@@ -105,6 +105,7 @@ struct Wave<'w> {
     surf: [Surface; CAP],
     bsdf: [Option<Bsdf<'w>>; CAP],
     frame: [ShadingFrame; CAP],
+    bend: [Bend; CAP],
     wo: Rows,
     /// This bounce's numbers (stage 2): the light choice and point, the lobe choice and
     /// direction.
@@ -140,6 +141,7 @@ impl<'w> Wave<'w> {
             surf: [surf; CAP],
             bsdf: [None; CAP],
             frame: [ShadingFrame::new(Vec3::Z); CAP],
+            bend: [Bend::NONE; CAP],
             wo: zero,
             u_light: [0.0; CAP],
             u2_light: [[0.0; CAP]; 2],
@@ -621,6 +623,7 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
         }
         let ns = shading_normal(w, &hit_ray, &hit, &surf);
         let (bsdf, frame) = bsdf_frame(w, &surf, ns, d);
+        wave.bend[i] = Bend::of(w, &surf, ns);
         wave.surf[i] = surf;
         wave.bsdf[i] = Some(bsdf);
         wave.frame[i] = frame;
@@ -710,7 +713,7 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
     let mut pending: [(u8, Ray, Vec3); CAP] = [(0, NO_RAYS[0], Vec3::ZERO); CAP];
     let mut count = 0;
     for i in 0..wave.n {
-        let fi = get3(&f, i);
+        let fi = get3(&f, i) * wave.bend[i].weight(get3(&dir, i));
         if !sampled[i] || fi.max_element() <= 0.0 {
             continue;
         }
@@ -784,7 +787,8 @@ fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, w
             wave.done[i] = true;
             continue;
         }
-        let beta = get3(&wave.beta, i) * get3(&weight, i);
+        let bend = wave.bend[i].weight(wave.frame[i].to_world(get3(&wi, i)));
+        let beta = get3(&wave.beta, i) * get3(&weight, i) * bend;
         put3(&mut wave.beta, i, beta);
         if !beta.is_finite() || beta.max_element() <= 0.0 {
             wave.done[i] = true;

@@ -179,7 +179,7 @@ fn build(doc: &Doc<'_>) -> R<Scene> {
         };
         if let Some(n) = normal {
             let scale = m.pointer("/normalTexture/scale").and_then(Value::as_f64).unwrap_or(1.0) as f32;
-            mat.normal_map = Some(crate::bsdf::NormalMap { tex: n, scale });
+            mat.normal_map = Some(crate::bsdf::NormalMap::gltf(n, scale));
         }
         if let Some(mode @ ("MASK" | "BLEND")) = m.get("alphaMode").and_then(Value::as_str) {
             let cutoff = if mode == "MASK" { f32_at(m, "alphaCutoff").unwrap_or(0.5) } else { 0.5 };

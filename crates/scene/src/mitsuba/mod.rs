@@ -29,7 +29,7 @@
 mod files;
 pub mod serialized;
 
-use crate::bsdf::{named_conductor, named_ior, Alpha, Bsdf, ColorTex, Distribution, FloatTex, Rough, Sides};
+use crate::bsdf::{named_conductor, named_ior, Alpha, Bsdf, ColorTex, Distribution, FloatTex, NormalMap, Rough, Sides};
 use crate::camera::CameraDesc;
 use crate::error::ImportError;
 use crate::model::{Environment, Geom, HdrImage, Instance, Light, LightKind, Material, Mesh, PixelFilter, RenderHints, Scene, ShapeKind};
@@ -111,6 +111,7 @@ pub fn parse_mitsuba_with(path: &Path, base: &Path, text: &str, defines: &[(Stri
             crop: None,
         },
         shapes: 0,
+        normal_map: None,
     };
     cx.defaults.extend(defines.iter().cloned());
     for doc in &docs {
@@ -166,6 +167,8 @@ struct Cx<'a, 'd> {
     meshes: HashMap<(PathBuf, u32, u32, bool, bool), u32>,
     hints: RenderHints,
     shapes: usize,
+    /// The normal map of the BSDF read last (a `normalmap` adapter), for its material.
+    normal_map: Option<NormalMap>,
 }
 
 /// A BSDF as read: the model, and how its back scatters.
@@ -651,7 +654,25 @@ impl<'a, 'd> Cx<'a, 'd> {
                 };
                 (d, Sides::Front)
             }
-            "normalmap" | "bumpmap" | "mask" => {
+            "normalmap" => {
+                let Some(map) = self.prop(b, "normalmap") else { return Err(self.err(b, "a normalmap needs a 'normalmap' texture")) };
+                let map = self.deref(map, depth + 1)?;
+                let nm = match (map.tag_name().name(), self.texture(map)?) {
+                    ("texture", ColorTex::Image { tex, to_uv, .. }) => NormalMap { tex, scale: 1.0, to_uv, mitsuba: true },
+                    _ => return Err(self.err(map, "a normalmap's 'normalmap' must be a bitmap texture")),
+                };
+                let inner = b
+                    .children()
+                    .find(|c| {
+                        matches!(c.tag_name().name(), "bsdf" | "ref")
+                            && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
+                    })
+                    .ok_or_else(|| self.err(b, "a normalmap needs one BSDF inside"))?;
+                let read = self.bsdf(inner, depth + 1)?;
+                self.normal_map = Some(nm);
+                read
+            }
+            "bumpmap" | "mask" => {
                 self.warn(b, &kind, &format!("'{kind}' is not supported; its inner BSDF is used as it is"));
                 match b.children().find(|c| {
                     matches!(c.tag_name().name(), "bsdf" | "ref") && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
@@ -918,6 +939,7 @@ impl<'a, 'd> Cx<'a, 'd> {
     fn material_index(&mut self, name: &str, bsdf: ReadBsdf, emission: Vec3) -> u32 {
         let mut m = Material::physical(name, bsdf.0);
         m.sides = bsdf.1;
+        m.normal_map = self.normal_map.take();
         m.emission = emission;
         m.alpha = Alpha::Opaque;
         self.scene.materials.push(m);
@@ -968,6 +990,7 @@ impl<'a, 'd> Cx<'a, 'd> {
             return Ok(Some(group.iter().map(|&(g, local)| (g, m * local)).collect()));
         }
         // The material: a BSDF child (or ref to one) and an area emitter.
+        self.normal_map = None;
         let mut bsdf = None;
         let mut emission = Vec3::ZERO;
         for c in n.children().filter(Node::is_element) {
