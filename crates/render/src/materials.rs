@@ -5,7 +5,7 @@
 
 use crate::bsdf::microfacet::{fresnel_diffuse_reflectance, Microfacet};
 use crate::bsdf::{
-    plastic_spec_weight, Bsdf, BsdfModel, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughPlastic,
+    plastic_spec_weight, Blend, Bsdf, BsdfModel, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughPlastic,
     RoughPlasticTables, ThinDielectric,
 };
 use crate::texture::sample;
@@ -28,6 +28,8 @@ pub struct PreparedMaterial {
     fdr_int: f32,
     /// A BSDF of the user's own, replacing `desc`.
     pub custom: Option<Arc<dyn BsdfModel>>,
+    /// A blend's two BSDFs, prepared.
+    blend: Option<Box<(PreparedMaterial, PreparedMaterial)>>,
 }
 
 /// The mean of a texture's texels (linear), for Mitsuba's `mean()` of a bitmap.
@@ -57,7 +59,10 @@ impl PreparedMaterial {
     /// Prepares one BSDF (`scene` for its textures).
     #[must_use]
     pub fn new(desc: Desc, scene: &Scene) -> Self {
-        let mut p = Self { desc, back: None, tables: None, spec_weight: 0.5, fdr_int: 0.0, custom: None };
+        let mut p = Self { desc, back: None, tables: None, spec_weight: 0.5, fdr_int: 0.0, custom: None, blend: None };
+        if let Desc::Blend { first, second, .. } = &p.desc {
+            p.blend = Some(Box::new((Self::new((**first).clone(), scene), Self::new((**second).clone(), scene))));
+        }
         if let Desc::Plastic { diffuse, specular, eta, rough, .. } = &p.desc {
             p.spec_weight = plastic_spec_weight(color_mean(diffuse, &scene.textures), color_mean(specular, &scene.textures));
             p.fdr_int = fresnel_diffuse_reflectance(1.0 / eta);
@@ -80,7 +85,7 @@ impl PreparedMaterial {
 
     /// The BSDF at texture coordinates `uv` (`textures`: the scene's).
     #[must_use]
-    pub fn bsdf_at<'a>(&'a self, textures: &[Texture], uv: Vec2) -> Bsdf<'a> {
+    pub fn bsdf_at<'a>(&'a self, textures: &'a [Texture], uv: Vec2) -> Bsdf<'a> {
         if let Some(c) = &self.custom {
             return Bsdf::Custom(c.as_ref(), uv);
         }
@@ -132,6 +137,10 @@ impl PreparedMaterial {
                 ks: *specular,
                 mf: Microfacet::new(lucent_scene::Distribution::Beckmann, *alpha),
             }),
+            Desc::Blend { weight, .. } => match &self.blend {
+                Some(parts) => Bsdf::Blend(Blend { weight: float(weight).clamp(0.0, 1.0), parts, textures, uv }),
+                None => Bsdf::Diffuse(Diffuse { r: Vec3::ZERO }),
+            },
         }
     }
 
@@ -146,6 +155,13 @@ impl PreparedMaterial {
             Desc::Dielectric { transmittance, .. } | Desc::ThinDielectric { transmittance, .. } => color(transmittance),
             Desc::Plastic { diffuse, .. } | Desc::DiffuseGlossy { diffuse, .. } => color(diffuse),
             Desc::MetallicRoughness { base_color, .. } => color(base_color),
+            Desc::Blend { weight, .. } => match &self.blend {
+                Some(parts) => {
+                    let w = eval_float(weight, textures, uv).clamp(0.0, 1.0);
+                    parts.0.albedo(textures, uv) * (1.0 - w) + parts.1.albedo(textures, uv) * w
+                }
+                None => Vec3::ZERO,
+            },
         }
     }
 }

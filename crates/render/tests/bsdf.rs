@@ -225,6 +225,38 @@ fn all_bsdfs() -> Vec<(&'static str, Desc)> {
         ),
         ("diffuse glossy", Desc::DiffuseGlossy { diffuse: rgb(0.4, 0.3, 0.2), specular: Vec3::splat(0.4), alpha: 0.2 }),
         (
+            "blend of diffuse and rough conductor",
+            Desc::Blend {
+                weight: FloatTex::Const(0.35),
+                first: Box::new(Desc::Diffuse { reflectance: rgb(0.7, 0.4, 0.2) }),
+                second: Box::new(Desc::Conductor {
+                    eta: Vec3::new(0.2, 0.9, 1.1),
+                    k: Vec3::new(3.9, 2.4, 2.2),
+                    specular: ColorTex::grey(1.0),
+                    rough: rough(Distribution::Ggx, 0.3),
+                }),
+            },
+        ),
+        (
+            "blend of rough plastic and smooth conductor",
+            Desc::Blend {
+                weight: FloatTex::Const(0.5),
+                first: Box::new(Desc::Plastic {
+                    diffuse: rgb(0.3, 0.5, 0.7),
+                    specular: ColorTex::grey(1.0),
+                    eta: 1.5,
+                    nonlinear: false,
+                    rough: Some((Distribution::Beckmann, 0.2)),
+                }),
+                second: Box::new(Desc::Conductor {
+                    eta: Vec3::splat(0.2),
+                    k: Vec3::splat(3.0),
+                    specular: ColorTex::grey(1.0),
+                    rough: None,
+                }),
+            },
+        ),
+        (
             "textured diffuse (checker)",
             Desc::Diffuse { reflectance: ColorTex::Checker { a: Vec3::splat(0.2), b: Vec3::splat(0.9), to_uv: Affine2::IDENTITY } },
         ),

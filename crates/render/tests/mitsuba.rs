@@ -179,3 +179,10 @@ fn uv_conventions() {
 fn normal_maps() {
     converges_to_mitsuba("normalmap");
 }
+
+/// Mitsuba's `blendbsdf`: a textured weight between diffuse and rough gold, a constant one
+/// between rough plastic and smooth glass.
+#[test]
+fn blended_bsdfs() {
+    converges_to_mitsuba("blendbsdf");
+}

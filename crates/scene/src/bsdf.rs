@@ -204,6 +204,15 @@ pub enum Bsdf {
         /// Index of refraction of the dielectric.
         ior: f32,
     },
+    /// A mix of two BSDFs, `(1 − weight)·first + weight·second` (Mitsuba's `blendbsdf`).
+    Blend {
+        /// The second BSDF's share, in [0, 1] (clamped).
+        weight: FloatTex,
+        /// The first BSDF.
+        first: Box<Bsdf>,
+        /// The second BSDF.
+        second: Box<Bsdf>,
+    },
     /// MTL's diffuse + specular terms read physically: Lambertian `diffuse` plus a
     /// Beckmann microfacet lobe of reflectance `specular` (no Fresnel: MTL's `Ks` is the
     /// reflectance) and roughness `alpha`.
@@ -420,6 +429,7 @@ impl Bsdf {
                 c(base_color) || f(metallic) || f(roughness) || f(transmission)
             }
             Self::DiffuseGlossy { diffuse, .. } => c(diffuse),
+            Self::Blend { weight, first, second } => f(weight) || first.uses_uv() || second.uses_uv(),
         }
     }
 
@@ -479,6 +489,21 @@ impl Bsdf {
             }
             Self::DiffuseGlossy { diffuse, specular, alpha } => {
                 WhittedTerms { diffuse: mean(diffuse), diffuse_tex: tex(diffuse), specular: *specular, shininess: alpha_exp(*alpha), ..w }
+            }
+            Self::Blend { weight, first, second } => {
+                // The two readings mixed (the first's texture and index kept).
+                let (a, b, t) = (first.whitted_terms(), second.whitted_terms(), weight.factor().clamp(0.0, 1.0));
+                let mix = |x: Vec3, y: Vec3| x * (1.0 - t) + y * t;
+                WhittedTerms {
+                    diffuse: mix(a.diffuse, b.diffuse),
+                    diffuse_tex: a.diffuse_tex.or(b.diffuse_tex),
+                    specular: mix(a.specular, b.specular),
+                    shininess: a.shininess * (1.0 - t) + b.shininess * t,
+                    reflect: mix(a.reflect, b.reflect),
+                    transmit: mix(a.transmit, b.transmit),
+                    ior: if t < 0.5 { a.ior } else { b.ior },
+                    fresnel: a.fresnel || b.fresnel,
+                }
             }
         }
     }

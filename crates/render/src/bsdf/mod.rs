@@ -15,7 +15,8 @@
 //! that images agree: [`diffuse`], [`conductor`] (complex Fresnel) smooth or rough,
 //! [`dielectric`] smooth or rough (Walter et al. 2007), [`thin_dielectric`], [`plastic`]
 //! and [`rough_plastic`] (Weidlich and Wilkie 2007's layering), the glTF 2.0
-//! [`metallic_roughness`] BRDF and MTL's [`diffuse_glossy`]. Users add their own through
+//! [`metallic_roughness`] BRDF, MTL's [`diffuse_glossy`] and the mix of two, [`blend`].
+//! Users add their own through
 //! [`BsdfModel`].
 //!
 //! Adding a built-in BSDF: a file here with its struct, `eval`, `pdf`, `sample` and its
@@ -23,6 +24,7 @@
 //! material's description in `lucent_scene::bsdf` and its preparation in
 //! `crate::materials`.
 
+pub mod blend;
 pub mod conductor;
 pub mod dielectric;
 pub mod diffuse;
@@ -34,6 +36,7 @@ pub mod rough_plastic;
 mod sample;
 pub mod thin_dielectric;
 
+pub use blend::Blend;
 pub use conductor::Conductor;
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
@@ -87,6 +90,8 @@ pub enum Bsdf<'a> {
     MetallicRoughness(MetallicRoughness),
     /// MTL's Kd + Ks/Ns.
     DiffuseGlossy(DiffuseGlossy),
+    /// A mix of two (Mitsuba's `blendbsdf`).
+    Blend(Blend<'a>),
     /// The user's own.
     Custom(&'a dyn BsdfModel, Vec2),
 }
@@ -99,6 +104,7 @@ impl Bsdf<'_> {
             Self::Conductor(b) => b.mf.is_none(),
             Self::Dielectric(b) => b.mf.is_none(),
             Self::Thin(_) => true,
+            Self::Blend(b) => b.is_delta(),
             Self::Custom(m, _) => m.is_delta(),
             _ => false,
         }
@@ -118,6 +124,7 @@ impl Bsdf<'_> {
     pub fn transmits(&self) -> bool {
         match self {
             Self::Dielectric(_) | Self::Thin(_) | Self::Custom(..) => true,
+            Self::Blend(b) => b.transmits(),
             Self::MetallicRoughness(b) => b.transmission > 0.0 && b.metallic < 1.0,
             _ => false,
         }
@@ -135,6 +142,7 @@ impl Bsdf<'_> {
             Self::RoughPlastic(b) => b.eval(wo, wi),
             Self::MetallicRoughness(b) => b.eval(wo, wi),
             Self::DiffuseGlossy(b) => b.eval(wo, wi),
+            Self::Blend(b) => b.eval(wo, wi),
             Self::Custom(m, uv) => m.eval(wo, wi, *uv),
         }
     }
@@ -151,6 +159,7 @@ impl Bsdf<'_> {
             Self::RoughPlastic(b) => b.pdf(wo, wi),
             Self::MetallicRoughness(b) => b.pdf(wo, wi),
             Self::DiffuseGlossy(b) => b.pdf(wo, wi),
+            Self::Blend(b) => b.pdf(wo, wi),
             Self::Custom(m, uv) => m.pdf(wo, wi, *uv),
         }
     }
@@ -167,6 +176,7 @@ impl Bsdf<'_> {
             Self::RoughPlastic(b) => b.sample(wo, u, u2),
             Self::MetallicRoughness(b) => b.sample(wo, u, u2),
             Self::DiffuseGlossy(b) => b.sample(wo, u, u2),
+            Self::Blend(b) => b.sample(wo, u, u2),
             Self::Custom(m, uv) => m.sample(wo, *uv, u, u2),
         }
     }

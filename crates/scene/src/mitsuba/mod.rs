@@ -9,7 +9,8 @@
 //!   `shapegroup` and `instance`; `to_world` of `translate`, `rotate`, `scale`, `matrix`,
 //!   `lookat`; `flip_normals`, `face_normals`;
 //! - BSDFs `diffuse`, `conductor`, `roughconductor`, `dielectric`, `roughdielectric`,
-//!   `thindielectric`, `plastic`, `roughplastic`, `twosided` (one or two BSDFs), by `id`
+//!   `thindielectric`, `plastic`, `roughplastic`, `twosided` (one or two BSDFs),
+//!   `blendbsdf`, `normalmap`, by `id`
 //!   and `ref`; textures `bitmap` (`filename`, `raw`, `wrap_mode`, `filter_type`, `to_uv`) and
 //!   `checkerboard`;
 //! - emitters `area`, `point`, `spot`, `directional`, `constant`, `envmap`;
@@ -671,6 +672,31 @@ impl<'a, 'd> Cx<'a, 'd> {
                 let read = self.bsdf(inner, depth + 1)?;
                 self.normal_map = Some(nm);
                 read
+            }
+            "blendbsdf" => {
+                let inner: Vec<Node> = b
+                    .children()
+                    .filter(|c| {
+                        matches!(c.tag_name().name(), "bsdf" | "ref")
+                            && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
+                    })
+                    .collect();
+                let [f, k] = inner.as_slice() else { return Err(self.err(b, "a blendbsdf needs two BSDFs inside")) };
+                let weight = match self.prop(b, "weight") {
+                    Some(p) if self.deref(p, 0)?.tag_name().name() == "texture" => {
+                        let t = self.deref(p, 0)?;
+                        match self.texture(t)? {
+                            ColorTex::Image { tex, to_uv, .. } => FloatTex::Image { tex, channel: 0, scale: 1.0, to_uv },
+                            other => FloatTex::Const(other.mean_guess().x),
+                        }
+                    }
+                    _ => FloatTex::Const(self.float(b, "weight", 0.5)?),
+                };
+                let (first, s0) = self.bsdf(*f, depth + 1)?;
+                let (second, s1) = self.bsdf(*k, depth + 1)?;
+                // (Both sides scatter when both BSDFs say so.)
+                let sides = if s0 == Sides::Both && s1 == Sides::Both { Sides::Both } else { Sides::Front };
+                (Bsdf::Blend { weight, first: Box::new(first), second: Box::new(second) }, sides)
             }
             "bumpmap" | "mask" => {
                 self.warn(b, &kind, &format!("'{kind}' is not supported; its inner BSDF is used as it is"));
