@@ -6,11 +6,11 @@ scene with one plugin each) and its scenes/ folder, rendered by both at a reduce
 
 MITSUBA_DATA is a checkout of mitsuba-data (`git clone
 https://github.com/mitsuba-renderer/mitsuba-data`), LUCENT_BINARY a release build of
-`lucent`. The scenes are copied to target/mitsuba-docs/ with their films cut to 240 x 180
+`lucent`. The scenes are copied to target/mitsuba-docs/ with their films cut to 160 x 120
 (both renderers read the same files). Per scene: whether Mitsuba's llvm_ad_rgb renders it
 (polarized, spectral-only and volume scenes it refuses), the warnings lucent prints while
-loading (what it leaves out or reads otherwise), Mitsuba's reference (1,024 samples a
-pixel), relMSE at 64 samples of both against it (Mitsuba's the median of three seeds,
+loading (what it leaves out or reads otherwise), Mitsuba's reference (512 samples a
+pixel), relMSE at 64 samples of both against it (Mitsuba's the median of two seeds,
 lucent's one render), and the render times (Mitsuba's second render; lucent's whole
 command, loading included). relMSE = mean((x - ref)^2 / (ref^2 + 0.01)).
 """
@@ -30,7 +30,9 @@ import numpy as np  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORK = os.path.join(HERE, "..", "..", "target", "mitsuba-docs")
-SIZE = (240, 180)
+SIZE = (160, 120)
+REF_SPP = 512
+SEEDS = 2
 
 
 def rel_mse(x, ref):
@@ -78,9 +80,9 @@ def main():
         if names and not any(n in name for n in names):
             continue
         try:
-            ref, _ = mitsuba_render(path, 1024, 100)
+            ref, _ = mitsuba_render(path, REF_SPP, 100)
             mitsuba_render(path, 64, 1000)  # (compiles)
-            runs = [mitsuba_render(path, 64, s) for s in range(3)]
+            runs = [mitsuba_render(path, 64, s) for s in range(SEEDS)]
             e_m = float(np.median([rel_mse(x, ref) for x, _ in runs]))
             t_m = float(np.median([t for _, t in runs]))
             status = "renders"

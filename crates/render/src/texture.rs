@@ -71,6 +71,28 @@ pub fn sample(t: &Texture, uv: Vec2) -> Vec4 {
     top.lerp(bottom, fy)
 }
 
+/// The gradient (∂/∂u, ∂/∂v) of a bilinear lookup's luminance at `uv` (Mitsuba's
+/// `eval_1_grad` of a bitmap: zero for nearest lookups, and within a texel cell the
+/// bilinear patch's slope). Zero for an empty texture or a non-finite `uv`.
+#[must_use]
+pub fn sample_gradient(t: &Texture, uv: Vec2) -> Vec2 {
+    if t.nearest {
+        return Vec2::ZERO;
+    }
+    let Some((x0, y0, fx, fy)) = footprint(t, uv) else { return Vec2::ZERO };
+    let (xa, xb) = pair(x0, t.width, t.wrap_u);
+    let (ya, yb) = pair(y0, t.height, t.wrap_v);
+    let lum = |xi: usize, yi: usize| {
+        let c = t.texel_at(xi, yi);
+        0.212_671 * c.x + 0.715_160 * c.y + 0.072_169 * c.z
+    };
+    let (f00, f10, f01, f11) = (lum(xa, ya), lum(xb, ya), lum(xa, yb), lum(xb, yb));
+    let dx = (1.0 - fy) * (f10 - f00) + fy * (f11 - f01);
+    let dy = (1.0 - fx) * (f01 - f00) + fx * (f11 - f10);
+    // (Rows run down the image as v falls.)
+    Vec2::new(dx * t.width as f32, -dy * t.height as f32)
+}
+
 /// The plain form of [`sample`] (every texel wrapped on its own): the reference it is
 /// tested against.
 #[must_use]

@@ -186,3 +186,10 @@ fn normal_maps() {
 fn blended_bsdfs() {
     converges_to_mitsuba("blendbsdf");
 }
+
+/// Mitsuba's `bumpmap` adapter (a height field's gradient bends the normal) on rough
+/// plastic and a rough conductor, on a rectangle and a sphere.
+#[test]
+fn bump_maps() {
+    converges_to_mitsuba("bumpmap");
+}

@@ -254,13 +254,17 @@ pub struct NormalMap {
     /// turns the surface away from the viewer has its tangent part reversed (Mitsuba's
     /// `flip_invalid_normals`, after Schüssler et al. 2017).
     pub mitsuba: bool,
+    /// The texture is a height field (Mitsuba's `bumpmap`): the gradient of its
+    /// luminance times `scale` tilts ∂p/∂u and ∂p/∂v along the normal, whose cross
+    /// product is the bent normal. Else it holds normals (x, y, z as (c + 1)/2).
+    pub height: bool,
 }
 
 impl NormalMap {
     /// A glTF normal map of texture `tex`, its x and y scaled by `scale`.
     #[must_use]
     pub fn gltf(tex: u32, scale: f32) -> Self {
-        Self { tex, scale, to_uv: glam::Affine2::IDENTITY, mitsuba: false }
+        Self { tex, scale, to_uv: glam::Affine2::IDENTITY, mitsuba: false, height: false }
     }
 }
 

@@ -83,8 +83,11 @@ pub(crate) fn shading_normal(w: &World, ray: &Ray, hit: &Hit, surf: &Surface) ->
     let Some(nm) = mat.normal_map else { return surf.ns };
     let Some(tex) = w.scene.textures.get(nm.tex as usize) else { return surf.ns };
     let Some((dpdu, dpdv)) = w.uv_tangents(ray, hit) else { return surf.ns };
-    let c = sample(tex, nm.to_uv.transform_point2(surf.uv)).truncate() * 2.0 - Vec3::ONE;
     let n = surf.ns;
+    if nm.height {
+        return bumped_normal(tex, &nm, surf, n, dpdu, dpdv, -ray.dir);
+    }
+    let c = sample(tex, nm.to_uv.transform_point2(surf.uv)).truncate() * 2.0 - Vec3::ONE;
     let t = (dpdu - n * n.dot(dpdu)).normalize_or_zero();
     let b = if nm.mitsuba { n.cross(t) } else { (dpdv - n * n.dot(dpdv) - t * t.dot(dpdv)).normalize_or_zero() };
     if t == Vec3::ZERO || b == Vec3::ZERO {
@@ -103,6 +106,38 @@ pub(crate) fn shading_normal(w: &World, ray: &Ray, hit: &Hit, surf: &Surface) ->
     } else {
         bent
     }
+}
+
+/// The normal of a height field (Mitsuba's `bumpmap`): ∂p/∂u and ∂p/∂v moved along `n` to
+/// the height's slopes (the texture's gradient through its transform, times the scale),
+/// their cross product turned to the geometric side, and its tangent part reversed where
+/// it turns the surface away from the viewer along `wi`.
+fn bumped_normal(
+    tex: &lucent_scene::Texture,
+    nm: &lucent_scene::NormalMap,
+    surf: &Surface,
+    n: Vec3,
+    dpdu: Vec3,
+    dpdv: Vec3,
+    wi: Vec3,
+) -> Vec3 {
+    let g = crate::texture::sample_gradient(tex, nm.to_uv.transform_point2(surf.uv));
+    // (The chain rule through the texture's transform: its transpose.)
+    let m = nm.to_uv.matrix2;
+    let g = glam::Vec2::new(m.x_axis.dot(g), m.y_axis.dot(g)) * nm.scale;
+    let du = dpdu + n * (g.x - n.dot(dpdu));
+    let dv = dpdv + n * (g.y - n.dot(dpdv));
+    let mut bent = du.cross(dv).normalize_or_zero();
+    if bent == Vec3::ZERO || !bent.is_finite() {
+        return n;
+    }
+    if bent.dot(surf.ng) < 0.0 {
+        bent = -bent;
+    }
+    if wi.dot(n) * wi.dot(bent) <= 0.0 {
+        bent = 2.0 * bent.dot(n) * n - bent;
+    }
+    bent.normalize_or(n)
 }
 
 /// What Mitsuba's `normalmap` adapter adds to its BSDF (a material whose normal map has

@@ -10,7 +10,7 @@
 //!   `lookat`; `flip_normals`, `face_normals`;
 //! - BSDFs `diffuse`, `conductor`, `roughconductor`, `dielectric`, `roughdielectric`,
 //!   `thindielectric`, `plastic`, `roughplastic`, `twosided` (one or two BSDFs),
-//!   `blendbsdf`, `normalmap`, by `id`
+//!   `blendbsdf`, `normalmap`, `bumpmap`, by `id`
 //!   and `ref`; textures `bitmap` (`filename`, `raw`, `wrap_mode`, `filter_type`, `to_uv`) and
 //!   `checkerboard`;
 //! - emitters `area`, `point`, `spot`, `directional`, `constant`, `envmap`;
@@ -659,7 +659,7 @@ impl<'a, 'd> Cx<'a, 'd> {
                 let Some(map) = self.prop(b, "normalmap") else { return Err(self.err(b, "a normalmap needs a 'normalmap' texture")) };
                 let map = self.deref(map, depth + 1)?;
                 let nm = match (map.tag_name().name(), self.texture(map)?) {
-                    ("texture", ColorTex::Image { tex, to_uv, .. }) => NormalMap { tex, scale: 1.0, to_uv, mitsuba: true },
+                    ("texture", ColorTex::Image { tex, to_uv, .. }) => NormalMap { tex, scale: 1.0, to_uv, mitsuba: true, height: false },
                     _ => return Err(self.err(map, "a normalmap's 'normalmap' must be a bitmap texture")),
                 };
                 let inner = b
@@ -698,7 +698,30 @@ impl<'a, 'd> Cx<'a, 'd> {
                 let sides = if s0 == Sides::Both && s1 == Sides::Both { Sides::Both } else { Sides::Front };
                 (Bsdf::Blend { weight, first: Box::new(first), second: Box::new(second) }, sides)
             }
-            "bumpmap" | "mask" => {
+            "bumpmap" => {
+                // (The height field: the adapter's texture, whatever its name.)
+                let map = b
+                    .children()
+                    .filter(|c| matches!(c.tag_name().name(), "texture" | "ref"))
+                    .find_map(|c| self.deref(c, depth + 1).ok().filter(|x| x.tag_name().name() == "texture"))
+                    .ok_or_else(|| self.err(b, "a bumpmap needs a height texture"))?;
+                let scale = self.float(b, "scale", 1.0)?;
+                let nm = match self.texture(map)? {
+                    ColorTex::Image { tex, to_uv, .. } => NormalMap { tex, scale, to_uv, mitsuba: true, height: true },
+                    _ => return Err(self.err(map, "a bumpmap's height must be a bitmap texture")),
+                };
+                let inner = b
+                    .children()
+                    .find(|c| {
+                        matches!(c.tag_name().name(), "bsdf" | "ref")
+                            && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
+                    })
+                    .ok_or_else(|| self.err(b, "a bumpmap needs one BSDF inside"))?;
+                let read = self.bsdf(inner, depth + 1)?;
+                self.normal_map = Some(nm);
+                read
+            }
+            "mask" => {
                 self.warn(b, &kind, &format!("'{kind}' is not supported; its inner BSDF is used as it is"));
                 match b.children().find(|c| {
                     matches!(c.tag_name().name(), "bsdf" | "ref") && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
