@@ -5,8 +5,8 @@
 
 use crate::bsdf::microfacet::{fresnel_diffuse_reflectance, Microfacet};
 use crate::bsdf::{
-    plastic_spec_weight, Blend, Bsdf, BsdfModel, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughPlastic,
-    RoughPlasticTables, ThinDielectric,
+    plastic_spec_weight, Blend, Bsdf, BsdfModel, Conductor, Dielectric, Diffuse, DiffuseGlossy, Mask, MetallicRoughness, Plastic,
+    RoughPlastic, RoughPlasticTables, ThinDielectric,
 };
 use crate::texture::sample;
 use glam::{Vec2, Vec3, Vec4};
@@ -30,6 +30,8 @@ pub struct PreparedMaterial {
     pub custom: Option<Arc<dyn BsdfModel>>,
     /// A blend's two BSDFs, prepared.
     blend: Option<Box<(PreparedMaterial, PreparedMaterial)>>,
+    /// A mask's BSDF, prepared.
+    masked: Option<Box<PreparedMaterial>>,
 }
 
 /// The mean of a texture's texels (linear), for Mitsuba's `mean()` of a bitmap.
@@ -59,9 +61,12 @@ impl PreparedMaterial {
     /// Prepares one BSDF (`scene` for its textures).
     #[must_use]
     pub fn new(desc: Desc, scene: &Scene) -> Self {
-        let mut p = Self { desc, back: None, tables: None, spec_weight: 0.5, fdr_int: 0.0, custom: None, blend: None };
+        let mut p = Self { desc, back: None, tables: None, spec_weight: 0.5, fdr_int: 0.0, custom: None, blend: None, masked: None };
         if let Desc::Blend { first, second, .. } = &p.desc {
             p.blend = Some(Box::new((Self::new((**first).clone(), scene), Self::new((**second).clone(), scene))));
+        }
+        if let Desc::Mask { inner, .. } = &p.desc {
+            p.masked = Some(Box::new(Self::new((**inner).clone(), scene)));
         }
         if let Desc::Plastic { diffuse, specular, eta, rough, .. } = &p.desc {
             p.spec_weight = plastic_spec_weight(color_mean(diffuse, &scene.textures), color_mean(specular, &scene.textures));
@@ -141,6 +146,10 @@ impl PreparedMaterial {
                 Some(parts) => Bsdf::Blend(Blend { weight: float(weight).clamp(0.0, 1.0), parts, textures, uv }),
                 None => Bsdf::Diffuse(Diffuse { r: Vec3::ZERO }),
             },
+            Desc::Mask { opacity, .. } => match &self.masked {
+                Some(inner) => Bsdf::Mask(Mask { opacity: float(opacity).clamp(0.0, 1.0), inner, textures, uv }),
+                None => Bsdf::Diffuse(Diffuse { r: Vec3::ZERO }),
+            },
         }
     }
 
@@ -162,6 +171,7 @@ impl PreparedMaterial {
                 }
                 None => Vec3::ZERO,
             },
+            Desc::Mask { .. } => self.masked.as_ref().map_or(Vec3::ZERO, |m| m.albedo(textures, uv)),
         }
     }
 }

@@ -193,3 +193,9 @@ fn blended_bsdfs() {
 fn bump_maps() {
     converges_to_mitsuba("bumpmap");
 }
+
+/// Mitsuba's `mask` (opacity by a bitmap and a constant), with its path tracer's shadows.
+#[test]
+fn masks() {
+    converges_to_mitsuba("mask");
+}

@@ -213,6 +213,15 @@ pub enum Bsdf {
         /// The second BSDF.
         second: Box<Bsdf>,
     },
+    /// A surface that exists with probability `opacity`: elsewhere light passes straight
+    /// through (a null, delta transmission), as Mitsuba's `mask` BSDF. (Mitsuba's path
+    /// tracer, and so lucent's, lets only sampled paths through: shadow rays stop at it.)
+    Mask {
+        /// Probability of meeting the surface, in [0, 1] (clamped).
+        opacity: FloatTex,
+        /// The surface's BSDF.
+        inner: Box<Bsdf>,
+    },
     /// MTL's diffuse + specular terms read physically: Lambertian `diffuse` plus a
     /// Beckmann microfacet lobe of reflectance `specular` (no Fresnel: MTL's `Ks` is the
     /// reflectance) and roughness `alpha`.
@@ -434,6 +443,7 @@ impl Bsdf {
             }
             Self::DiffuseGlossy { diffuse, .. } => c(diffuse),
             Self::Blend { weight, first, second } => f(weight) || first.uses_uv() || second.uses_uv(),
+            Self::Mask { opacity, inner } => f(opacity) || inner.uses_uv(),
         }
     }
 
@@ -493,6 +503,11 @@ impl Bsdf {
             }
             Self::DiffuseGlossy { diffuse, specular, alpha } => {
                 WhittedTerms { diffuse: mean(diffuse), diffuse_tex: tex(diffuse), specular: *specular, shininess: alpha_exp(*alpha), ..w }
+            }
+            Self::Mask { opacity, inner } => {
+                let t = inner.whitted_terms();
+                let a = opacity.factor().clamp(0.0, 1.0);
+                WhittedTerms { transmit: t.transmit * a + Vec3::splat(1.0 - a), ..t }
             }
             Self::Blend { weight, first, second } => {
                 // The two readings mixed (the first's texture and index kept).

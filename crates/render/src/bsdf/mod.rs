@@ -15,7 +15,8 @@
 //! that images agree: [`diffuse`], [`conductor`] (complex Fresnel) smooth or rough,
 //! [`dielectric`] smooth or rough (Walter et al. 2007), [`thin_dielectric`], [`plastic`]
 //! and [`rough_plastic`] (Weidlich and Wilkie 2007's layering), the glTF 2.0
-//! [`metallic_roughness`] BRDF, MTL's [`diffuse_glossy`] and the mix of two, [`blend`].
+//! [`metallic_roughness`] BRDF, MTL's [`diffuse_glossy`], the mix of two, [`blend`], and
+//! a surface with holes, [`mask`].
 //! Users add their own through
 //! [`BsdfModel`].
 //!
@@ -29,6 +30,7 @@ pub mod conductor;
 pub mod dielectric;
 pub mod diffuse;
 pub mod diffuse_glossy;
+pub mod mask;
 pub mod metallic_roughness;
 pub mod microfacet;
 pub mod plastic;
@@ -41,6 +43,7 @@ pub use conductor::Conductor;
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use diffuse_glossy::DiffuseGlossy;
+pub use mask::Mask;
 pub use metallic_roughness::MetallicRoughness;
 pub use microfacet::{fresnel_conductor, fresnel_dielectric, Microfacet};
 pub use plastic::{plastic_spec_weight, Plastic};
@@ -92,6 +95,8 @@ pub enum Bsdf<'a> {
     DiffuseGlossy(DiffuseGlossy),
     /// A mix of two (Mitsuba's `blendbsdf`).
     Blend(Blend<'a>),
+    /// A surface with holes (Mitsuba's `mask`).
+    Mask(Mask<'a>),
     /// The user's own.
     Custom(&'a dyn BsdfModel, Vec2),
 }
@@ -105,6 +110,7 @@ impl Bsdf<'_> {
             Self::Dielectric(b) => b.mf.is_none(),
             Self::Thin(_) => true,
             Self::Blend(b) => b.is_delta(),
+            Self::Mask(b) => b.is_delta(),
             Self::Custom(m, _) => m.is_delta(),
             _ => false,
         }
@@ -123,7 +129,7 @@ impl Bsdf<'_> {
     #[must_use]
     pub fn transmits(&self) -> bool {
         match self {
-            Self::Dielectric(_) | Self::Thin(_) | Self::Custom(..) => true,
+            Self::Dielectric(_) | Self::Thin(_) | Self::Mask(_) | Self::Custom(..) => true,
             Self::Blend(b) => b.transmits(),
             Self::MetallicRoughness(b) => b.transmission > 0.0 && b.metallic < 1.0,
             _ => false,
@@ -143,6 +149,7 @@ impl Bsdf<'_> {
             Self::MetallicRoughness(b) => b.eval(wo, wi),
             Self::DiffuseGlossy(b) => b.eval(wo, wi),
             Self::Blend(b) => b.eval(wo, wi),
+            Self::Mask(b) => b.eval(wo, wi),
             Self::Custom(m, uv) => m.eval(wo, wi, *uv),
         }
     }
@@ -160,6 +167,7 @@ impl Bsdf<'_> {
             Self::MetallicRoughness(b) => b.pdf(wo, wi),
             Self::DiffuseGlossy(b) => b.pdf(wo, wi),
             Self::Blend(b) => b.pdf(wo, wi),
+            Self::Mask(b) => b.pdf(wo, wi),
             Self::Custom(m, uv) => m.pdf(wo, wi, *uv),
         }
     }
@@ -177,6 +185,7 @@ impl Bsdf<'_> {
             Self::MetallicRoughness(b) => b.sample(wo, u, u2),
             Self::DiffuseGlossy(b) => b.sample(wo, u, u2),
             Self::Blend(b) => b.sample(wo, u, u2),
+            Self::Mask(b) => b.sample(wo, u, u2),
             Self::Custom(m, uv) => m.sample(wo, *uv, u, u2),
         }
     }

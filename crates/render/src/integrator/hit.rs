@@ -202,7 +202,8 @@ pub(crate) fn bsdf_frame<'w>(w: &'w World, surf: &Surface, ns: Vec3, d: Vec3) ->
             None => (bsdf, ShadingFrame::new(-ns)),
         },
         // (A dielectric's inside is told by the frame: never turned.)
-        Sides::Both if !bsdf.transmits() || bsdf.symmetric() => (bsdf, ShadingFrame::new(-ns)),
+        // (A mask's holes pass light either way: its two-sided surface turns as any.)
+        Sides::Both if !bsdf.transmits() || bsdf.symmetric() || matches!(bsdf, Bsdf::Mask(_)) => (bsdf, ShadingFrame::new(-ns)),
         _ if bsdf.symmetric() => (bsdf, ShadingFrame::new(-ns)),
         _ => (bsdf, ShadingFrame::new(ns)),
     }

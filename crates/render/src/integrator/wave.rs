@@ -427,7 +427,7 @@ impl<'w> Models<'w> {
             Bsdf::RoughPlastic(b) => self.rough_plastic.push(i, b, wo, wi, u, u2),
             Bsdf::MetallicRoughness(b) => self.metallic_roughness.push(i, b, wo, wi, u, u2),
             Bsdf::DiffuseGlossy(b) => self.diffuse_glossy.push(i, b, wo, wi, u, u2),
-            Bsdf::Thin(_) | Bsdf::Blend(_) | Bsdf::Custom(..) => return false,
+            Bsdf::Thin(_) | Bsdf::Blend(_) | Bsdf::Mask(_) | Bsdf::Custom(..) => return false,
         }
         true
     }

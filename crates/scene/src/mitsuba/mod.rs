@@ -10,7 +10,7 @@
 //!   `lookat`; `flip_normals`, `face_normals`;
 //! - BSDFs `diffuse`, `conductor`, `roughconductor`, `dielectric`, `roughdielectric`,
 //!   `thindielectric`, `plastic`, `roughplastic`, `twosided` (one or two BSDFs),
-//!   `blendbsdf`, `normalmap`, `bumpmap`, by `id`
+//!   `blendbsdf`, `mask`, `normalmap`, `bumpmap`, by `id`
 //!   and `ref`; textures `bitmap` (`filename`, `raw`, `wrap_mode`, `filter_type`, `to_uv`) and
 //!   `checkerboard`;
 //! - emitters `area`, `point`, `spot`, `directional`, `constant`, `envmap`;
@@ -722,13 +722,25 @@ impl<'a, 'd> Cx<'a, 'd> {
                 read
             }
             "mask" => {
-                self.warn(b, &kind, &format!("'{kind}' is not supported; its inner BSDF is used as it is"));
-                match b.children().find(|c| {
-                    matches!(c.tag_name().name(), "bsdf" | "ref") && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
-                }) {
-                    Some(inner) => self.bsdf(inner, depth + 1)?,
-                    None => (Bsdf::Diffuse { reflectance: ColorTex::grey(0.5) }, Sides::Front),
-                }
+                let opacity = match self.prop(b, "opacity") {
+                    Some(p) if self.deref(p, 0)?.tag_name().name() == "texture" => {
+                        let t = self.deref(p, 0)?;
+                        match self.texture(t)? {
+                            ColorTex::Image { tex, to_uv, .. } => FloatTex::Image { tex, channel: 0, scale: 1.0, to_uv },
+                            other => FloatTex::Const(other.mean_guess().x),
+                        }
+                    }
+                    _ => FloatTex::Const(self.float(b, "opacity", 0.5)?),
+                };
+                let inner = b
+                    .children()
+                    .find(|c| {
+                        matches!(c.tag_name().name(), "bsdf" | "ref")
+                            && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
+                    })
+                    .ok_or_else(|| self.err(b, "a mask needs one BSDF inside"))?;
+                let (inner, sides) = self.bsdf(inner, depth + 1)?;
+                (Bsdf::Mask { opacity, inner: Box::new(inner) }, sides)
             }
             other => {
                 self.warn(b, other, &format!("BSDF '{other}' is not supported; a diffuse one of its base colour (or 0.5) instead"));
