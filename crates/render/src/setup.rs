@@ -55,6 +55,11 @@ pub fn integrator_named(
             max_depth: max_depth.unwrap_or(u32::MAX),
             rr_depth: rr_depth.or(hints.map(|h| h.rr_depth)).unwrap_or(5),
             hide_emitters: hide_emitters || hints.is_some_and(|h| h.hide_emitters),
+            sampling: match hints.map(|h| h.strategies) {
+                Some(lucent_scene::Strategies::Emitters) => crate::integrator::path::LightSampling::Nee,
+                Some(lucent_scene::Strategies::Bsdf) => crate::integrator::path::LightSampling::Bsdf,
+                _ => crate::integrator::path::LightSampling::Mis,
+            },
             lanes: name == "path",
             ..PathSettings::default()
         }),

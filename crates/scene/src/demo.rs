@@ -291,6 +291,7 @@ pub fn studio_scene() -> Scene {
         clip: (0.0, f32::INFINITY),
         filter: crate::model::PixelFilter::Box,
         crop: None,
+        strategies: crate::model::Strategies::Both,
     });
     s
 }

@@ -276,6 +276,21 @@ pub struct RenderHints {
     /// `crop_height`): the camera sees the whole film, the image is the window. `None`:
     /// the whole film.
     pub crop: Option<[u32; 4]>,
+    /// Which strategies estimate the light at a surface (Mitsuba's `direct` integrator's
+    /// `emitter_samples` and `bsdf_samples`, each read as present or not).
+    pub strategies: Strategies,
+}
+
+/// The strategies a path tracer estimates the light at a surface with.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Strategies {
+    /// Light sampling and BSDF sampling, weighed by multiple importance sampling.
+    #[default]
+    Both,
+    /// Light sampling only.
+    Emitters,
+    /// BSDF sampling only.
+    Bsdf,
 }
 
 /// How a pixel weighs the image around it (the film's reconstruction filter, separable in

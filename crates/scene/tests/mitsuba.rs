@@ -404,3 +404,24 @@ fn reconstruction_filters() {
     );
     assert!(F::Lanczos { lobes: 3.0 }.eval(1.0).abs() < 1e-6 && F::Lanczos { lobes: 3.0 }.eval(1.5) < -0.1);
 }
+
+/// The `direct` integrator: one bounce (max_depth 2), its strategies from the sample counts.
+#[test]
+fn direct_integrator_strategies() {
+    use lucent_scene::Strategies;
+    let read = |e: i32, b: i32| {
+        parse(&format!(
+            r#"<scene version="3.0.0"><integrator type="direct"><integer name="emitter_samples" value="{e}"/><integer name="bsdf_samples" value="{b}"/></integrator></scene>"#
+        ))
+        .map(|s| s.hints.expect("hints"))
+    };
+    let h = read(1, 1).expect("both");
+    assert_eq!((h.max_depth, h.strategies), (Some(2), Strategies::Both));
+    assert_eq!(read(0, 1).expect("bsdf").strategies, Strategies::Bsdf);
+    assert_eq!(read(4, 0).expect("emitters").strategies, Strategies::Emitters);
+    assert_eq!(read(0, 0).expect("none").max_depth, Some(1), "no strategy: only what the camera sees");
+    let e = read(-1, 1).expect_err("negative").to_string();
+    assert!(e.contains("t.xml:1:") && e.contains("emitter_samples"), "{e}");
+    let path = parse(r#"<scene version="3.0.0"><integrator type="path"/></scene>"#).expect("path").hints.expect("hints");
+    assert_eq!(path.strategies, Strategies::Both);
+}

@@ -110,6 +110,7 @@ pub fn parse_mitsuba_with(path: &Path, base: &Path, text: &str, defines: &[(Stri
             // (Mitsuba's film default; a film of the scene's sets its own.)
             filter: PixelFilter::Gaussian { stddev: 0.5 },
             crop: None,
+            strategies: crate::model::Strategies::Both,
         },
         shapes: 0,
         normal_map: None,
@@ -845,7 +846,28 @@ impl<'a, 'd> Cx<'a, 'd> {
                 self.hints.rr_depth = self.integer(n, "rr_depth", 5)?.clamp(1, i64::from(u32::MAX)) as u32;
                 self.hints.hide_emitters = self.boolean(n, "hide_emitters", false)?;
                 if kind == "direct" {
-                    self.warn(n, "direct", "the 'direct' integrator is read as 'path' with max_depth 2");
+                    // One bounce of direct light: the path tracer's with max_depth 2, and
+                    // the strategies the sample counts name.
+                    let (e, b) = (self.integer(n, "emitter_samples", 1)?, self.integer(n, "bsdf_samples", 1)?);
+                    if e < 0 || b < 0 {
+                        return Err(self.err(n, format!("emitter_samples {e}, bsdf_samples {b}: expected counts of 0 or more")));
+                    }
+                    self.hints.strategies = match (e, b) {
+                        (0, 0) => {
+                            self.hints.max_depth = Some(1);
+                            crate::model::Strategies::Both
+                        }
+                        (0, _) => crate::model::Strategies::Bsdf,
+                        (_, 0) => crate::model::Strategies::Emitters,
+                        _ => crate::model::Strategies::Both,
+                    };
+                    if e > 1 || b > 1 {
+                        self.warn(
+                            n,
+                            "direct samples",
+                            "the 'direct' integrator takes one sample of each strategy per path sample (its image is the same, its noise higher than with several)",
+                        );
+                    }
                 }
             }
             other => {
