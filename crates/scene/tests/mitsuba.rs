@@ -425,3 +425,22 @@ fn direct_integrator_strategies() {
     let path = parse(r#"<scene version="3.0.0"><integrator type="path"/></scene>"#).expect("path").hints.expect("hints");
     assert_eq!(path.strategies, Strategies::Both);
 }
+
+/// Emitters' `sampling_weight`: a delta light of weight zero is dark in Mitsuba's path
+/// tracer (only light sampling reaches it) and left out; other weights change no image.
+#[test]
+fn emitter_sampling_weights() {
+    let s = parse(
+        r#"<scene version="3.0.0">
+        <emitter type="point"><float name="sampling_weight" value="0"/></emitter>
+        <emitter type="spot"><float name="sampling_weight" value="2.5"/></emitter>
+        <shape type="sphere"><emitter type="area"><float name="sampling_weight" value="0"/><rgb name="radiance" value="3"/></emitter></shape>
+        </scene>"#,
+    )
+    .expect("scene");
+    assert_eq!(s.lights.len(), 1, "the point light of weight 0 left out, the spot kept");
+    assert!(matches!(s.lights[0].kind, LightKind::Spot { .. }));
+    assert_eq!(s.materials.last().expect("material").emission, Vec3::splat(3.0), "an area light stays (BSDF rays meet it)");
+    let e = err(r#"<scene version="3.0.0"><emitter type="point"><float name="sampling_weight" value="-1"/></emitter></scene>"#);
+    assert!(e.contains("t.xml:1:") && e.contains("sampling_weight"), "{e}");
+}

@@ -13,7 +13,8 @@
 //!   `blendbsdf`, `mask`, `normalmap`, `bumpmap`, by `id`
 //!   and `ref`; textures `bitmap` (`filename`, `raw`, `wrap_mode`, `filter_type`, `to_uv`) and
 //!   `checkerboard`;
-//! - emitters `area`, `point`, `spot`, `directional`, `constant`, `envmap`;
+//! - emitters `area`, `point`, `spot`, `directional`, `constant`, `envmap` (and their
+//!   `sampling_weight`: see `emitter`);
 //! - the sensor `perspective` (`fov`, `fov_axis`, `focal_length`, `near_clip`,
 //!   `far_clip`), `thinlens` (`aperture_radius`, `focus_distance`) and `orthographic`; the
 //!   `hdrfilm`'s size and crop window (`crop_offset_x`, `crop_offset_y`, `crop_width`,
@@ -1199,6 +1200,18 @@ impl<'a, 'd> Cx<'a, 'd> {
     /// An emitter: `area` adds to `emission` (inside a shape); the others become lights.
     fn emitter(&mut self, n: Node<'a, 'd>, emission: Option<&mut Vec3>) -> R<()> {
         let kind = self.attr(n, "type")?;
+        // `sampling_weight`: how often Mitsuba's light sampling picks the emitter. lucent
+        // picks lights by what each can send to the point, which the weight does not
+        // change (the image is the same); a weight of zero on a point, spot or directional
+        // light, which only light sampling reaches, leaves it dark in Mitsuba's image, and
+        // so out of lucent's.
+        let weight = self.float(n, "sampling_weight", 1.0)?;
+        if !(weight >= 0.0 && weight.is_finite()) {
+            return Err(self.err(n, format!("sampling_weight {weight}: expected 0 or more")));
+        }
+        if weight == 0.0 && matches!(kind.as_str(), "point" | "spot" | "directional") {
+            return Ok(());
+        }
         match (kind.as_str(), emission) {
             ("area", Some(e)) => *e = self.color(n, "radiance", Vec3::ONE)?,
             ("area", None) => return Err(self.err(n, "an area emitter belongs inside a <shape>")),
