@@ -425,7 +425,7 @@ pub fn render_blocks(
         .sum()
 }
 
-/// Tile edge of the splatting loop ([`render_splat`]): larger than [`TILE`], since each
+/// Tile edge of the splatting loop (`render_splat`): larger than [`TILE`], since each
 /// tile also traces a border of its neighbours' pixels (for Mitsuba's Gaussian, 2 pixels:
 /// 13% more samples at 64, 56% at 16).
 pub const SPLAT_TILE: u32 = 64;
