@@ -143,11 +143,11 @@ impl PreparedMaterial {
                 mf: Microfacet::new(lucent_scene::Distribution::Beckmann, *alpha),
             }),
             Desc::Blend { weight, .. } => match &self.blend {
-                Some(parts) => Bsdf::Blend(Blend { weight: float(weight).clamp(0.0, 1.0), parts, textures, uv }),
+                Some(parts) => Bsdf::Blend(Blend { weight: float(weight).clamp(0.0, 1.0), parts: [&parts.0, &parts.1], textures, uv }),
                 None => Bsdf::Diffuse(Diffuse { r: Vec3::ZERO }),
             },
             Desc::Mask { opacity, .. } => match &self.masked {
-                Some(inner) => Bsdf::Mask(Mask { opacity: float(opacity).clamp(0.0, 1.0), inner, textures, uv }),
+                Some(inner) => Bsdf::Mask(Mask { opacity: float(opacity).clamp(0.0, 1.0), inner: &**inner, textures, uv }),
                 None => Bsdf::Diffuse(Diffuse { r: Vec3::ZERO }),
             },
         }
@@ -173,6 +173,12 @@ impl PreparedMaterial {
             },
             Desc::Mask { .. } => self.masked.as_ref().map_or(Vec3::ZERO, |m| m.albedo(textures, uv)),
         }
+    }
+}
+
+impl crate::bsdf::Nested for PreparedMaterial {
+    fn bsdf_at<'a>(&'a self, textures: &'a [Texture], uv: Vec2) -> Bsdf<'a> {
+        PreparedMaterial::bsdf_at(self, textures, uv)
     }
 }
 

@@ -15,8 +15,9 @@
 //! that images agree: [`diffuse`], [`conductor`] (complex Fresnel) smooth or rough,
 //! [`dielectric`] smooth or rough (Walter et al. 2007), [`thin_dielectric`], [`plastic`]
 //! and [`rough_plastic`] (Weidlich and Wilkie 2007's layering), the glTF 2.0
-//! [`metallic_roughness`] BRDF, MTL's [`diffuse_glossy`], the mix of two, [`blend`], and
-//! a surface with holes, [`mask`].
+//! [`metallic_roughness`] BRDF, MTL's [`diffuse_glossy`], and, here beside [`Bsdf`] since
+//! they hold BSDFs themselves, the mix of two ([`Blend`]) and a surface with holes
+//! ([`Mask`]).
 //! Users add their own through
 //! [`BsdfModel`].
 //!
@@ -25,12 +26,10 @@
 //! material's description in `lucent_scene::bsdf` and its preparation in
 //! `crate::materials`.
 
-pub mod blend;
 pub mod conductor;
 pub mod dielectric;
 pub mod diffuse;
 pub mod diffuse_glossy;
-pub mod mask;
 pub mod metallic_roughness;
 pub mod microfacet;
 pub mod plastic;
@@ -38,12 +37,10 @@ pub mod rough_plastic;
 mod sample;
 pub mod thin_dielectric;
 
-pub use blend::Blend;
 pub use conductor::Conductor;
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use diffuse_glossy::DiffuseGlossy;
-pub use mask::Mask;
 pub use metallic_roughness::MetallicRoughness;
 pub use microfacet::{fresnel_conductor, fresnel_dielectric, Microfacet};
 pub use plastic::{plastic_spec_weight, Plastic};
@@ -56,6 +53,7 @@ pub use thin_dielectric::ThinDielectric;
 pub use crate::sampling::cosine_hemisphere;
 
 use glam::{Vec2, Vec3};
+use lucent_scene::Texture;
 
 /// A BSDF of the library user's own, at the coarse seam the path tracer offers: it sees
 /// local directions and the hit's texture coordinates and answers as the built-in ones
@@ -188,5 +186,155 @@ impl Bsdf<'_> {
             Self::Mask(b) => b.sample(wo, u, u2),
             Self::Custom(m, uv) => m.sample(wo, *uv, u, u2),
         }
+    }
+}
+
+/// A BSDF that a composite one ([`Blend`], [`Mask`]) holds, resolved at a surface point
+/// (the prepared materials are).
+pub trait Nested: Send + Sync + std::fmt::Debug {
+    /// The BSDF at texture coordinates `uv` (`textures`: the scene's).
+    fn bsdf_at<'a>(&'a self, textures: &'a [Texture], uv: Vec2) -> Bsdf<'a>;
+}
+
+/// A mix of two BSDFs at one surface point, `(1 − w)·f₀ + w·f₁` (Mitsuba's `blendbsdf`): evaluated as the mix,
+/// sampled by choosing the first with probability 1 − w, then weighed by the mixed
+/// density of both (one-sample MIS with the balance heuristic over the two, as Mitsuba's
+/// `sample` does), so that the estimate is the mix whichever BSDF drew the direction. A
+/// delta direction is weighed the same way, its probability mixed with the other's
+/// density, as Mitsuba's does (measured: keeping the delta sample's own weight instead
+/// left a blend of rough plastic and glass 0.3% brighter than Mitsuba's at 4,096
+/// samples).
+///
+/// The two BSDFs are the material's prepared ones, resolved at the surface point when
+/// used (their textures looked up per call).
+#[derive(Clone, Copy, Debug)]
+pub struct Blend<'a> {
+    /// The second BSDF's share, in [0, 1].
+    pub weight: f32,
+    /// The two BSDFs.
+    pub parts: [&'a dyn Nested; 2],
+    /// The scene's textures and the point's texture coordinates, to resolve them.
+    pub textures: &'a [Texture],
+    /// Texture coordinates of the point.
+    pub uv: Vec2,
+}
+
+impl<'a> Blend<'a> {
+    fn first(&self) -> Bsdf<'a> {
+        self.parts[0].bsdf_at(self.textures, self.uv)
+    }
+
+    fn second(&self) -> Bsdf<'a> {
+        self.parts[1].bsdf_at(self.textures, self.uv)
+    }
+
+    /// f(wo, wi)·|cos θi|.
+    #[must_use]
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        let w = self.weight;
+        let a = if w < 1.0 { self.first().eval(wo, wi) * (1.0 - w) } else { Vec3::ZERO };
+        let b = if w > 0.0 { self.second().eval(wo, wi) * w } else { Vec3::ZERO };
+        a + b
+    }
+
+    /// The mixed density of the two BSDFs' non-delta lobes.
+    #[must_use]
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let w = self.weight;
+        let a = if w < 1.0 { self.first().pdf(wo, wi) * (1.0 - w) } else { 0.0 };
+        let b = if w > 0.0 { self.second().pdf(wo, wi) * w } else { 0.0 };
+        a + b
+    }
+
+    /// A direction: the second BSDF's with probability w (`u` reused, rescaled).
+    #[must_use]
+    pub fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
+        let w = self.weight;
+        let (chosen, other, p, u) =
+            if u < w { (self.second(), self.first(), w, u / w) } else { (self.first(), self.second(), 1.0 - w, (u - w) / (1.0 - w)) };
+        let s = chosen.sample(wo, u.clamp(0.0, 1.0 - f32::EPSILON), u2)?;
+        // (The chosen one's value from its weight and density; the other's evaluated. A
+        // delta sample's probability is mixed with the other's density as well, as
+        // Mitsuba 3.9.1's blendbsdf does: not the mix's estimate where a delta and a
+        // glossy lobe overlap, but Mitsuba's image.)
+        let f = s.weight * s.pdf * p + other.eval(wo, s.wi) * (1.0 - p);
+        let pdf = s.pdf * p + other.pdf(wo, s.wi) * (1.0 - p);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        Some(BsdfSample { weight: f / pdf, pdf, ..s })
+    }
+
+    /// Whether both BSDFs are delta only.
+    #[must_use]
+    pub fn is_delta(&self) -> bool {
+        self.first().is_delta() && self.second().is_delta()
+    }
+
+    /// Whether either transmits.
+    #[must_use]
+    pub fn transmits(&self) -> bool {
+        self.first().transmits() || self.second().transmits()
+    }
+}
+
+/// A surface with holes at one surface point: there with probability α (Mitsuba's
+/// `mask`), its BSDF times α, plus a null lobe that carries light straight through with
+/// probability 1 − α (a delta transmission of weight one). Sampled paths pass the holes; next-event shadow rays stop
+/// at the surface, as in Mitsuba's path tracer (which measures that way: a point light
+/// under a half-opaque plane casts a black shadow in Mitsuba 3.9.1).
+#[derive(Clone, Copy, Debug)]
+pub struct Mask<'a> {
+    /// The opacity α, in [0, 1].
+    pub opacity: f32,
+    /// The surface's BSDF.
+    pub inner: &'a dyn Nested,
+    /// The scene's textures and the point's texture coordinates, to resolve it.
+    pub textures: &'a [Texture],
+    /// Texture coordinates of the point.
+    pub uv: Vec2,
+}
+
+impl<'a> Mask<'a> {
+    fn inner(&self) -> Bsdf<'a> {
+        self.inner.bsdf_at(self.textures, self.uv)
+    }
+
+    /// α·f(wo, wi)·|cos θi| (the null lobe is a delta: nothing here).
+    #[must_use]
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if self.opacity > 0.0 {
+            self.inner().eval(wo, wi) * self.opacity
+        } else {
+            Vec3::ZERO
+        }
+    }
+
+    /// α times the inner density.
+    #[must_use]
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if self.opacity > 0.0 {
+            self.inner().pdf(wo, wi) * self.opacity
+        } else {
+            0.0
+        }
+    }
+
+    /// Straight through with probability 1 − α, else the inner BSDF's sample (its weight
+    /// unchanged: α cancels).
+    #[must_use]
+    pub fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
+        let a = self.opacity;
+        if u >= a {
+            return Some(BsdfSample { wi: -wo, weight: Vec3::ONE, pdf: 1.0 - a, delta: true, eta: 1.0 });
+        }
+        let s = self.inner().sample(wo, (u / a).clamp(0.0, 1.0 - f32::EPSILON), u2)?;
+        Some(BsdfSample { pdf: s.pdf * a, ..s })
+    }
+
+    /// Whether the inner BSDF is delta only (then so is the whole).
+    #[must_use]
+    pub fn is_delta(&self) -> bool {
+        self.opacity <= 0.0 || self.inner().is_delta()
     }
 }
