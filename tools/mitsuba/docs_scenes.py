@@ -96,7 +96,8 @@ def main():
             continue
         exr = os.path.join(WORK, "lucent.exr")
         t = time.time()
-        p = subprocess.run([binary, "render", path, "--spp", "64", "--no-denoise", "-o", exr], capture_output=True, text=True)
+        # (Scenes that read `$spp` get it as Mitsuba did.)
+        p = subprocess.run([binary, "render", path, "-D", "spp=64", "--spp", "64", "--no-denoise", "-o", exr], capture_output=True, text=True)
         t_l = time.time() - t
         warnings = "; ".join(sorted({re.sub(r"^.*?: ", "", l.strip())[:70] for l in p.stderr.splitlines() if "WARN" in l}))
         if p.returncode != 0:

@@ -444,3 +444,20 @@ fn emitter_sampling_weights() {
     let e = err(r#"<scene version="3.0.0"><emitter type="point"><float name="sampling_weight" value="-1"/></emitter></scene>"#);
     assert!(e.contains("t.xml:1:") && e.contains("sampling_weight"), "{e}");
 }
+
+/// An area emitter defined at the top with an id, which shapes name with `<ref>` (as
+/// Mitsuba's own Cornell box files do).
+#[test]
+fn area_emitters_by_reference() {
+    let s = parse(
+        r#"<scene version="3.0.0">
+        <shape type="rectangle"><ref id="light"/></shape>
+        <emitter type="area" id="light"><rgb name="radiance" value="4, 3, 2"/></emitter>
+        </scene>"#,
+    )
+    .expect("scene");
+    assert_eq!(s.materials.last().expect("material").emission, Vec3::new(4.0, 3.0, 2.0));
+    // Without an id it still belongs inside a shape.
+    let e = err(r#"<scene version="3.0.0"><emitter type="area"/></scene>"#);
+    assert!(e.contains("belongs inside a <shape>"), "{e}");
+}

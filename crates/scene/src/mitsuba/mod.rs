@@ -241,6 +241,8 @@ impl<'a, 'd> Cx<'a, 'd> {
                         self.push_instance(n, geom, m)?;
                     }
                 }
+                // (An area emitter at the top is defined for the shapes that name it.)
+                "emitter" if n.attribute("type") == Some("area") && n.attribute("id").is_some() => {}
                 "emitter" => self.emitter(n, None)?,
                 // (Defined here, used by reference.)
                 "bsdf" | "texture" | "medium" | "spectrum" | "rfilter" | "sampler" | "film" => {}
@@ -1082,8 +1084,10 @@ impl<'a, 'd> Cx<'a, 'd> {
                 "bsdf" => bsdf = Some(self.bsdf(c, 0)?),
                 "ref" => {
                     let t = self.deref(c, 0)?;
-                    if t.tag_name().name() == "bsdf" {
-                        bsdf = Some(self.bsdf(t, 1)?);
+                    match t.tag_name().name() {
+                        "bsdf" => bsdf = Some(self.bsdf(t, 1)?),
+                        "emitter" => self.emitter(t, Some(&mut emission))?,
+                        _ => {}
                     }
                 }
                 "emitter" => self.emitter(c, Some(&mut emission))?,
@@ -1225,6 +1229,9 @@ impl<'a, 'd> Cx<'a, 'd> {
                 self.scene.lights.push(Light { kind: LightKind::Point { position }, color, inverse_square: true });
             }
             ("spot", _) => {
+                if self.prop(n, "texture").is_some() {
+                    self.warn(n, "spot texture", "a spot light's projected 'texture' is not supported; its intensity alone is used");
+                }
                 let m = self.to_world(n)?;
                 let cutoff = self.float(n, "cutoff_angle", 20.0)?;
                 let beam = self.float(n, "beam_width", cutoff * 0.75)?;
