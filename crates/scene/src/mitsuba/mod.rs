@@ -568,14 +568,7 @@ impl<'a, 'd> Cx<'a, 'd> {
             Some(d) => return Err(self.err(b, format!("distribution '{d}': expected beckmann or ggx"))),
         };
         let alpha = match self.prop(b, "alpha") {
-            Some(p) if self.deref(p, 0)?.tag_name().name() == "texture" => {
-                let t = self.deref(p, 0)?;
-                match self.texture(t)? {
-                    ColorTex::Image { tex, to_uv, .. } => FloatTex::Image { tex, channel: 0, scale: 1.0, to_uv },
-                    other => FloatTex::Const(other.mean_guess().x),
-                }
-            }
-            Some(_) => FloatTex::Const(self.float(b, "alpha", 0.1)?),
+            Some(_) => self.float_tex(b, "alpha", 0.1)?,
             None => match (self.prop(b, "alpha_u"), self.prop(b, "alpha_v")) {
                 (Some(_), Some(_)) => {
                     let (u, v) = (self.float(b, "alpha_u", 0.1)?, self.float(b, "alpha_v", 0.1)?);
@@ -588,6 +581,29 @@ impl<'a, 'd> Cx<'a, 'd> {
             },
         };
         Ok(Rough { dist, alpha })
+    }
+
+    /// The BSDFs inside an adapter `b` (children or references), in order.
+    fn inner_bsdfs(&self, b: Node<'a, 'd>, depth: u32) -> Vec<Node<'a, 'd>> {
+        b.children()
+            .filter(|c| {
+                matches!(c.tag_name().name(), "bsdf" | "ref") && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
+            })
+            .collect()
+    }
+
+    /// A scalar that may be a bitmap texture (its first channel) or a number.
+    fn float_tex(&mut self, plugin: Node<'a, 'd>, name: &str, default: f32) -> R<FloatTex> {
+        match self.prop(plugin, name) {
+            Some(p) if self.deref(p, 0)?.tag_name().name() == "texture" => {
+                let t = self.deref(p, 0)?;
+                Ok(match self.texture(t)? {
+                    ColorTex::Image { tex, to_uv, .. } => FloatTex::Image { tex, channel: 0, scale: 1.0, to_uv },
+                    other => FloatTex::Const(other.mean_guess().x),
+                })
+            }
+            _ => Ok(FloatTex::Const(self.float(plugin, name, default)?)),
+        }
     }
 
     fn bsdf(&mut self, n: Node<'a, 'd>, depth: u32) -> R<ReadBsdf> {
@@ -666,36 +682,16 @@ impl<'a, 'd> Cx<'a, 'd> {
                     ("texture", ColorTex::Image { tex, to_uv, .. }) => NormalMap { tex, scale: 1.0, to_uv, mitsuba: true, height: false },
                     _ => return Err(self.err(map, "a normalmap's 'normalmap' must be a bitmap texture")),
                 };
-                let inner = b
-                    .children()
-                    .find(|c| {
-                        matches!(c.tag_name().name(), "bsdf" | "ref")
-                            && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
-                    })
-                    .ok_or_else(|| self.err(b, "a normalmap needs one BSDF inside"))?;
+                let inner =
+                    self.inner_bsdfs(b, depth).into_iter().next().ok_or_else(|| self.err(b, "a normalmap needs one BSDF inside"))?;
                 let read = self.bsdf(inner, depth + 1)?;
                 self.normal_map = Some(nm);
                 read
             }
             "blendbsdf" => {
-                let inner: Vec<Node> = b
-                    .children()
-                    .filter(|c| {
-                        matches!(c.tag_name().name(), "bsdf" | "ref")
-                            && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
-                    })
-                    .collect();
+                let inner: Vec<Node> = self.inner_bsdfs(b, depth);
                 let [f, k] = inner.as_slice() else { return Err(self.err(b, "a blendbsdf needs two BSDFs inside")) };
-                let weight = match self.prop(b, "weight") {
-                    Some(p) if self.deref(p, 0)?.tag_name().name() == "texture" => {
-                        let t = self.deref(p, 0)?;
-                        match self.texture(t)? {
-                            ColorTex::Image { tex, to_uv, .. } => FloatTex::Image { tex, channel: 0, scale: 1.0, to_uv },
-                            other => FloatTex::Const(other.mean_guess().x),
-                        }
-                    }
-                    _ => FloatTex::Const(self.float(b, "weight", 0.5)?),
-                };
+                let weight = self.float_tex(b, "weight", 0.5)?;
                 let (first, s0) = self.bsdf(*f, depth + 1)?;
                 let (second, s1) = self.bsdf(*k, depth + 1)?;
                 // (Both sides scatter when both BSDFs say so.)
@@ -714,35 +710,14 @@ impl<'a, 'd> Cx<'a, 'd> {
                     ColorTex::Image { tex, to_uv, .. } => NormalMap { tex, scale, to_uv, mitsuba: true, height: true },
                     _ => return Err(self.err(map, "a bumpmap's height must be a bitmap texture")),
                 };
-                let inner = b
-                    .children()
-                    .find(|c| {
-                        matches!(c.tag_name().name(), "bsdf" | "ref")
-                            && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
-                    })
-                    .ok_or_else(|| self.err(b, "a bumpmap needs one BSDF inside"))?;
+                let inner = self.inner_bsdfs(b, depth).into_iter().next().ok_or_else(|| self.err(b, "a bumpmap needs one BSDF inside"))?;
                 let read = self.bsdf(inner, depth + 1)?;
                 self.normal_map = Some(nm);
                 read
             }
             "mask" => {
-                let opacity = match self.prop(b, "opacity") {
-                    Some(p) if self.deref(p, 0)?.tag_name().name() == "texture" => {
-                        let t = self.deref(p, 0)?;
-                        match self.texture(t)? {
-                            ColorTex::Image { tex, to_uv, .. } => FloatTex::Image { tex, channel: 0, scale: 1.0, to_uv },
-                            other => FloatTex::Const(other.mean_guess().x),
-                        }
-                    }
-                    _ => FloatTex::Const(self.float(b, "opacity", 0.5)?),
-                };
-                let inner = b
-                    .children()
-                    .find(|c| {
-                        matches!(c.tag_name().name(), "bsdf" | "ref")
-                            && self.deref(*c, depth + 1).is_ok_and(|x| x.tag_name().name() == "bsdf")
-                    })
-                    .ok_or_else(|| self.err(b, "a mask needs one BSDF inside"))?;
+                let opacity = self.float_tex(b, "opacity", 0.5)?;
+                let inner = self.inner_bsdfs(b, depth).into_iter().next().ok_or_else(|| self.err(b, "a mask needs one BSDF inside"))?;
                 let (inner, sides) = self.bsdf(inner, depth + 1)?;
                 (Bsdf::Mask { opacity, inner: Box::new(inner) }, sides)
             }
