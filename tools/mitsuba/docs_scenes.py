@@ -23,20 +23,14 @@ import sys
 import time
 
 import mitsuba as mi
-
-mi.set_variant("llvm_ad_rgb")
-import drjit as dr  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
+from references import rel_mse, render  # (sets the variant: llvm_ad_rgb)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORK = os.path.join(HERE, "..", "..", "target", "mitsuba-docs")
 SIZE = (160, 120)
 REF_SPP = 512
 SEEDS = 1
-
-
-def rel_mse(x, ref):
-    return float(np.mean((x - ref) ** 2 / (ref ** 2 + 0.01)))
 
 
 def shrink(path):
@@ -55,12 +49,7 @@ def shrink(path):
 
 
 def mitsuba_render(path, spp, seed):
-    scene = mi.load_file(path, spp=spp)
-    t = time.time()
-    img = mi.render(scene, spp=spp, seed=seed)
-    dr.eval(img)
-    dr.sync_thread()
-    return np.array(img)[..., :3], time.time() - t
+    return render(mi.load_file(path, spp=spp), spp, seed)
 
 
 def main():

@@ -32,6 +32,9 @@ pub struct PreparedMaterial {
     blend: Option<Box<(PreparedMaterial, PreparedMaterial)>>,
     /// A mask's BSDF, prepared.
     masked: Option<Box<PreparedMaterial>>,
+    /// The material reads texture coordinates (a texture anywhere in it: see
+    /// [`lucent_scene::Material::uses_uv`]); analytic shapes compute them only then.
+    pub(crate) uses_uv: bool,
 }
 
 /// The mean of a texture's texels (linear), for Mitsuba's `mean()` of a bitmap.
@@ -61,7 +64,17 @@ impl PreparedMaterial {
     /// Prepares one BSDF (`scene` for its textures).
     #[must_use]
     pub fn new(desc: Desc, scene: &Scene) -> Self {
-        let mut p = Self { desc, back: None, tables: None, spec_weight: 0.5, fdr_int: 0.0, custom: None, blend: None, masked: None };
+        let mut p = Self {
+            desc,
+            back: None,
+            tables: None,
+            spec_weight: 0.5,
+            fdr_int: 0.0,
+            custom: None,
+            blend: None,
+            masked: None,
+            uses_uv: false,
+        };
         if let Desc::Blend { first, second, .. } = &p.desc {
             p.blend = Some(Box::new((Self::new((**first).clone(), scene), Self::new((**second).clone(), scene))));
         }
@@ -82,6 +95,7 @@ impl PreparedMaterial {
     #[must_use]
     pub fn of(m: &Material, scene: &Scene) -> Self {
         let mut p = Self::new(m.bsdf().into_owned(), scene);
+        p.uses_uv = m.uses_uv();
         if let lucent_scene::Sides::Back(b) = &m.sides {
             p.back = Some(Box::new(Self::new((**b).clone(), scene)));
         }

@@ -91,25 +91,32 @@ impl SampleBlock<'_> {
     }
 }
 
+/// The camera rays of sample `k` of the block's pixels, made together (into `rays`, one
+/// per pixel).
+fn block_rays(s: &SampleBlock, block: &Block, k: u32, rays: &mut [Ray]) {
+    let (cam, cs) = (s.camera, s.samples);
+    let mut pts = [(0f32, 0f32); BLOCK];
+    for (p, &(x, y)) in pts.iter_mut().zip(block.pixels) {
+        let (jx, jy) = cs.pixel(x, y, k);
+        *p = (x as f32 + jx, y as f32 + jy);
+    }
+    cam.rays_at(&pts[..rays.len()], rays);
+    if cam.has_lens() {
+        for (r, &(x, y)) in rays.iter_mut().zip(block.pixels) {
+            *r = cam.through_lens(r, cs.lens(x, y, k));
+        }
+    }
+}
+
 /// [`BlockShader::shade_samples`] sample after sample: the block's camera rays of each
 /// sample made together, shaded by [`BlockShader::li_block`], added to the sums.
 pub fn shade_samples(shader: &(impl BlockShader + ?Sized), s: &SampleBlock, block: &Block, sums: &mut [Vec3]) {
     let n = block.pixels.len();
     let mut rays = NO_RAYS;
-    let mut pts = [(0f32, 0f32); BLOCK];
     let mut c = [Vec3::ZERO; BLOCK];
-    let (w, cam, cs) = (s.world, s.camera, s.samples);
+    let w = s.world;
     for k in s.range.clone() {
-        for (p, &(x, y)) in pts.iter_mut().zip(block.pixels) {
-            let (jx, jy) = cs.pixel(x, y, k);
-            *p = (x as f32 + jx, y as f32 + jy);
-        }
-        cam.rays_at(&pts[..n], &mut rays[..n]);
-        if cam.has_lens() {
-            for (r, &(x, y)) in rays[..n].iter_mut().zip(block.pixels) {
-                *r = cam.through_lens(r, cs.lens(x, y, k));
-            }
-        }
+        block_rays(s, block, k, &mut rays[..n]);
         let one = Block { sample: k, ..*block };
         if s.range.len() == 1 {
             // One sample: straight into the sums.
@@ -134,9 +141,7 @@ pub fn shade_each(shader: &(impl BlockShader + ?Sized), s: &SampleBlock, block: 
     let mut rays = NO_RAYS;
     let mut c = [Vec3::ZERO; BLOCK];
     for (kk, k) in s.range.clone().enumerate() {
-        for (r, &(x, y)) in rays.iter_mut().zip(block.pixels) {
-            *r = s.camera_ray(x, y, k);
-        }
+        block_rays(s, block, k, &mut rays[..n]);
         let one = Block { sample: k, ..*block };
         shader.li_block(s.world, &one, &rays[..n], s.traversal, &mut c[..n]);
         for (j, v) in c[..n].iter().enumerate() {

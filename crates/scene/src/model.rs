@@ -131,6 +131,17 @@ pub struct Material {
 }
 
 impl Material {
+    /// Whether shading the material reads texture coordinates: a texture of its own
+    /// (diffuse, emission, normal map) or one in its BSDF or its back's.
+    #[must_use]
+    pub fn uses_uv(&self) -> bool {
+        self.diffuse_tex.is_some()
+            || self.emission_tex.is_some()
+            || self.normal_map.is_some()
+            || self.bsdf.as_ref().is_some_and(Bsdf::uses_uv)
+            || matches!(&self.sides, Sides::Back(b) if b.uses_uv())
+    }
+
     /// The BSDF the path tracer uses: [`Material::bsdf`], or the Phong terms read as one.
     #[must_use]
     pub fn bsdf(&self) -> std::borrow::Cow<'_, Bsdf> {

@@ -155,14 +155,7 @@ impl World {
                 let ng: Vec3 = (inst.normal_to_world * glam::Vec3A::from(n_obj)).normalize_or_zero().into();
                 // PERF: the uv (atan2, acos) only for textured materials (a tenth of a
                 // 4,096-sphere REND3R frame went to uvs nobody read).
-                let textured = self.scene.materials.get(material as usize).is_some_and(|m| {
-                    m.diffuse_tex.is_some()
-                        || m.emission_tex.is_some()
-                        || m.normal_map.is_some()
-                        || m.bsdf.as_ref().is_some_and(lucent_scene::Bsdf::uses_uv)
-                        || matches!(&m.sides, lucent_scene::Sides::Back(b) if b.uses_uv())
-                });
-                let uv = if textured {
+                let uv = if self.prepared(material).uses_uv {
                     let (u, v) = shape_of(kind).uv_local(p_obj, h.prim);
                     Vec2::new(u, v)
                 } else {
@@ -182,8 +175,8 @@ impl World {
         let m = match inst.geom {
             Geom::Mesh(m) => m,
             Geom::Shape { kind, .. } => {
-                let world_from_object = self.accel.instances()[h.inst as usize].world_from_object;
-                let p_obj = world_from_object.inverse().transform_point3(r.at(h.t));
+                let placed = &self.accel.instances()[h.inst as usize];
+                let (world_from_object, p_obj) = (placed.world_from_object, placed.object_from_world.transform_point3(r.at(h.t)));
                 let (du, dv) = shape_of(kind).uv_tangents_local(p_obj, h.prim);
                 let (u, v) = (world_from_object.transform_vector3(du), world_from_object.transform_vector3(dv));
                 return (u.is_finite() && v.is_finite() && u != Vec3::ZERO).then_some((u, v));

@@ -1089,29 +1089,23 @@ impl<'a, 'd> Cx<'a, 'd> {
                 let mesh = match self.meshes.get(&key) {
                     Some(&i) => i,
                     None => {
+                        let failed = |e: &dyn std::fmt::Display| self.err(n, format!("{}: {e}", path.display()));
                         let mut mesh = match kind.as_str() {
                             "serialized" => {
-                                let bytes = std::fs::read(&path).map_err(|e| self.err(n, format!("{}: {e}", path.display())))?;
-                                let m = serialized::parse_serialized(&bytes, index)
-                                    .map_err(|e| self.err(n, format!("{}: {e}", path.display())))?;
+                                let bytes = std::fs::read(&path).map_err(|e| failed(&e))?;
+                                let m = serialized::parse_serialized(&bytes, index).map_err(|e| failed(&e))?;
                                 face_normals |= m.face_normals;
                                 serialized_mesh(m, mat)
                             }
-                            _ => {
-                                let loaded = match kind.as_str() {
-                                    "obj" => crate::obj::load_obj(&path),
-                                    _ => crate::ply::load_ply(&path),
-                                }
-                                .map_err(|e| self.err(n, format!("{}: {e}", path.display())))?;
-                                let mut mesh = merge_meshes(&loaded, mat);
-                                if kind == "obj" {
-                                    // (Mitsuba's OBJ reader turns v over; its other shapes keep it.)
-                                    for uv in &mut mesh.uvs.values {
-                                        uv.y = 1.0 - uv.y;
-                                    }
+                            "obj" => {
+                                let mut mesh = merge_meshes(&crate::obj::load_obj(&path).map_err(|e| failed(&e))?, mat);
+                                // (Mitsuba's OBJ reader turns v over; its other shapes keep it.)
+                                for uv in &mut mesh.uvs.values {
+                                    uv.y = 1.0 - uv.y;
                                 }
                                 mesh
                             }
+                            _ => merge_meshes(&crate::ply::load_ply(&path).map_err(|e| failed(&e))?, mat),
                         };
                         if face_normals {
                             mesh.normals = Default::default();
