@@ -58,6 +58,14 @@ fn mitsuba_relmse(dir: &str, spp: u32) -> f64 {
 /// seed) must be at most 1.1× Mitsuba's median at the same count, and the means within 1%.
 fn converges_to_mitsuba(dir: &str) {
     let path = data(&format!("{dir}/scene.xml"));
+    // Every file the scene names beside it is here (a missing texture is only a warning
+    // to the importer, and an ignore rule once kept these out of the repository).
+    let xml = std::fs::read_to_string(&path).expect("scene.xml");
+    for name in xml.split("name=\"filename\" value=\"").skip(1).filter_map(|s| s.split('"').next()) {
+        if !name.contains('$') {
+            assert!(data(&format!("{dir}/{name}")).exists(), "{dir}: the scene's file {name} is missing");
+        }
+    }
     let defines = [("scenes".to_string(), common::scenes_dir().display().to_string())];
     let scene = lucent_scene::load_mitsuba_with(&path, if matches!(dir, "bunny" | "sponza") { &defines[..] } else { &[] }).expect("scene");
     let hints = scene.hints.expect("a Mitsuba scene has render hints");
