@@ -111,7 +111,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         let Some((hit_ray, hit)) = found else {
             if !hidden(depth) {
                 let d = ray.dir.normalize();
-                match lights.env_radiance_pdf(d, prev_n) {
+                match lights.env_radiance_pdf(d, prev_n, s.sampling == LightSampling::Mis) {
                     Some((le, dir_pdf)) => {
                         let weight = if prev_delta {
                             1.0
@@ -159,7 +159,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         let light_n = light_normal(&bsdf, &fr);
         // Next-event estimation.
         if !bsdf.is_delta() && !lights.is_empty() && s.sampling != LightSampling::Bsdf {
-            if let Some(ls) = lights.sample(surf.p, light_n, choice_at(depth, 0), dims(base), textures) {
+            if let Some(ls) = lights.sample(surf.p, light_n, choice_at(depth, 0), dims(base), textures, s.sampling == LightSampling::Mis) {
                 let wi = fr.to_local(ls.dir);
                 let f = bsdf.eval(wo, wi) * bend.weight(ls.dir);
                 if f.max_element() > 0.0 {

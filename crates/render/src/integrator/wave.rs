@@ -577,7 +577,7 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
         let Some((hit_ray, hit)) = found else {
             if !hidden(depth) {
                 let d = wave.ray[i].dir.normalize();
-                let add = match lights.env_radiance_pdf(d, get3(&wave.prev_n, i)) {
+                let add = match lights.env_radiance_pdf(d, get3(&wave.prev_n, i), s.sampling == LightSampling::Mis) {
                     Some((le, dir_pdf)) => {
                         let weight = if wave.prev_delta[i] {
                             1.0
@@ -680,6 +680,7 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
             wave.u_light[i],
             (wave.u2_light[0][i], wave.u2_light[1][i]),
             textures,
+            s.sampling == LightSampling::Mis,
         ) else {
             continue;
         };

@@ -335,8 +335,11 @@ impl LightSet {
     }
 
     /// A light sample from `p` (a point of a surface with unit normal `n`, or zero: see
-    /// `reach`), a light chosen by `u`, a point on it by `u2`.
-    pub fn sample(&self, p: Vec3, n: Vec3, u: f32, u2: (f32, f32), textures: &[lucent_scene::Texture]) -> Option<LightSample> {
+    /// `reach`), a light chosen by `u`, a point on it by `u2`. With `mis` the sample is
+    /// for multiple importance sampling with the BSDF's samples (which must then reach
+    /// every direction the BSDF scatters from): an environment map is sampled by its
+    /// compensated density, zero where the map is dimmer than its mean.
+    pub fn sample(&self, p: Vec3, n: Vec3, u: f32, u2: (f32, f32), textures: &[lucent_scene::Texture], mis: bool) -> Option<LightSample> {
         let (i, pmf) = self.choose(p, n, u)?;
         if pmf <= 0.0 {
             return None;
@@ -344,7 +347,7 @@ impl LightSet {
         let mut s = match &self.entries[i] {
             Entry::Area(a) => a.sample(p, u2, textures)?,
             Entry::Delta(k) => delta::sample(self.delta.get(*k)?, p)?,
-            Entry::Env => self.env.as_ref()?.1.sample(u2, n)?,
+            Entry::Env => self.env.as_ref()?.1.sample(u2, n, mis)?,
             Entry::Custom(c) => {
                 // (Rays never meet it: no multiple importance sampling, its own density.)
                 let mut s = c.sample(p, u2)?;
@@ -413,7 +416,7 @@ impl LightSet {
             Entry::Area(a) => a.emit(u_pos, u_dir, textures)?,
             Entry::Delta(k) => delta::emit(self.delta.get(*k)?, u_dir, disk_start, disk_area)?,
             Entry::Env => {
-                let s = self.env.as_ref()?.1.sample(u_dir, Vec3::ZERO)?;
+                let s = self.env.as_ref()?.1.sample(u_dir, Vec3::ZERO, false)?;
                 let dir = -s.dir;
                 EmissionSample { p: disk_start(dir), dir, n: None, flux: s.li * (disk_area / s.pdf) }
             }
@@ -426,9 +429,9 @@ impl LightSet {
     /// Radiance of the environment along unit `dir` ([`LightSet::env_radiance`]) and the
     /// density with which [`LightSet::sample`] from a point of normal `n` picks that
     /// direction once it has chosen the environment (`None` without one); times
-    /// [`LightSet::env_choice`], the whole density.
-    pub fn env_radiance_pdf(&self, dir: Vec3, n: Vec3) -> Option<(Vec3, f32)> {
-        self.env.as_ref().map(|(_, e)| e.eval_pdf(dir, n))
+    /// [`LightSet::env_choice`], the whole density. `mis` as for [`LightSet::sample`].
+    pub fn env_radiance_pdf(&self, dir: Vec3, n: Vec3, mis: bool) -> Option<(Vec3, f32)> {
+        self.env.as_ref().map(|(_, e)| e.eval_pdf(dir, n, mis))
     }
 
     /// The probability of choosing the environment from `p` (normal `n`).
