@@ -107,6 +107,8 @@ pub fn run(data: &Path, scenes_dir: &Path, only: &[String]) -> Result<()> {
                 lanes,
                 ..PathSettings::default()
             }),
+            // (The film's filter, as Mitsuba's film reconstructs with it.)
+            filter: hints.filter,
             ..RenderSettings::new(w, h)
         };
         let settings = |spp: u32, seed: u32| settings_with(spp, seed, true);

@@ -430,14 +430,21 @@ pub fn render_blocks(
         .sum()
 }
 
-/// Tile edge of the splatting loop (`render_splat`): larger than [`TILE`], since each
-/// tile also traces a border of its neighbours' pixels (for Mitsuba's Gaussian, 2 pixels:
-/// 13% more samples at 64, 56% at 16).
-pub const SPLAT_TILE: u32 = 64;
+/// Most bytes of sample values the splatting loop keeps for one pass (see
+/// [`pass_samples`]).
+const SPLAT_BUDGET: usize = 256 << 20;
 
-/// Samples per pass of the splatting loop (a block's values for this many samples at a
-/// time).
+/// Most samples per pass of the splatting loop.
 const SPLAT_SAMPLES: u32 = 64;
+
+/// Samples per pass of the splatting loop for an image of `width × height`: 64, or fewer
+/// where a pass's values of every pixel would pass [`SPLAT_BUDGET`] (a function of the
+/// image alone: the same passes, so the same order of sums, for any region, tiling or
+/// thread count).
+fn pass_samples(width: u32, height: u32) -> u32 {
+    let per_sample = (width as usize * height as usize * std::mem::size_of::<Vec3>()).max(1);
+    (SPLAT_BUDGET / per_sample).clamp(1, SPLAT_SAMPLES as usize) as u32
+}
 
 /// The loop for a reconstruction filter wider than the pixel's box: every sample lies in
 /// its own pixel (uniformly, as Mitsuba's), and its value is spread over the pixels whose
@@ -446,13 +453,14 @@ const SPLAT_SAMPLES: u32 = 64;
 /// times as many for the Gaussian of σ 0.5, where placing samples by the filter, which
 /// [`crate::render_pixel`] does, keeps each pixel to its own).
 ///
-/// A tile of [`SPLAT_TILE`] pixels computes its pixels from the samples of its pixels and
-/// of a border of their neighbours (traced again by each tile that needs them; samples are
-/// a pure function of pixel and index), taken in one global order: by sample pass, 8 × 8
-/// block of the image (row by row), pixel in the block (row by row), sample index. Each
-/// pixel's sums thus add the same values in the same order whatever the tiling, the
-/// regions or the thread count. Samples lie inside the image only (as Mitsuba's): pixels at
-/// its edge average fewer.
+/// Pass by pass ([`pass_samples`] samples a pixel), two phases: the 8 × 8 blocks of the
+/// region's pixels and of the border of neighbours its filter reaches are shaded once each,
+/// in parallel, their values kept; then bands of 8 rows, in parallel, each add to their own
+/// pixels the values that reach them, in one global order: by pass, 8 × 8 block of the
+/// image (row by row), pixel in the block (row by row), sample index. Each pixel's sums
+/// thus add the same values in the same order whatever the regions or the thread count
+/// (samples are a pure function of pixel and index). Samples lie inside the image only (as
+/// Mitsuba's): pixels at its edge average fewer.
 #[allow(clippy::too_many_arguments)]
 fn render_splat(
     w: &World,
@@ -473,70 +481,93 @@ fn render_splat(
     // r + 1/2.
     let reach = ((r + 0.5).ceil() as u32).saturating_sub(1);
     let own = CameraSamples { filter: lucent_scene::PixelFilter::Box, ..cs };
-    let tile = |tx: u32, ty: u32| -> u64 {
-        let (x0, y0) = ((tx * SPLAT_TILE).max(region.x0), (ty * SPLAT_TILE).max(region.y0));
-        let (x1, y1) = ((tx * SPLAT_TILE + SPLAT_TILE).min(region.x1), (ty * SPLAT_TILE + SPLAT_TILE).min(region.y1));
-        let before = rays_traced_here();
-        let tw = (x1 - x0) as usize;
-        let mut sum = vec![Vec3::ZERO; tw * (y1 - y0) as usize];
-        let mut wsum = vec![0f32; sum.len()];
-        let (sx0, sy0) = (x0.saturating_sub(reach), y0.saturating_sub(reach));
-        let (sx1, sy1) = ((x1 + reach).min(job.width), (y1 + reach).min(job.height));
-        let mut vals = vec![Vec3::ZERO; BLOCK * SPLAT_SAMPLES.min(region.s1 - region.s0) as usize];
-        let mut wx = Vec::new();
-        let mut wy = Vec::new();
-        let mut k0 = region.s0;
-        while k0 < region.s1 {
-            // (Passes end at multiples of SPLAT_SAMPLES: the same passes for any region.)
-            let k1 = ((k0 / SPLAT_SAMPLES + 1) * SPLAT_SAMPLES).min(region.s1);
-            let m = (k1 - k0) as usize;
-            let samples_of = SampleBlock { world: w, camera: cam, samples: own, range: k0..k1, traversal: job.traversal };
-            for by in (sy0 & !7..sy1).step_by(8) {
-                for bx in (sx0 & !7..sx1).step_by(8) {
-                    let mut coords = [(0u32, 0u32); BLOCK];
-                    let mut n = 0;
-                    for y in by.max(sy0)..(by + 8).min(sy1) {
-                        for x in bx.max(sx0)..(bx + 8).min(sx1) {
-                            coords[n] = (x, y);
-                            n += 1;
-                        }
+    let (x0, y0, x1, y1) = (region.x0, region.y0, region.x1, region.y1);
+    // The pixels whose samples reach the region, and their 8 × 8 blocks, row by row.
+    let (sx0, sy0) = (x0.saturating_sub(reach), y0.saturating_sub(reach));
+    let (sx1, sy1) = ((x1 + reach).min(job.width), (y1 + reach).min(job.height));
+    let blocks: Vec<(u32, u32)> = (sy0 & !7..sy1).step_by(8).flat_map(|by| (sx0 & !7..sx1).step_by(8).map(move |bx| (bx, by))).collect();
+    let coords_of = |(bx, by): (u32, u32)| {
+        let mut coords = [(0u32, 0u32); BLOCK];
+        let mut n = 0;
+        for y in by.max(sy0)..(by + 8).min(sy1) {
+            for x in bx.max(sx0)..(bx + 8).min(sx1) {
+                coords[n] = (x, y);
+                n += 1;
+            }
+        }
+        (coords, n)
+    };
+    let rw = (x1 - x0) as usize;
+    let mut sum = vec![Vec3::ZERO; rw * (y1 - y0) as usize];
+    let mut wsum = vec![0f32; sum.len()];
+    let per_pass = pass_samples(job.width, job.height);
+    let tiles = u64::from(x1.div_ceil(TILE) - x0 / TILE) * u64::from(y1.div_ceil(TILE) - y0 / TILE);
+    let (mut reported, mut rays) = (0u64, 0u64);
+    let mut k0 = region.s0;
+    while k0 < region.s1 {
+        // (Passes end at multiples of `per_pass`: the same passes for any region.)
+        let k1 = ((k0 / per_pass + 1) * per_pass).min(region.s1);
+        let m = (k1 - k0) as usize;
+        let samples_of = SampleBlock { world: w, camera: cam, samples: own, range: k0..k1, traversal: job.traversal };
+        // Phase 1: every block's values, once.
+        let shaded: Vec<(Vec<Vec3>, u64)> = blocks
+            .par_iter()
+            .map(|&b| {
+                let before = rays_traced_here();
+                let (coords, n) = coords_of(b);
+                let mut vals = vec![Vec3::ZERO; n * m];
+                let block = Block { pixels: &coords[..n], sample: k0, among: None };
+                shader.shade_each(&samples_of, &block, &mut vals);
+                (vals, rays_traced_here() - before)
+            })
+            .collect();
+        rays += shaded.iter().map(|v| v.1).sum::<u64>();
+        // Phase 2: bands of 8 rows add what reaches their pixels, in the global order.
+        sum.par_chunks_mut(8 * rw).zip(wsum.par_chunks_mut(8 * rw)).enumerate().for_each(|(band, (sum, wsum))| {
+            let ya = y0 + 8 * band as u32;
+            let yb = (ya + 8).min(y1);
+            let (mut wx, mut wy) = (Vec::new(), Vec::new());
+            for (&b, (vals, _)) in blocks.iter().zip(&shaded) {
+                // (Blocks whose rows cannot reach the band.)
+                if b.1 + 8 + reach <= ya || b.1 >= yb + reach {
+                    continue;
+                }
+                let (coords, n) = coords_of(b);
+                for (j, &(x, y)) in coords[..n].iter().enumerate() {
+                    if y + reach < ya || y >= yb + reach {
+                        continue;
                     }
-                    let block = Block { pixels: &coords[..n], sample: k0, among: None };
-                    shader.shade_each(&samples_of, &block, &mut vals[..n * m]);
-                    for (j, &(x, y)) in coords[..n].iter().enumerate() {
-                        for kk in 0..m {
-                            let (u, v) = own.pixel(x, y, k0 + kk as u32);
-                            let (px, py) = (x as f32 + u, y as f32 + v);
-                            // The pixels of the tile whose centres lie within r.
-                            let (ax, ay) = (filter.weights(px, x0, x1, &mut wx), filter.weights(py, y0, y1, &mut wy));
-                            let l = vals[j * m + kk];
-                            for (iy, &fy) in wy.iter().enumerate() {
-                                let row = (ay + iy as u32 - y0) as usize * tw + (ax - x0) as usize;
-                                for (ix, &fx) in wx.iter().enumerate() {
-                                    let f = fx * fy;
-                                    sum[row + ix] += l * f;
-                                    wsum[row + ix] += f;
-                                }
+                    for kk in 0..m {
+                        let (u, v) = own.pixel(x, y, k0 + kk as u32);
+                        let (px, py) = (x as f32 + u, y as f32 + v);
+                        // The pixels of the band whose centres lie within r.
+                        let (ax, ay) = (filter.weights(px, x0, x1, &mut wx), filter.weights(py, ya, yb, &mut wy));
+                        let l = vals[j * m + kk];
+                        for (iy, &fy) in wy.iter().enumerate() {
+                            let row = (ay + iy as u32 - ya) as usize * rw + (ax - x0) as usize;
+                            for (ix, &fx) in wx.iter().enumerate() {
+                                let f = fx * fy;
+                                sum[row + ix] += l * f;
+                                wsum[row + ix] += f;
                             }
                         }
                     }
                 }
             }
-            k0 = k1;
+        });
+        // (Progress counts TILE tiles, as the other loop's, in proportion to the passes.)
+        let done = tiles * u64::from(k1 - region.s0) / u64::from(region.s1 - region.s0);
+        progress(done - reported);
+        reported = done;
+        k0 = k1;
+    }
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let i = (y - y0) as usize * rw + (x - x0) as usize;
+            sink.put_weighted(x, y, sum[i], wsum[i]);
         }
-        for y in y0..y1 {
-            for x in x0..x1 {
-                let i = (y - y0) as usize * tw + (x - x0) as usize;
-                sink.put_weighted(x, y, sum[i], wsum[i]);
-            }
-        }
-        // (Progress counts TILE tiles, as the other loop's.)
-        progress(u64::from(x1.div_ceil(TILE) - x0 / TILE) * u64::from(y1.div_ceil(TILE) - y0 / TILE));
-        rays_traced_here() - before
-    };
-    let (tx0, tx1) = (region.x0 / SPLAT_TILE, region.x1.div_ceil(SPLAT_TILE));
-    let (ty0, ty1) = (region.y0 / SPLAT_TILE, region.y1.div_ceil(SPLAT_TILE));
-    (ty0..ty1).into_par_iter().flat_map(|ty| (tx0..tx1).into_par_iter().map(move |tx| (tx, ty))).map(|(tx, ty)| tile(tx, ty)).sum()
+    }
+    rays
 }
 
 /// A reconstruction filter tabulated along one axis for splatting: |x| in [0, r] at
