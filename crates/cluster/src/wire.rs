@@ -245,6 +245,15 @@ fn put_settings(o: &mut Out, s: &RenderSettings) {
             o.f32(lobes);
         }
     }
+    match s.window {
+        None => o.u8(0),
+        Some(win) => {
+            o.u8(1);
+            for v in win {
+                o.u32(v);
+            }
+        }
+    }
 }
 
 fn get_settings(i: &mut In) -> Result<RenderSettings, DecodeError> {
@@ -327,7 +336,23 @@ fn get_settings(i: &mut In) -> Result<RenderSettings, DecodeError> {
         }
         v => return Err(invalid(at, format!("filter {v} does not exist"))),
     };
-    Ok(RenderSettings { width, height, spp, integrator, traversal: Traversal { packets }, filter })
+    let at = i.at;
+    let window = match i.u8("the crop window's flag")? {
+        0 => None,
+        1 => {
+            let mut win = [0u32; 4];
+            for v in &mut win {
+                *v = i.u32("the crop window")?;
+            }
+            let [x, y, w, h] = win;
+            if w == 0 || h == 0 || x.checked_add(w).is_none_or(|e| e > width) || y.checked_add(h).is_none_or(|e| e > height) {
+                return Err(invalid(at, format!("crop window {w} x {h} at ({x}, {y}) does not lie in the {width} x {height} image")));
+            }
+            Some(win)
+        }
+        v => return Err(invalid(at, format!("crop window flag {v}: expected 0 or 1"))),
+    };
+    Ok(RenderSettings { width, height, spp, integrator, traversal: Traversal { packets }, filter, window })
 }
 
 impl Msg {
@@ -498,11 +523,13 @@ mod tests {
             .into_iter()
             .cycle(),
         )
-        .map(|(integrator, filter)| RenderSettings {
+        .enumerate()
+        .map(|(k, (integrator, filter))| RenderSettings {
             spp: 9,
             integrator,
             traversal: Traversal { packets: false },
             filter,
+            window: (k % 2 == 1).then_some([3, 1, 20, 5]),
             ..RenderSettings::new(33, 7)
         })
         .collect::<Vec<_>>();

@@ -28,6 +28,11 @@ pub struct RenderSettings {
     /// The film's reconstruction filter (box: each pixel the mean of samples in its square;
     /// the others spread each sample over the pixels around it, as Mitsuba's film does).
     pub filter: lucent_scene::PixelFilter,
+    /// The film's crop window (x, y, width, height; Mitsuba's `crop_offset_*`,
+    /// `crop_width`, `crop_height`), or none: the whole image. Samples lie only inside it,
+    /// as Mitsuba's film takes them, so a filter wider than the pixel gives the window's
+    /// edge pixels fewer samples, as at the image's edge (pixels outside it get none).
+    pub window: Option<[u32; 4]>,
 }
 
 impl RenderSettings {
@@ -42,13 +47,21 @@ impl RenderSettings {
             integrator: Integrator::default(),
             traversal: Traversal::default(),
             filter: lucent_scene::PixelFilter::Box,
+            window: None,
         }
     }
 
     /// The image the integrator renders regions of.
     #[must_use]
     pub fn job(&self) -> Job {
-        Job { width: self.width, height: self.height, spp: self.spp, traversal: self.traversal, filter: self.filter }
+        let window = match self.window {
+            Some([x, y, w, h]) => {
+                let (x1, y1) = (x.saturating_add(w).min(self.width), y.saturating_add(h).min(self.height));
+                [x.min(x1), y.min(y1), x1, y1]
+            }
+            None => [0, 0, self.width, self.height],
+        };
+        Job { width: self.width, height: self.height, spp: self.spp, traversal: self.traversal, filter: self.filter, window }
     }
 }
 

@@ -170,6 +170,7 @@ pub fn prepare(mut scene: Scene, recipe: &Recipe) -> Result<Prepared, SetupError
         }
     }
     let crop = if recipe.size.is_none() { hints.and_then(|h| h.crop) } else { None };
+    let settings = RenderSettings { window: crop, ..settings };
     Ok(Prepared { world, desc, camera, settings, sky, headlight, crop })
 }
 

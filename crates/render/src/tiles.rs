@@ -31,6 +31,9 @@ pub struct Job {
     pub traversal: Traversal,
     /// The film's reconstruction filter (where in and around its pixel a sample lies).
     pub filter: lucent_scene::PixelFilter,
+    /// The pixels samples lie in (x0, y0, x1, y1; the film's crop window, else the whole
+    /// image): a wide filter's samples are taken only there.
+    pub window: [u32; 4],
 }
 
 /// What shades a block of camera rays: the integrators that work pixel by pixel (all but
@@ -482,9 +485,20 @@ fn render_splat(
     let reach = ((r + 0.5).ceil() as u32).saturating_sub(1);
     let own = CameraSamples { filter: lucent_scene::PixelFilter::Box, ..cs };
     let (x0, y0, x1, y1) = (region.x0, region.y0, region.x1, region.y1);
-    // The pixels whose samples reach the region, and their 8 × 8 blocks, row by row.
-    let (sx0, sy0) = (x0.saturating_sub(reach), y0.saturating_sub(reach));
-    let (sx1, sy1) = ((x1 + reach).min(job.width), (y1 + reach).min(job.height));
+    // The pixels whose samples reach the region (inside the window), and their 8 × 8
+    // blocks, row by row.
+    let [wx0, wy0, wx1, wy1] = job.window;
+    let (sx0, sy0) = (x0.saturating_sub(reach).max(wx0), y0.saturating_sub(reach).max(wy0));
+    let (sx1, sy1) = ((x1 + reach).min(job.width).min(wx1), (y1 + reach).min(job.height).min(wy1));
+    if sx0 >= sx1 || sy0 >= sy1 {
+        // (No sample reaches the region: its pixels get no weight.)
+        for y in y0..y1 {
+            for x in x0..x1 {
+                sink.put_weighted(x, y, Vec3::ZERO, 0.0);
+            }
+        }
+        return 0;
+    }
     let blocks: Vec<(u32, u32)> = (sy0 & !7..sy1).step_by(8).flat_map(|by| (sx0 & !7..sx1).step_by(8).map(move |bx| (bx, by))).collect();
     let coords_of = |(bx, by): (u32, u32)| {
         let mut coords = [(0u32, 0u32); BLOCK];

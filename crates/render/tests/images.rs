@@ -379,3 +379,58 @@ fn packets_render_the_same_image_as_single_rays() {
         assert!(differ * 500 <= packed.pixels.len(), "{name}: {differ} of {} pixels differ", packed.pixels.len());
     }
 }
+
+/// A crop window takes samples inside itself only (as Mitsuba's film): with a Gaussian
+/// filter (reach 2 pixels), pixels 2 or more inside its edge keep the whole image's bits,
+/// the edge pixels average fewer samples (and differ), pixels beyond the filter's reach
+/// of it get no weight,
+/// and a window over the whole image is no window. Its region rendered alone (as the CLI
+/// renders a crop) gives the same window.
+#[test]
+fn a_crop_window_takes_samples_inside_itself_only() {
+    let s = demo_scene();
+    let desc = s.camera.expect("demo camera");
+    let world = World::new(s, MeshOptions::default()).expect("world");
+    let (w, h) = (48, 32);
+    let cam = Camera::new(&desc, w, h);
+    let filter = lucent_scene::PixelFilter::Gaussian { stddev: 0.5 };
+    let st = RenderSettings { spp: 4, filter, ..RenderSettings::new(w, h) };
+    let whole = render(&world, &cam, &st, &|_| {}).0;
+    let [x, y, cw, ch] = [10, 6, 20, 16];
+    let windowed = RenderSettings { window: Some([x, y, cw, ch]), ..st };
+    let cropped = render(&world, &cam, &windowed, &|_| {}).0;
+    let (mut inner, mut edge_differs) = (0, 0);
+    for py in 0..h {
+        for px in 0..w {
+            let (a, b) = (cropped.get(px, py), whole.get(px, py));
+            let inside = (x..x + cw).contains(&px) && (y..y + ch).contains(&py);
+            let near = px + 2 >= x && px < x + cw + 2 && py + 2 >= y && py < y + ch + 2;
+            if !near {
+                assert_eq!(a, Vec3::ZERO, "({px}, {py}) lies beyond the filter's reach of the window");
+            } else if !inside {
+                continue;
+            } else if px >= x + 2 && px + 2 < x + cw && py >= y + 2 && py + 2 < y + ch {
+                assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits), "({px}, {py})");
+                inner += 1;
+            } else if a != b {
+                edge_differs += 1;
+            }
+        }
+    }
+    assert_eq!(inner, (cw - 4) * (ch - 4));
+    assert!(edge_differs > (cw + ch), "only {edge_differs} edge pixels changed");
+    // The window's region alone: the same pixels.
+    let region = Region { x0: x, y0: y, x1: x + cw, y1: y + ch, s0: 0, s1: 4 };
+    let (part, _) = render_region(&world, &cam, &windowed, region, &|_| {});
+    let mut acc = FilmAccumulator::new(w, h);
+    acc.merge(part).expect("a region");
+    let alone = acc.resolve(Vec3::ZERO);
+    for py in y..y + ch {
+        for px in x..x + cw {
+            let (a, b) = (alone.get(px, py), cropped.get(px, py));
+            assert!((a - b).abs().max_element() <= 1e-6 * b.abs().max_element().max(1.0), "({px}, {py}): {a} vs {b}");
+        }
+    }
+    let all = RenderSettings { window: Some([0, 0, w, h]), ..st };
+    assert_eq!(render(&world, &cam, &all, &|_| {}).0.pixels, whole.pixels);
+}

@@ -88,6 +88,7 @@ fn converges_to_mitsuba(dir: &str) {
             spp,
             integrator: Integrator::Path(path),
             filter: hints.filter,
+            window: hints.crop,
             ..RenderSettings::new(hints.width, hints.height)
         };
         render(&world, &cam, &st, &|_| {}).0.crop(window)
@@ -143,6 +144,12 @@ fn sponza_interior() {
 #[test]
 fn crop_window() {
     converges_to_mitsuba("crop_window");
+}
+
+/// The crop window with Mitsuba's Gaussian filter: samples inside the window only.
+#[test]
+fn crop_window_with_a_wide_filter() {
+    converges_to_mitsuba("crop_gaussian");
 }
 
 /// A room under five lights of four kinds (area panel, sphere and disk, a spot, a point),
