@@ -167,7 +167,8 @@ impl Shape {
     }
 
     /// Surface parameters (u, v) in [0, 1] of an object-space point on part `part`
-    /// (spherical angles, heights, face coordinates).
+    /// (spherical angles, heights, face coordinates; a disk's radius and angle, as
+    /// Mitsuba's).
     #[must_use]
     pub fn uv_local(self, p: Vec3, part: u32) -> (f32, f32) {
         use std::f32::consts::{PI, TAU};
@@ -185,6 +186,8 @@ impl Shape {
                 let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
                 ((p[a] + 1.0) * 0.5, (p[b] + 1.0) * 0.5)
             }
+            // (Polar, as Mitsuba's disk: the radius, then the angle.)
+            Shape::Disk => ((p.x * p.x + p.y * p.y).sqrt(), phi),
             _ => ((p.x + 1.0) * 0.5, (p.y + 1.0) * 0.5),
         }
     }
@@ -212,6 +215,11 @@ impl Shape {
                 du[a] = 2.0;
                 dv[b] = 2.0;
                 (du, dv)
+            }
+            Shape::Disk => {
+                let r = p.x.hypot(p.y);
+                let du = if r > 0.0 { Vec3::new(p.x / r, p.y / r, 0.0) } else { Vec3::X };
+                (du, around)
             }
             _ => (Vec3::X * 2.0, Vec3::Y * 2.0),
         }
@@ -312,5 +320,31 @@ mod tests {
         let h = Shape::Disk.intersect_local(Vec3::new(0.5, 0.0, 2.0), -Vec3::Z, 0.0, f32::INFINITY).expect("disk");
         assert!((h.t - 2.0).abs() < 1e-6);
         assert!(Shape::Disk.intersect_local(Vec3::new(1.5, 0.0, 2.0), -Vec3::Z, 0.0, f32::INFINITY).is_none());
+    }
+
+    /// ∂p/∂u and ∂p/∂v are the derivatives of `uv_local`'s parameters: a step along
+    /// either moves that parameter by the step and the other not (finite differences, away
+    /// from seams and poles), on every shape with texture coordinates of its own.
+    #[test]
+    fn uv_tangents_are_the_derivatives_of_the_texture_coordinates() {
+        let points: [(Shape, Vec3, u32); 6] = [
+            (Shape::Sphere, Vec3::new(0.48, 0.36, 0.8).normalize(), 0),
+            (Shape::Tube, Vec3::new(-0.6, 0.8, 0.3), 0),
+            (Shape::CappedCylinder, Vec3::new(0.28, -0.96, -0.4), 0),
+            (Shape::Box, Vec3::new(0.3, -0.2, 1.0), 5),
+            (Shape::Disk, Vec3::new(-0.3, 0.4, 0.0), 0),
+            (Shape::Disk, Vec3::new(0.05, -0.7, 0.0), 0),
+        ];
+        let h = 1e-3;
+        for (shape, p, part) in points {
+            let (u0, v0) = shape.uv_local(p, part);
+            let (du, dv) = shape.uv_tangents_local(p, part);
+            // (A step of h ∂p/∂u moves u by h, to first order.)
+            let (uu, uv) = shape.uv_local(p + du * h, part);
+            let (vu, vv) = shape.uv_local(p + dv * h, part);
+            let tol = 0.02 * h;
+            assert!((uu - u0 - h).abs() < tol && (uv - v0).abs() < tol, "{shape:?} along u: {} {}", uu - u0, uv - v0);
+            assert!((vv - v0 - h).abs() < tol && (vu - u0).abs() < tol, "{shape:?} along v: {} {}", vu - u0, vv - v0);
+        }
     }
 }

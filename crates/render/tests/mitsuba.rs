@@ -146,6 +146,12 @@ fn crop_window() {
     converges_to_mitsuba("crop_window");
 }
 
+/// Texture coordinates of Mitsuba's disk (polar), cylinder and sphere.
+#[test]
+fn analytic_shapes_texture_coordinates() {
+    converges_to_mitsuba("uv_shapes");
+}
+
 /// The crop window with Mitsuba's Gaussian filter: samples inside the window only.
 #[test]
 fn crop_window_with_a_wide_filter() {
