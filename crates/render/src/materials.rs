@@ -222,5 +222,12 @@ pub(crate) fn eval_float(f: &FloatTex, textures: &[Texture], uv: Vec2) -> f32 {
             Some(t) => sample(t, to_uv.transform_point2(uv))[(*channel).min(3) as usize] * scale,
             None => *scale,
         },
+        FloatTex::Checker { a, b, to_uv } => {
+            if ColorTex::checker_even(to_uv, uv) {
+                *a
+            } else {
+                *b
+            }
+        }
     }
 }

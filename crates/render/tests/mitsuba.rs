@@ -152,6 +152,12 @@ fn analytic_shapes_texture_coordinates() {
     converges_to_mitsuba("uv_shapes");
 }
 
+/// Roughness from a checkerboard texture, on a rough conductor and a rough dielectric.
+#[test]
+fn checkerboard_roughness() {
+    converges_to_mitsuba("rough_checker");
+}
+
 /// The crop window with Mitsuba's Gaussian filter: samples inside the window only.
 #[test]
 fn crop_window_with_a_wide_filter() {

@@ -102,15 +102,26 @@ pub enum FloatTex {
         /// Texture-coordinate transform.
         to_uv: Affine2,
     },
+    /// `a` and `b` in a checkerboard of 2 × 2 squares per unit of (u, v) after `to_uv`
+    /// (Mitsuba's `checkerboard` read as a number: as [`ColorTex::Checker`]).
+    Checker {
+        /// The value of the squares of even index sum.
+        a: f32,
+        /// The other squares' value.
+        b: f32,
+        /// Texture-coordinate transform.
+        to_uv: Affine2,
+    },
 }
 
 impl FloatTex {
-    /// The factor (the value where there is no texture).
+    /// The factor (the value where there is no texture; a checkerboard's mean).
     #[must_use]
     pub fn factor(&self) -> f32 {
         match self {
             Self::Const(v) => *v,
             Self::Image { scale, .. } => *scale,
+            Self::Checker { a, b, .. } => 0.5 * (a + b),
         }
     }
 }

@@ -571,11 +571,22 @@ impl<'a, 'd> Cx<'a, 'd> {
             Some(_) => self.float_tex(b, "alpha", 0.1)?,
             None => match (self.prop(b, "alpha_u"), self.prop(b, "alpha_v")) {
                 (Some(_), Some(_)) => {
-                    let (u, v) = (self.float(b, "alpha_u", 0.1)?, self.float(b, "alpha_v", 0.1)?);
+                    let (u, v) = (self.float_tex(b, "alpha_u", 0.1)?, self.float_tex(b, "alpha_v", 0.1)?);
+                    let iso = |u: f32, v: f32| (u * v).abs().sqrt();
                     if u != v {
                         self.warn(b, "anisotropic", "anisotropic roughness is read as isotropic, α = √(α_u α_v)");
                     }
-                    FloatTex::Const((u * v).abs().sqrt())
+                    match (u, v) {
+                        (FloatTex::Const(u), FloatTex::Const(v)) => FloatTex::Const(iso(u, v)),
+                        // (Two checkerboards on one grid: square by square.)
+                        (FloatTex::Checker { a, b, to_uv }, FloatTex::Checker { a: a2, b: b2, to_uv: t2 }) if to_uv == t2 => {
+                            FloatTex::Checker { a: iso(a, a2), b: iso(b, b2), to_uv }
+                        }
+                        (u, _) => {
+                            self.warn(b, "anisotropic textures", "textured anisotropic roughness: α_u's texture is used for both");
+                            u
+                        }
+                    }
                 }
                 _ => FloatTex::Const(0.1),
             },
@@ -599,6 +610,15 @@ impl<'a, 'd> Cx<'a, 'd> {
                 let t = self.deref(p, 0)?;
                 Ok(match self.texture(t)? {
                     ColorTex::Image { tex, to_uv, .. } => FloatTex::Image { tex, channel: 0, scale: 1.0, to_uv },
+                    // (Its colours read as numbers by their luminance, as Mitsuba's. Mitsuba
+                    // 3.9.1's checkerboard puts color0 where u and v lie in the same half of
+                    // their unit square when it gives a colour, and in different halves when
+                    // it gives a number (`eval` against `eval_1`): as a number, the squares
+                    // trade places.)
+                    ColorTex::Checker { a, b, to_uv } => {
+                        let lum = |c: Vec3| c.dot(Vec3::new(0.212_671, 0.715_160, 0.072_169));
+                        FloatTex::Checker { a: lum(b), b: lum(a), to_uv }
+                    }
                     other => FloatTex::Const(other.mean_guess().x),
                 })
             }
@@ -1069,7 +1089,9 @@ impl<'a, 'd> Cx<'a, 'd> {
                 _ => {}
             }
         }
-        let bsdf = bsdf.unwrap_or((Bsdf::Diffuse { reflectance: ColorTex::grey(0.5) }, Sides::Front));
+        // (Mitsuba's default BSDF: diffuse, of reflectance 0.5, or 0 on an emitter.)
+        let default = if emission.max_element() > 0.0 { 0.0 } else { 0.5 };
+        let bsdf = bsdf.unwrap_or((Bsdf::Diffuse { reflectance: ColorTex::grey(default) }, Sides::Front));
         let name = n.attribute("id").unwrap_or(&kind).to_string();
         let mat = self.material_index(&name, bsdf, emission);
         let m = self.to_world(n)?;
