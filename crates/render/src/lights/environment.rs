@@ -8,6 +8,7 @@ use crate::sampling::{cosine_hemisphere, uniform_sphere, Distribution2D, Shading
 use glam::{Affine3A, Vec2, Vec3};
 use lucent_accel::math::{acos, atan2};
 use lucent_scene::{Environment, HdrImage};
+use rayon::prelude::*;
 use std::f32::consts::PI;
 use std::sync::Arc;
 
@@ -61,7 +62,8 @@ impl EnvLight {
         let mut f = vec![0f32; gw * gh];
         // (Each cell's mean luminance over its 4 × 4 points, for the compensated density.)
         let mut lum_cell = vec![0f32; gw * gh];
-        for (gy, (row, lrow)) in f.chunks_mut(gw).zip(lum_cell.chunks_mut(gw)).enumerate() {
+        // (Rows in parallel: a 512 × 256 map's grid took 150 ms on one thread.)
+        f.par_chunks_mut(gw).zip(lum_cell.par_chunks_mut(gw)).enumerate().for_each(|(gy, (row, lrow))| {
             let (v0, v1) = (gy as f32 / gh as f32, (gy + 1) as f32 / gh as f32);
             let (r0, r1) = ((v0 * (h - 1) as f32).floor() as usize, ((v1 * (h - 1) as f32).ceil() as usize).min(h - 1));
             let s_mid = (PI * 0.5 * (v0 + v1)).sin();
@@ -88,7 +90,7 @@ impl EnvLight {
                 }
                 *cell = sum / 16.0 + 0.1 * m * s_mid;
             }
-        }
+        });
         // The compensated density: the mean over the sphere (cells weighed by their solid
         // angle, ∝ sin θ) taken off each cell.
         let sines: Vec<f32> = (0..gh).map(|gy| (PI * (gy as f32 + 0.5) / gh as f32).sin()).collect();
