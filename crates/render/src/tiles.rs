@@ -489,16 +489,8 @@ fn render_splat(
     // blocks, row by row.
     let [wx0, wy0, wx1, wy1] = job.window;
     let (sx0, sy0) = (x0.saturating_sub(reach).max(wx0), y0.saturating_sub(reach).max(wy0));
+    // (Empty where no sample reaches the region: its pixels then get no weight.)
     let (sx1, sy1) = ((x1 + reach).min(job.width).min(wx1), (y1 + reach).min(job.height).min(wy1));
-    if sx0 >= sx1 || sy0 >= sy1 {
-        // (No sample reaches the region: its pixels get no weight.)
-        for y in y0..y1 {
-            for x in x0..x1 {
-                sink.put_weighted(x, y, Vec3::ZERO, 0.0);
-            }
-        }
-        return 0;
-    }
     let blocks: Vec<(u32, u32)> = (sy0 & !7..sy1).step_by(8).flat_map(|by| (sx0 & !7..sx1).step_by(8).map(move |bx| (bx, by))).collect();
     let coords_of = |(bx, by): (u32, u32)| {
         let mut coords = [(0u32, 0u32); BLOCK];

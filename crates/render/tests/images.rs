@@ -431,6 +431,15 @@ fn a_crop_window_takes_samples_inside_itself_only() {
             assert!((a - b).abs().max_element() <= 1e-6 * b.abs().max_element().max(1.0), "({px}, {py}): {a} vs {b}");
         }
     }
+    // A region beyond the filter's reach of the window (as an MPI rank may get): no
+    // sample at all, no weight.
+    let far = Region { x0: 40, y0: 0, x1: 48, y1: 4, s0: 0, s1: 4 };
+    let (part, rays) = render_region(&world, &cam, &windowed, far, &|_| {});
+    assert_eq!(rays, 0);
+    let mut acc = FilmAccumulator::new(w, h);
+    acc.merge(part).expect("a region");
+    let none = acc.resolve(Vec3::ZERO);
+    assert!((0..4).all(|py| (40..48).all(|px| none.get(px, py) == Vec3::ZERO)));
     let all = RenderSettings { window: Some([0, 0, w, h]), ..st };
     assert_eq!(render(&world, &cam, &all, &|_| {}).0.pixels, whole.pixels);
 }

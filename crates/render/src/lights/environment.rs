@@ -240,6 +240,7 @@ fn constant_pdf(dir: Vec3, n: Vec3) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sampling::power_heuristic;
     use glam::Affine3A;
 
     #[test]
@@ -311,14 +312,14 @@ mod tests {
                     let cos = s.dir.dot(n);
                     if cos > 0.0 {
                         let pb = cos / PI;
-                        mis += f64::from(luminance(s.li) * cos / s.pdf * s.pdf * s.pdf / (s.pdf * s.pdf + pb * pb));
+                        mis += f64::from(luminance(s.li) * cos / s.pdf * power_heuristic(s.pdf, pb));
                     }
                 }
                 let dir = frame.to_world(cosine_hemisphere(u));
                 let (le, pl) = sky.eval_pdf(dir, n, true);
                 let pb = dir.dot(n).max(0.0) / PI;
                 if pb > 0.0 {
-                    mis += f64::from(luminance(le) * PI * pb * pb / (pb * pb + pl * pl));
+                    mis += f64::from(luminance(le) * PI * power_heuristic(pb, pl));
                 }
             }
         }
