@@ -342,14 +342,28 @@ impl PixelSampler {
     }
 
     /// A uniform number in [0, 1) for sample `index` and dimension `dim`, by hashing
-    /// alone: independent (not low-discrepancy) samples, for the discrete choices (which
-    /// light, which lobe, whether a path goes on) where stratification buys little, at a
-    /// fraction of a scrambled pair's cost. The dimensions are their own space, apart from
-    /// [`PixelSampler::get2`]'s pairs.
+    /// alone: independent (not low-discrepancy) samples, at a fraction of a scrambled
+    /// pair's cost, for roulette (stratified, it changed no reference scene's error) and
+    /// the VPL integrator's lobe choices and shadow-ray roulette. The dimensions are their
+    /// own space, apart from [`PixelSampler::get2`]'s pairs and [`PixelSampler::get1`]'s.
     #[inline]
     #[must_use]
     pub fn get1_hashed(&self, index: u32, dim: u32) -> f32 {
         to_unit(hash32(hash32(self.key ^ 0x68a5_4e1d ^ index) ^ dim.wrapping_mul(0x9e37_79b9)))
+    }
+
+    /// Dimension `dim` of sample `index`, stratified on its own: the van der Corput
+    /// sequence (a Sobol' point's first dimension) over its own shuffle of the pixel's
+    /// samples, Owen-scrambled, so that the first 2^m samples of a pixel put one number
+    /// in each of 2^m equal intervals (the padding of pbrt-v4's `PaddedSobolSampler`,
+    /// with Burley's hashed scrambles). The dimensions are their own space, apart from
+    /// [`PixelSampler::get2`]'s pairs and from each other.
+    #[inline]
+    #[must_use]
+    pub fn get1(&self, index: u32, dim: u32) -> f32 {
+        let k = hash32(self.key ^ 0x1b87_3593 ^ dim.wrapping_mul(0x9e37_79b9));
+        let shuffled = owen_scramble(index, hash32(k ^ 0x5eed_0001));
+        to_unit(laine_karras(shuffled, hash32(k ^ 0x5eed_0002)).reverse_bits())
     }
 
     /// [`PixelSampler::get2`] as 32-bit fractions.
@@ -431,6 +445,35 @@ mod tests {
 
     /// Scrambling keeps the net property, in every pixel and dimension pair, for the first
     /// 2^m samples (m up to 10), and for any aligned block of 2^m samples.
+    #[test]
+    fn single_dimensions_are_stratified_and_apart() {
+        // The first 2^m samples of a pixel put one number of each single dimension in each
+        // of 2^m intervals, and the dimensions do not repeat each other or the pairs.
+        let s = Sampler::new(7);
+        for (x, y) in [(0, 0), (3, 9), (640, 480)] {
+            let px = s.pixel(x, y);
+            for dim in [0, 1, 5, 33] {
+                for m in [2u32, 4, 6] {
+                    let n = 1u32 << m;
+                    let mut seen = vec![false; n as usize];
+                    for k in 0..n {
+                        let u = px.get1(k, dim);
+                        assert!((0.0..1.0).contains(&u));
+                        let cell = (u * n as f32) as usize;
+                        assert!(!seen[cell], "pixel ({x}, {y}), dim {dim}, {n} samples: interval {cell} twice");
+                        seen[cell] = true;
+                    }
+                }
+                // Not another dimension, nor a pair's first dimension, over again.
+                let a: Vec<f32> = (0..64).map(|k| px.get1(k, dim)).collect();
+                let b: Vec<f32> = (0..64).map(|k| px.get1(k, dim + 1)).collect();
+                let c: Vec<f32> = (0..64).map(|k| px.get2(k, dim).0).collect();
+                assert_ne!(a, b);
+                assert_ne!(a, c);
+            }
+        }
+    }
+
     #[test]
     fn every_pixel_and_pair_is_a_net() {
         let s = Sampler::new(7);

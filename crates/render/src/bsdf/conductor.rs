@@ -46,6 +46,23 @@ impl Conductor {
         mf.pdf(wo, h) / (4.0 * wo.dot(h))
     }
 
+    /// [`Conductor::eval`] and [`Conductor::pdf`] at once (the half vector and D once;
+    /// the same bits as apart).
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let Some(mf) = self.mf else { return (Vec3::ZERO, 0.0) };
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let h = (wo + wi).normalize();
+        let d = mf.d(h);
+        let pdf = mf.pdf_with_d(wo, h, d) / (4.0 * wo.dot(h));
+        if d == 0.0 {
+            return (Vec3::ZERO, pdf);
+        }
+        (fresnel_conductor(wo.dot(h), self.eta, self.k) * self.spec * (d * mf.g(wo, wi, h) / (4.0 * wo.z)), pdf)
+    }
+
     /// The mirror direction, or a visible facet's reflection for `u2`.
     #[must_use]
     pub fn sample(&self, wo: Vec3, u2: (f32, f32)) -> Option<BsdfSample> {
@@ -63,7 +80,8 @@ impl Conductor {
                 if wi.z <= 0.0 {
                     return None;
                 }
-                by_density(wo, wi, self.pdf(wo, wi), || self.eval(wo, wi), 1.0)
+                let (f, pdf) = self.eval_pdf(wo, wi);
+                by_density(wo, wi, pdf, || f, 1.0)
             }
         }
     }
@@ -92,6 +110,9 @@ mod tests {
                 let u = ((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
                 if let Some(s) = rough.sample(wo, u) {
                     assert!((s.pdf - rough.pdf(wo, s.wi)).abs() <= 1e-4 * s.pdf);
+                    // (Value and density together: the same bits as apart.)
+                    let (f, pdf) = rough.eval_pdf(wo, s.wi);
+                    assert_eq!((f, pdf), (rough.eval(wo, s.wi), rough.pdf(wo, s.wi)));
                     albedo += s.weight / (n * n) as f32;
                 }
             }

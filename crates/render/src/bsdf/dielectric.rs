@@ -94,6 +94,41 @@ impl Dielectric {
         }
     }
 
+    /// [`Dielectric::eval`] and [`Dielectric::pdf`] at once (the half vector, D and the
+    /// facet's Fresnel term once; the same bits as apart).
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let Some(mf) = self.mf else { return (Vec3::ZERO, 0.0) };
+        if wo.z == 0.0 || wi.z == 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let reflect = same_side(wo, wi);
+        let eta_o = self.eta_across(wo);
+        let h = if reflect { wo + wi } else { wo + wi * eta_o };
+        let h = h.normalize_or_zero();
+        let h = if h.z < 0.0 { -h } else { h };
+        if h == Vec3::ZERO {
+            return (Vec3::ZERO, 0.0);
+        }
+        let d = mf.d(h);
+        let pm = mf.pdf_with_d(if wo.z < 0.0 { -wo } else { wo }, h, d);
+        let (f, _) = fresnel_dielectric(wo.dot(h), self.eta);
+        let g = mf.g(wo, wi, h);
+        let (oh, ih) = (wo.dot(h), wi.dot(h));
+        if reflect {
+            (self.refl * (f * d * g / (4.0 * wo.z.abs())), f * pm / (4.0 * oh.abs()))
+        } else {
+            if oh * ih >= 0.0 {
+                return (Vec3::ZERO, 0.0);
+            }
+            let denom = oh + eta_o * ih;
+            (
+                self.trans * ((1.0 - f) * d * g * (oh * ih).abs() / (wo.z.abs() * denom * denom)).abs(),
+                (1.0 - f) * pm * eta_o * eta_o * ih.abs() / (denom * denom),
+            )
+        }
+    }
+
     /// Reflection or refraction, chosen by `u` against the Fresnel term (of a visible
     /// facet chosen by `u2`, when rough).
     #[must_use]
@@ -125,7 +160,8 @@ impl Dielectric {
                 if same_side(wo, wi) != reflected {
                     return None;
                 }
-                by_density(wo, wi, self.pdf(wo, wi), || self.eval(wo, wi), self.eta_across(wo))
+                let (value, pdf) = self.eval_pdf(wo, wi);
+                by_density(wo, wi, pdf, || value, self.eta_across(wo))
             }
         }
     }

@@ -128,6 +128,14 @@ impl Microfacet {
     /// for direction `v` (`v.z > 0`): D(m) G1(v, m) ⟨v, m⟩ / cos θv, with the exact G1.
     #[must_use]
     pub fn pdf(&self, v: Vec3, m: Vec3) -> f32 {
+        self.pdf_with_d(v, m, self.d(m))
+    }
+
+    /// [`Microfacet::pdf`] with `d` = D(m) already at hand (a BSDF's value and density
+    /// computed together, the same bits as apart).
+    #[inline]
+    #[must_use]
+    pub fn pdf_with_d(&self, v: Vec3, m: Vec3, d: f32) -> f32 {
         if v.z <= 0.0 {
             return 0.0;
         }
@@ -135,7 +143,7 @@ impl Microfacet {
             Distribution::Ggx => self.g1(v, m),
             Distribution::Beckmann => self.g1_exact(v, m),
         };
-        self.d(m) * g1 * v.dot(m).max(0.0) / v.z
+        d * g1 * v.dot(m).max(0.0) / v.z
     }
 
     /// Smith's masking without approximation (for Beckmann, 2 / (1 + erf a + e^(−a²) /

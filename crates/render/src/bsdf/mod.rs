@@ -152,6 +152,19 @@ impl Bsdf<'_> {
         }
     }
 
+    /// [`Bsdf::eval`] and [`Bsdf::pdf`] at once: what next-event estimation asks for,
+    /// computed together where they share work (the microfacet models' half vector and
+    /// D), the same bits as apart.
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        match self {
+            Self::Conductor(b) => b.eval_pdf(wo, wi),
+            Self::Dielectric(b) => b.eval_pdf(wo, wi),
+            Self::RoughPlastic(b) => b.eval_pdf(wo, wi),
+            _ => (self.eval(wo, wi), self.pdf(wo, wi)),
+        }
+    }
+
     /// The density with which [`Bsdf::sample`] returns `wi` (its non-delta lobes).
     #[must_use]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {

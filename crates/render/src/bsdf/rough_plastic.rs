@@ -57,6 +57,26 @@ impl RoughPlastic<'_> {
         ps * self.mf.pdf(wo, h) / (4.0 * wo.dot(h)) + pd * wi.z * FRAC_1_PI
     }
 
+    /// [`RoughPlastic::eval`] and [`RoughPlastic::pdf`] at once (the half vector, D and
+    /// the coating's transmittance once; the same bits as apart).
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let (mf, tables, diffuse) = (self.mf, self.tables, self.diffuse);
+        let h = (wo + wi).normalize();
+        let d = mf.d(h);
+        let (f, _) = fresnel_dielectric(wo.dot(h), tables.eta);
+        let specular = self.spec * (f * d * mf.g(wo, wi, h) / (4.0 * wo.z));
+        let (to, ti) = (tables.external(wo.z), tables.external(wi.z));
+        let ri = tables.internal;
+        let base = if self.nonlinear { diffuse / (Vec3::ONE - diffuse * ri) } else { diffuse / (1.0 - ri) };
+        let value = specular + base * (FRAC_1_PI / (tables.eta * tables.eta) * wi.z * to * ti);
+        let (ps, pd) = probs(to, self.spec_weight);
+        (value, ps * mf.pdf_with_d(wo, h, d) / (4.0 * wo.dot(h)) + pd * wi.z * FRAC_1_PI)
+    }
+
     /// The coating's lobe or the base's cosine lobe, chosen by `u`.
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
@@ -68,7 +88,8 @@ impl RoughPlastic<'_> {
         if wi.z <= 0.0 {
             return None;
         }
-        by_density(wo, wi, self.pdf(wo, wi), || self.eval(wo, wi), 1.0)
+        let (f, pdf) = self.eval_pdf(wo, wi);
+        by_density(wo, wi, pdf, || f, 1.0)
     }
 }
 
@@ -199,6 +220,40 @@ fn visible_integral(mf: &Microfacet, wi: Vec3, q: &[(f64, f64)], g: impl Fn(Vec3
 mod tests {
     use super::*;
     use lucent_scene::Distribution;
+
+    /// Value and density together are the same bits as apart (next-event estimation takes
+    /// them together, MIS of an emitter met takes the density alone), for the rough
+    /// plastic, conductor and dielectric, either distribution.
+    #[test]
+    fn eval_pdf_is_eval_and_pdf() {
+        for dist in [Distribution::Beckmann, Distribution::Ggx] {
+            let mf = Microfacet::new(dist, 0.25);
+            let tables = RoughPlasticTables::new(&mf, 1.5);
+            let b = RoughPlastic {
+                diffuse: Vec3::new(0.6, 0.4, 0.2),
+                spec: Vec3::ONE,
+                nonlinear: false,
+                spec_weight: 0.3,
+                mf,
+                tables: &tables,
+            };
+            let c = crate::bsdf::Conductor { eta: Vec3::new(0.2, 0.9, 1.1), k: Vec3::new(3.9, 2.4, 2.2), spec: Vec3::ONE, mf: Some(mf) };
+            for i in 0..400 {
+                let a = i as f32 * 0.7;
+                let wo = Vec3::new(a.cos() * 0.6, a.sin() * 0.5, 0.3 + 0.002 * i as f32 - 0.4).normalize();
+                let wi = Vec3::new((a * 1.3).sin(), (a * 0.4).cos(), 0.9 - 0.004 * i as f32).normalize();
+                assert_eq!(b.eval_pdf(wo, wi), (b.eval(wo, wi), b.pdf(wo, wi)), "{dist:?} {wo} {wi}");
+                assert_eq!(c.eval_pdf(wo, wi), (c.eval(wo, wi), c.pdf(wo, wi)), "{dist:?} {wo} {wi}");
+                for eta in [1.5, 1.0 / 1.33] {
+                    let g = crate::bsdf::Dielectric { eta, refl: Vec3::ONE, trans: Vec3::new(0.9, 1.0, 0.8), mf: Some(mf) };
+                    // (Transmission too: wi below the surface.)
+                    for wi in [wi, Vec3::new(wi.x, wi.y, -wi.z)] {
+                        assert_eq!(g.eval_pdf(wo, wi), (g.eval(wo, wi), g.pdf(wo, wi)), "{dist:?} η {eta} {wo} {wi}");
+                    }
+                }
+            }
+        }
+    }
 
     /// The coating's tables: a smooth-looking coating (small α) transmits what the smooth
     /// Fresnel term lets through at every tabulated angle, and its internal reflectance is

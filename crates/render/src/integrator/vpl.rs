@@ -354,9 +354,7 @@ fn camera_path<'w>(
             // Direct light: next-event estimation alone (emitters met through delta lobes
             // counted above; no BSDF-sampled direct light to weigh against).
             let mut direct = Vec3::ZERO;
-            if let Some(ls) =
-                lights.sample(surf.p, light_normal(&bsdf, &fr), px.get1_hashed(k, depth), px.get2(k, 1 + depth), textures, false)
-            {
+            if let Some(ls) = lights.sample(surf.p, light_normal(&bsdf, &fr), px.get1(k, depth), px.get2(k, 1 + depth), textures, false) {
                 let f = bsdf.eval(wo, fr.to_local(ls.dir));
                 if f.max_element() > 0.0 {
                     let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };

@@ -196,12 +196,11 @@ impl<'w> Wave<'w> {
 /// the loop, and the same code as one call (the same bits).
 trait Model: Copy {
     fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample>;
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3;
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32;
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32);
 }
 
 macro_rules! model {
-    ($ty:ty, |$b:ident, $wo:ident, $u:ident, $u2:ident| $sample:expr) => {
+    ($ty:ty, |$b:ident, $wo:ident, $u:ident, $u2:ident| $sample:expr, |$c:ident, $wo2:ident, $wi:ident| $eval_pdf:expr) => {
         impl Model for $ty {
             #[inline(always)]
             fn sample(&self, $wo: Vec3, $u: f32, $u2: (f32, f32)) -> Option<BsdfSample> {
@@ -209,23 +208,20 @@ macro_rules! model {
                 $sample
             }
             #[inline(always)]
-            fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-                <$ty>::eval(self, wo, wi)
-            }
-            #[inline(always)]
-            fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-                <$ty>::pdf(self, wo, wi)
+            fn eval_pdf(&self, $wo2: Vec3, $wi: Vec3) -> (Vec3, f32) {
+                let $c = self;
+                $eval_pdf
             }
         }
     };
 }
-model!(Diffuse, |b, wo, _u, u2| b.sample(wo, u2));
-model!(Conductor, |b, wo, _u, u2| b.sample(wo, u2));
-model!(Dielectric, |b, wo, u, u2| b.sample(wo, u, u2));
-model!(Plastic, |b, wo, u, u2| b.sample(wo, u, u2));
-model!(RoughPlastic<'_>, |b, wo, u, u2| b.sample(wo, u, u2));
-model!(MetallicRoughness, |b, wo, u, u2| b.sample(wo, u, u2));
-model!(DiffuseGlossy, |b, wo, u, u2| b.sample(wo, u, u2));
+model!(Diffuse, |b, wo, _u, u2| b.sample(wo, u2), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
+model!(Conductor, |b, wo, _u, u2| b.sample(wo, u2), |b, wo, wi| b.eval_pdf(wo, wi));
+model!(Dielectric, |b, wo, u, u2| b.sample(wo, u, u2), |b, wo, wi| b.eval_pdf(wo, wi));
+model!(Plastic, |b, wo, u, u2| b.sample(wo, u, u2), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
+model!(RoughPlastic<'_>, |b, wo, u, u2| b.sample(wo, u, u2), |b, wo, wi| b.eval_pdf(wo, wi));
+model!(MetallicRoughness, |b, wo, u, u2| b.sample(wo, u, u2), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
+model!(DiffuseGlossy, |b, wo, u, u2| b.sample(wo, u, u2), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
 
 /// The lanes of one model, packed: which lanes, their BSDFs and directions; the sample's
 /// results, or `eval` and `pdf` toward `wi`.
@@ -306,8 +302,9 @@ impl<B: Model> Packed<B> {
         let bsdf = &self.bsdf[..n];
         for j in 0..n {
             let (wo, wi) = (get3(&self.wo, j), get3(&self.wi, j));
-            put3(&mut self.f, j, bsdf[j].eval(wo, wi));
-            self.pdf[j] = bsdf[j].pdf(wo, wi);
+            let (f, pdf) = bsdf[j].eval_pdf(wo, wi);
+            put3(&mut self.f, j, f);
+            self.pdf[j] = pdf;
         }
     }
 }
@@ -642,9 +639,9 @@ fn numbers(wave: &mut Wave) {
             let (px, k, depth) = (wv.px[i], wv.k[i], wv.depth[i]);
             let base = 1 + depth.saturating_mul(PAIRS);
             let choices = depth.saturating_mul(CHOICES);
-            wv.u_light[i] = px.get1_hashed(k, choices);
+            wv.u_light[i] = px.get1(k, choices);
             (wv.u2_light[0][i], wv.u2_light[1][i]) = px.get2(k, base);
-            wv.u_bsdf[i] = px.get1_hashed(k, choices + 1);
+            wv.u_bsdf[i] = px.get1(k, choices + 1);
             (wv.u2_bsdf[0][i], wv.u2_bsdf[1][i]) = px.get2(k, base + 1);
             wv.u_rr[i] = px.get1_hashed(k, choices + 3);
         }
@@ -708,8 +705,9 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         let i = usize::from(i);
         let Some(bsdf) = wave.bsdf[i] else { continue };
         let (wo, wi) = (get3(&wave.wo, i), wave.frame[i].to_local(get3(&dir, i)));
-        put3(&mut f, i, bsdf.eval(wo, wi));
-        bsdf_pdf[i] = bsdf.pdf(wo, wi);
+        let (fi, pdf) = bsdf.eval_pdf(wo, wi);
+        put3(&mut f, i, fi);
+        bsdf_pdf[i] = pdf;
     }
     let mut pending: [(u8, Ray, Vec3); CAP] = [(0, NO_RAYS[0], Vec3::ZERO); CAP];
     let mut count = 0;
