@@ -1,6 +1,7 @@
-//! Area lights: emitting triangles, spheres and disks, one-sided toward their normal as
-//! Mitsuba's `area` emitter. Triangles and disks are sampled by area, spheres by the
-//! cone they subtend (uniformly within it, Shirley and Wang 1994).
+//! Area lights: emitting triangles, parallelograms (two triangles of a mesh that make
+//! one), spheres and disks, one-sided toward their normal as Mitsuba's `area` emitter.
+//! Triangles, parallelograms and disks are sampled by area, spheres by the cone they
+//! subtend (uniformly within it, Shirley and Wang 1994).
 
 use super::sample::{EmissionSample, LightSample};
 use crate::color::luminance;
@@ -50,6 +51,12 @@ pub(crate) enum AreaLight {
     Tri(EmissiveTri),
     /// A sphere, centre and radius, emitting `le` outward.
     Sphere { c: Vec3, r: f32, le: Vec3 },
+    /// Two emitting triangles of a mesh that make a parallelogram (a quad split along a
+    /// diagonal, as Mitsuba's `rectangle` and OBJ's quads are), as one light: corner `p0`,
+    /// edges `e1` and `e2`, its whole area. Sampled by a point of the parallelogram for
+    /// the whole pair, so the sampler's 2-D stratification covers the light at once (two
+    /// triangles split the samples by a choice, and each folds its square in two).
+    Quad(EmissiveTri),
     /// A disk: centre, axes (scaled), unit normal, area.
     Disk { c: Vec3, ax: Vec3, ay: Vec3, n: Vec3, area: f32, le: Vec3 },
 }
@@ -83,6 +90,37 @@ pub(crate) fn triangle(
     Some((AreaLight::Tri(EmissiveTri { p0: a, e1, e2, n: cross / (2.0 * area), area, le: mat.emission, tex }), p))
 }
 
+/// Triangles `t` and `t2` of `mesh` (lights `a` and `b`, as [`triangle`] made them) as
+/// one [`AreaLight::Quad`] when they share two vertices (by index), face one way, emit
+/// alike without a texture, and their other corners complete a parallelogram; with its
+/// power. `None` otherwise.
+pub(crate) fn quad(
+    mesh: &Mesh,
+    (t, a): (usize, &AreaLight),
+    (t2, b): (usize, &AreaLight),
+    to_world: &Affine3A,
+) -> Option<(AreaLight, f32)> {
+    let (AreaLight::Tri(a), AreaLight::Tri(b)) = (a, b) else { return None };
+    if a.tex.is_some() || b.tex.is_some() || a.le != b.le || a.n.dot(b.n) < 1.0 - 1e-5 {
+        return None;
+    }
+    let (ia, ib) = (mesh.indices.get(t)?, mesh.indices.get(t2)?);
+    let shared: Vec<u32> = ia.iter().copied().filter(|i| ib.contains(i)).collect();
+    let [s0, s1] = shared[..] else { return None };
+    let other = |idx: &[u32; 3]| idx.iter().copied().find(|&i| i != s0 && i != s1);
+    let at = |i: u32| mesh.positions.get(i as usize).map(|&q| to_world.transform_point3(q));
+    let (pa, pb, q0, q1) = (at(other(ia)?)?, at(other(ib)?)?, at(s0)?, at(s1)?);
+    let scale = (q1 - q0).length().max((pb - pa).length());
+    if scale.is_nan() || scale <= 0.0 || (pa + pb - q0 - q1).length() > 1e-5 * scale {
+        return None;
+    }
+    let (e1, e2) = (q0 - pa, q1 - pa);
+    let area = e1.cross(e2).length();
+    let p = area * luminance(a.le) * PI;
+    (area > 0.0 && p > 0.0 && p.is_finite())
+        .then_some((AreaLight::Quad(EmissiveTri { p0: pa, e1, e2, n: a.n, area, le: a.le, tex: None }), p))
+}
+
 /// An analytic shape of kind `kind` placed by `m`, emitting `le`, as a light with its
 /// power (`None` for shapes that are not sampled: they are lit only where rays meet them).
 pub(crate) fn shape(kind: ShapeKind, m: &Affine3A, le: Vec3) -> Option<(AreaLight, f32)> {
@@ -109,7 +147,7 @@ pub(crate) fn shape(kind: ShapeKind, m: &Affine3A, le: Vec3) -> Option<(AreaLigh
     let p = match &light {
         AreaLight::Sphere { r, .. } => 4.0 * PI * r * r,
         AreaLight::Disk { area, .. } => *area,
-        AreaLight::Tri(_) => 0.0,
+        AreaLight::Tri(_) | AreaLight::Quad(_) => 0.0,
     } * luminance(le)
         * PI;
     (p > 0.0 && p.is_finite()).then_some((light, p))
@@ -145,6 +183,7 @@ impl AreaLight {
                 let q = t.p0 + t.e1 * a + t.e2 * b;
                 area_sample(p, q, t.n, t.area, tri_radiance(t, a, b, textures))
             }
+            Self::Quad(t) => area_sample(p, t.p0 + t.e1 * u2.0 + t.e2 * u2.1, t.n, t.area, t.le),
             Self::Sphere { c, r, le } => sphere_sample(p, *c, *r, *le, u2),
             Self::Disk { c, ax, ay, n, area, le } => {
                 let d = concentric_disk(u2);
@@ -157,7 +196,7 @@ impl AreaLight {
     /// along unit `dir` (`d2`: the squared distance from `p` to `q`).
     pub(crate) fn pdf(&self, p: Vec3, q: Vec3, dir: Vec3, d2: f32) -> f32 {
         match self {
-            Self::Tri(t) => d2 / (t.area * t.n.dot(-dir).abs().max(1e-12)),
+            Self::Tri(t) | Self::Quad(t) => d2 / (t.area * t.n.dot(-dir).abs().max(1e-12)),
             Self::Disk { n, area, .. } => d2 / (area * n.dot(-dir).abs().max(1e-12)),
             Self::Sphere { c, r, .. } => sphere_pdf(p, *c, *r, q, dir),
         }
@@ -171,6 +210,7 @@ impl AreaLight {
                 let (a, b) = tri_point(u_pos);
                 area_emission(t.p0 + t.e1 * a + t.e2 * b, t.n, t.area, tri_radiance(t, a, b, textures), u_dir)
             }
+            Self::Quad(t) => area_emission(t.p0 + t.e1 * u_pos.0 + t.e2 * u_pos.1, t.n, t.area, t.le, u_dir),
             Self::Sphere { c, r, le } => {
                 let n = uniform_sphere(u_pos);
                 area_emission(*c + n * *r, n, 4.0 * PI * r * r, *le, u_dir)

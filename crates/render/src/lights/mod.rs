@@ -114,6 +114,9 @@ impl LightSet {
                     let Some(mesh) = scene.meshes.get(m as usize) else { continue };
                     // (Only the triangles that emit: an instance of a mesh without
                     // emitters costs nothing here.)
+                    // The instance's emitting triangles; two in a row that make a
+                    // parallelogram become one light (`area::quad`).
+                    let mut tris_here: Vec<(usize, AreaLight, f32)> = Vec::new();
                     for &t in emissive.get(m as usize).map_or(&[][..], |e| &e[..]) {
                         let t = t as usize;
                         let Some(idx) = mesh.indices.get(t) else { continue };
@@ -122,10 +125,27 @@ impl LightSet {
                             continue;
                         }
                         let Some((light, p)) = area::triangle(mesh, t, idx, &inst.world_from_object, mat, textures) else { continue };
+                        tris_here.push((t, light, p));
+                    }
+                    let mut k = 0;
+                    while k < tris_here.len() {
                         let tris = s.index[ii].get_or_insert_with(|| vec![NONE; mesh.indices.len()].into_boxed_slice());
-                        tris[t] = s.entries.len() as u32;
-                        s.entries.push(Entry::Area(light));
-                        power.push(f64::from(p));
+                        let (t, light, p) = &tris_here[k];
+                        let pair = tris_here
+                            .get(k + 1)
+                            .filter(|(t2, ..)| *t2 == t + 1)
+                            .and_then(|(t2, l2, _)| Some((*t2, area::quad(mesh, (*t, light), (*t2, l2), &inst.world_from_object)?)));
+                        tris[*t] = s.entries.len() as u32;
+                        if let Some((t2, (q, qp))) = pair {
+                            tris[t2] = s.entries.len() as u32;
+                            s.entries.push(Entry::Area(q));
+                            power.push(f64::from(qp));
+                            k += 2;
+                        } else {
+                            s.entries.push(Entry::Area(light.clone()));
+                            power.push(f64::from(*p));
+                            k += 1;
+                        }
                         group.push(ii as u64);
                     }
                 }
@@ -209,6 +229,7 @@ impl LightSet {
                 for (e, &p) in entries.iter().zip(power) {
                     let (n, corners) = match e {
                         Entry::Area(AreaLight::Tri(t)) => (t.n, [t.p0, t.p0 + t.e1, t.p0 + t.e2, t.p0]),
+                        Entry::Area(AreaLight::Quad(t)) => (t.n, [t.p0, t.p0 + t.e1, t.p0 + t.e2, t.p0 + t.e1 + t.e2]),
                         Entry::Area(AreaLight::Disk { c, ax, ay, n, .. }) => {
                             (*n, [*c + *ax + *ay, *c - *ax - *ay, *c + *ax - *ay, *c - *ax + *ay])
                         }
@@ -519,6 +540,79 @@ mod tests {
         // Under the spot, inside its cone, it is chosen; beside it, outside, never.
         assert!(set.pmf(spot, Vec3::ZERO, Vec3::Y) > 0.2);
         assert_eq!(set.pmf(spot, Vec3::new(2.0, 0.0, 1.0), Vec3::Y), 0.0);
+    }
+
+    /// A rectangle of two emitting triangles (as Mitsuba's `rectangle` is made), tilted,
+    /// is one light for both triangles; its samples' densities are the ones `pdf_hit`
+    /// reports where their rays meet either triangle, and their mean is the irradiance
+    /// found by quadrature over the rectangle. A fan of two triangles that is no
+    /// parallelogram stays two lights.
+    #[test]
+    fn a_rectangle_of_two_triangles_is_one_light() {
+        use lucent_scene::Mesh;
+        let quad_scene = |positions: Vec<Vec3>| {
+            let mut scene = Scene::default();
+            scene.materials.push(Material { emission: Vec3::new(2.0, 1.0, 0.5), ..Material::default() });
+            scene.meshes.push(Mesh {
+                name: "lamp".into(),
+                positions,
+                indices: vec![[0, 1, 2], [2, 3, 0]],
+                material: vec![0, 0],
+                ..Mesh::default()
+            });
+            let place = glam::Affine3A::from_scale_rotation_translation(
+                Vec3::new(0.6, 0.4, 1.0),
+                glam::Quat::from_rotation_x(2.0) * glam::Quat::from_rotation_y(0.3),
+                Vec3::new(0.2, 1.5, -0.1),
+            );
+            scene.instances.push(Instance { geom: Geom::Mesh(0), world_from_object: place });
+            let emissive = area::emissive_triangles(&scene);
+            (LightSet::of(&scene, Some((Vec3::splat(-3.0), Vec3::splat(3.0))), &emissive, &[]), place)
+        };
+        let corners = vec![Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0)];
+        let (set, place) = quad_scene(corners.clone());
+        assert_eq!(set.entries.len(), 1);
+        assert!(matches!(set.entries[0], Entry::Area(AreaLight::Quad(_))));
+        let Entry::Area(AreaLight::Quad(q)) = &set.entries[0] else { unreachable!() };
+        let world = corners.iter().map(|&c| place.transform_point3(c)).collect::<Vec<_>>();
+        let normal = q.n;
+        // Where the light is seen from: below its emitting side.
+        let p = place.transform_point3(Vec3::ZERO) + normal * 1.3 + Vec3::new(0.2, 0.0, 0.1);
+        let n = (-normal + Vec3::new(0.3, 0.1, 0.0)).normalize();
+        // The irradiance at p (normal n) from the light, by a midpoint rule over it.
+        let (o, ex, ey) = (world[0], world[1] - world[0], world[3] - world[0]);
+        let da = ex.cross(ey).length();
+        let k = 400;
+        let mut by_quadrature = 0.0f64;
+        for i in 0..k {
+            for j in 0..k {
+                let x = o + ex * ((i as f32 + 0.5) / k as f32) + ey * ((j as f32 + 0.5) / k as f32);
+                let to = x - p;
+                let d2 = to.length_squared();
+                let w = to / d2.sqrt();
+                let g = n.dot(w).max(0.0) * normal.dot(-w).max(0.0) / d2;
+                by_quadrature += f64::from(g * da) / f64::from(k * k);
+            }
+        }
+        let m = 256;
+        let mut by_samples = 0.0f64;
+        for i in 0..m {
+            for j in 0..m {
+                let u = ((i as f32 + 0.5) / m as f32, (j as f32 + 0.5) / m as f32);
+                let ls = set.sample(p, n, 0.5, u, &[], false).expect("a sample");
+                by_samples += f64::from(ls.li.x / 2.0 * n.dot(ls.dir).max(0.0) / ls.pdf) / f64::from(m * m);
+                // Its density as an emitter met says it, through either triangle.
+                let q = p + ls.dir * ls.dist;
+                let local = place.inverse().transform_point3(q);
+                let prim = if local.x - local.y >= 0.0 { 0 } else { 1 };
+                let hit_pdf = set.pdf_hit(0, prim, p, n, q, ls.dir).expect("a light");
+                assert!((hit_pdf - ls.pdf).abs() <= 1e-4 * ls.pdf, "{hit_pdf} against {}", ls.pdf);
+            }
+        }
+        assert!((by_samples / by_quadrature - 1.0).abs() < 2e-3, "{by_samples} against {by_quadrature}");
+        // Not a parallelogram: two lights.
+        let (set, _) = quad_scene(vec![corners[0], corners[1], corners[2], Vec3::new(-1.0, 1.4, 0.0)]);
+        assert_eq!(set.entries.len(), 2);
     }
 
     #[test]
