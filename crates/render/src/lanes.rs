@@ -278,16 +278,48 @@ pub enum Level {
 static FORCED: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(0);
 
 impl Level {
-    /// The best level this CPU runs, unless one is forced ([`Level::force`]).
+    /// The level lane loops run at: AVX2 where the CPU has it (else the baseline), unless
+    /// one is forced ([`Level::force`]) or named by the environment variable
+    /// `LUCENT_LANES`.
     #[inline]
     #[must_use]
     pub fn current() -> Self {
-        match FORCED.load(std::sync::atomic::Ordering::Relaxed) {
+        let want = match FORCED.load(std::sync::atomic::Ordering::Relaxed) {
             1 => Self::Portable,
-            2 if lucent_accel::simd::avx2_fma() => Self::Avx2,
-            3 if Self::avx512() => Self::Avx512,
-            _ if Self::avx512() => Self::Avx512,
-            _ if lucent_accel::simd::avx2_fma() => Self::Avx2,
+            2 => Self::Avx2,
+            3 => Self::Avx512,
+            // (AVX2 by default, on AVX-512 machines too: the lane integrator ran 4-6%
+            // faster in its AVX2 build than in its AVX-512 one on the Cornell box, envmap,
+            // bunny and materials scenes, whole renders on a Sapphire Rapids Xeon.)
+            _ => Self::from_env().unwrap_or(Self::Avx2),
+        };
+        Self::cpu_best_at_most(want)
+    }
+
+    /// The level `LUCENT_LANES` names (`avx512`, `avx2` or `portable`), read once: to
+    /// compare the builds' speed (every build gives the same bits).
+    fn from_env() -> Option<Self> {
+        static ENV: std::sync::OnceLock<Option<Level>> = std::sync::OnceLock::new();
+        *ENV.get_or_init(|| {
+            let v = std::env::var("LUCENT_LANES").ok()?;
+            let level = match v.to_ascii_lowercase().as_str() {
+                "avx512" => Self::Avx512,
+                "avx2" => Self::Avx2,
+                "portable" => Self::Portable,
+                _ => {
+                    tracing::warn!("LUCENT_LANES={v}: not avx512, avx2 or portable; ignored");
+                    return None;
+                }
+            };
+            Some(level)
+        })
+    }
+
+    /// `level`, or the best below it this CPU runs.
+    fn cpu_best_at_most(level: Self) -> Self {
+        match level {
+            Self::Avx512 if Self::avx512() => Self::Avx512,
+            Self::Avx512 | Self::Avx2 if lucent_accel::simd::avx2_fma() => Self::Avx2,
             _ => Self::Portable,
         }
     }

@@ -39,14 +39,18 @@ impl Diffuse {
     #[inline]
     #[must_use]
     pub fn sample(&self, wo: Vec3, u2: (f32, f32)) -> Option<BsdfSample> {
-        if wo.z <= 0.0 {
-            return None;
-        }
+        let (s, ok) = self.sample_lane(wo, u2);
+        ok.then_some(s)
+    }
+
+    /// [`Diffuse::sample`] without a branch (for loops over lanes): the sample, and
+    /// whether there is one (when not, the sample's fields mean nothing).
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_lane(&self, wo: Vec3, u2: (f32, f32)) -> (BsdfSample, bool) {
         let wi = cosine_hemisphere(u2);
-        if wi.z <= 0.0 {
-            return None;
-        }
-        Some(BsdfSample { wi, weight: self.r, pdf: wi.z * FRAC_1_PI, delta: false, eta: 1.0 })
+        let ok = (wo.z > 0.0) & (wi.z > 0.0);
+        (BsdfSample { wi, weight: self.r, pdf: wi.z * FRAC_1_PI, delta: false, eta: 1.0 }, ok)
     }
 }
 

@@ -195,15 +195,25 @@ impl<'w> Wave<'w> {
 /// of one model (their parameters packed), written branch-free enough that LLVM vectorizes
 /// the loop, and the same code as one call (the same bits).
 trait Model: Copy {
-    fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample>;
+    /// Whether the model's loops vectorize (their lane counts are then padded to whole
+    /// vectors: a scalar remainder costs more than the padding's extra lanes).
+    const VECTOR: bool = false;
+    /// The sample and whether there is one (when not, its fields go unused).
+    fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (BsdfSample, bool);
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32);
+}
+
+/// A sample as [`Model::sample`] gives it.
+#[inline(always)]
+fn some(s: Option<BsdfSample>) -> (BsdfSample, bool) {
+    (s.unwrap_or(BsdfSample { wi: Vec3::Z, weight: Vec3::ZERO, pdf: 0.0, delta: false, eta: 1.0 }), s.is_some())
 }
 
 macro_rules! model {
     ($ty:ty, |$b:ident, $wo:ident, $u:ident, $u2:ident| $sample:expr, |$c:ident, $wo2:ident, $wi:ident| $eval_pdf:expr) => {
         impl Model for $ty {
             #[inline(always)]
-            fn sample(&self, $wo: Vec3, $u: f32, $u2: (f32, f32)) -> Option<BsdfSample> {
+            fn sample(&self, $wo: Vec3, $u: f32, $u2: (f32, f32)) -> (BsdfSample, bool) {
                 let $b = self;
                 $sample
             }
@@ -215,13 +225,23 @@ macro_rules! model {
         }
     };
 }
-model!(Diffuse, |b, wo, _u, u2| b.sample(wo, u2), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
-model!(Conductor, |b, wo, _u, u2| b.sample(wo, u2), |b, wo, wi| b.eval_pdf(wo, wi));
-model!(Dielectric, |b, wo, u, u2| b.sample(wo, u, u2), |b, wo, wi| b.eval_pdf(wo, wi));
-model!(Plastic, |b, wo, u, u2| b.sample(wo, u, u2), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
-model!(RoughPlastic<'_>, |b, wo, u, u2| b.sample(wo, u, u2), |b, wo, wi| b.eval_pdf(wo, wi));
-model!(MetallicRoughness, |b, wo, u, u2| b.sample(wo, u, u2), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
-model!(DiffuseGlossy, |b, wo, u, u2| b.sample(wo, u, u2), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
+impl Model for Diffuse {
+    const VECTOR: bool = true;
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, _u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        self.sample_lane(wo, u2)
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        (self.eval(wo, wi), self.pdf(wo, wi))
+    }
+}
+model!(Conductor, |b, wo, _u, u2| some(b.sample(wo, u2)), |b, wo, wi| b.eval_pdf(wo, wi));
+model!(Dielectric, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| b.eval_pdf(wo, wi));
+model!(Plastic, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
+model!(RoughPlastic<'_>, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| b.eval_pdf(wo, wi));
+model!(MetallicRoughness, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
+model!(DiffuseGlossy, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
 
 /// The lanes of one model, packed: which lanes, their BSDFs and directions; the sample's
 /// results, or `eval` and `pdf` toward `wi`.
@@ -278,33 +298,70 @@ impl<B: Model> Packed<B> {
         (self.u2[0][j], self.u2[1][j]) = u2;
     }
 
+    /// The number of lanes the loops run over: with [`Model::VECTOR`], all [`CAP`], the
+    /// BSDFs padded with copies of the last (their results go unused). PERF: a loop of a
+    /// constant [`CAP`] lanes is whole vectors; over `0..n` LLVM vectorized 4 vectors per
+    /// step and sent any `n` below 64 down its scalar remainder.
+    #[inline(always)]
+    fn padded(&mut self) -> usize {
+        let n = self.bsdf.len();
+        if B::VECTOR && n > 0 {
+            let last = self.bsdf[n - 1];
+            self.bsdf.resize(CAP, last);
+        }
+        self.bsdf.len()
+    }
+
     /// The sample of every packed lane.
     #[inline(always)]
     fn sample_all(&mut self) {
-        let n = self.bsdf.len();
-        let bsdf = &self.bsdf[..n];
-        for j in 0..n {
-            let s = bsdf[j].sample(get3(&self.wo, j), self.u[j], (self.u2[0][j], self.u2[1][j]));
-            self.ok[j] = s.is_some();
-            let s = s.unwrap_or(BsdfSample { wi: Vec3::Z, weight: Vec3::ZERO, pdf: 0.0, delta: false, eta: 1.0 });
-            put3(&mut self.wi, j, s.wi);
-            put3(&mut self.f, j, s.weight);
-            self.pdf[j] = s.pdf;
-            self.delta[j] = s.delta;
-            self.eta[j] = s.eta;
+        let n = self.padded();
+        macro_rules! one {
+            ($bsdf:ident, $j:ident) => {{
+                let (s, ok) = $bsdf[$j].sample(get3(&self.wo, $j), self.u[$j], (self.u2[0][$j], self.u2[1][$j]));
+                self.ok[$j] = ok;
+                put3(&mut self.wi, $j, s.wi);
+                put3(&mut self.f, $j, s.weight);
+                self.pdf[$j] = s.pdf;
+                self.delta[$j] = s.delta;
+                self.eta[$j] = s.eta;
+            }};
+        }
+        if B::VECTOR && n == CAP {
+            let bsdf = &self.bsdf[..CAP];
+            for j in 0..CAP {
+                one!(bsdf, j);
+            }
+        } else {
+            let bsdf = &self.bsdf[..n];
+            for j in 0..n {
+                one!(bsdf, j);
+            }
         }
     }
 
     /// `eval` and `pdf` of every packed lane toward its `wi`.
     #[inline(always)]
     fn eval_all(&mut self) {
-        let n = self.bsdf.len();
-        let bsdf = &self.bsdf[..n];
-        for j in 0..n {
-            let (wo, wi) = (get3(&self.wo, j), get3(&self.wi, j));
-            let (f, pdf) = bsdf[j].eval_pdf(wo, wi);
-            put3(&mut self.f, j, f);
-            self.pdf[j] = pdf;
+        let n = self.padded();
+        macro_rules! one {
+            ($bsdf:ident, $j:ident) => {{
+                let (wo, wi) = (get3(&self.wo, $j), get3(&self.wi, $j));
+                let (f, pdf) = $bsdf[$j].eval_pdf(wo, wi);
+                put3(&mut self.f, $j, f);
+                self.pdf[$j] = pdf;
+            }};
+        }
+        if B::VECTOR && n == CAP {
+            let bsdf = &self.bsdf[..CAP];
+            for j in 0..CAP {
+                one!(bsdf, j);
+            }
+        } else {
+            let bsdf = &self.bsdf[..n];
+            for j in 0..n {
+                one!(bsdf, j);
+            }
         }
     }
 }
@@ -631,11 +688,12 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
 }
 
 /// Stage 2, on lanes: the bounce's sampler numbers (for every lane: those of lanes that
-/// do not scatter go unused).
+/// do not scatter, or past `n`, go unused). PERF: the loop runs over all [`CAP`] lanes
+/// (the lanes past `n` hold an ended path's state), whole vectors: over `0..n`, the
+/// scalar remainder was 64% of this stage's time on the Cornell box.
 fn numbers(wave: &mut Wave) {
-    let n = wave.n;
-    on_lanes!(|wv: &mut Wave, n: usize| {
-        for i in 0..n {
+    on_lanes!(|wv: &mut Wave| {
+        for i in 0..CAP {
             let (px, k, depth) = (wv.px[i], wv.k[i], wv.depth[i]);
             let base = 1 + depth.saturating_mul(PAIRS);
             let choices = depth.saturating_mul(CHOICES);
@@ -645,7 +703,7 @@ fn numbers(wave: &mut Wave) {
             (wv.u2_bsdf[0][i], wv.u2_bsdf[1][i]) = px.get2(k, base + 1);
             wv.u_rr[i] = px.get1_hashed(k, choices + 3);
         }
-    })(wave, n);
+    })(wave);
 }
 
 /// Stage 3: next-event estimation. A light sample per lane that scatters (lane by lane),
