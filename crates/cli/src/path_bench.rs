@@ -69,7 +69,11 @@ pub fn run(data: &Path, scenes_dir: &Path, only: &[String]) -> Result<()> {
             if only.is_empty() { String::new() } else { format!(" named {}", only.join(", ")) }
         );
     }
-    println!("machine: {} threads", rayon::current_num_threads());
+    println!(
+        "machine: {} threads, lane loops {:?} (LUCENT_LANES=avx512|avx2|portable to choose)",
+        rayon::current_num_threads(),
+        lucent_render::lanes::Level::current()
+    );
     println!(
         "| scene | lucent samples/s | relMSE 64 spp, median (lucent / Mitsuba) | lucent spp, s to Mitsuba's 64-spp error | Mitsuba 64 spp s | x faster at equal error | rays/sample, their s alone | ceiling x |"
     );
