@@ -31,22 +31,28 @@ impl Dielectric {
         }
     }
 
-    /// f(wo, wi)·|cos θi| (zero for the smooth interface).
-    #[must_use]
-    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        let Some(mf) = self.mf else { return Vec3::ZERO };
+    /// What `eval` and `pdf` share, for a rough interface and directions off the surface:
+    /// the microfacets, whether `wi` is a reflection, the relative index across from
+    /// `wo`'s side (η on the far side over η on the viewer's) and the half vector, turned
+    /// up; `None` where both are zero.
+    #[inline]
+    fn half(&self, wo: Vec3, wi: Vec3) -> Option<(Microfacet, bool, f32, Vec3)> {
+        let mf = self.mf?;
         if wo.z == 0.0 || wi.z == 0.0 {
-            return Vec3::ZERO;
+            return None;
         }
         let reflect = same_side(wo, wi);
-        // η on the far side over η on the viewer's side.
         let eta_o = self.eta_across(wo);
         let h = if reflect { wo + wi } else { wo + wi * eta_o };
         let h = h.normalize_or_zero();
         let h = if h.z < 0.0 { -h } else { h };
-        if h == Vec3::ZERO {
-            return Vec3::ZERO;
-        }
+        (h != Vec3::ZERO).then_some((mf, reflect, eta_o, h))
+    }
+
+    /// f(wo, wi)·|cos θi| (zero for the smooth interface).
+    #[must_use]
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        let Some((mf, reflect, eta_o, h)) = self.half(wo, wi) else { return Vec3::ZERO };
         let d = mf.d(h);
         let (f, _) = fresnel_dielectric(wo.dot(h), self.eta);
         let g = mf.g(wo, wi, h);
@@ -66,18 +72,7 @@ impl Dielectric {
     /// The density of [`Dielectric::sample`] (zero for the smooth interface).
     #[must_use]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        let Some(mf) = self.mf else { return 0.0 };
-        if wo.z == 0.0 || wi.z == 0.0 {
-            return 0.0;
-        }
-        let reflect = same_side(wo, wi);
-        let eta_o = self.eta_across(wo);
-        let h = if reflect { wo + wi } else { wo + wi * eta_o };
-        let h = h.normalize_or_zero();
-        let h = if h.z < 0.0 { -h } else { h };
-        if h == Vec3::ZERO {
-            return 0.0;
-        }
+        let Some((mf, reflect, eta_o, h)) = self.half(wo, wi) else { return 0.0 };
         // The facet was sampled for wo turned to the upper hemisphere (the visible
         // facets seen from below are those seen from the mirrored direction).
         let pm = mf.pdf(if wo.z < 0.0 { -wo } else { wo }, h);
@@ -98,18 +93,7 @@ impl Dielectric {
     /// facet's Fresnel term once; the same bits as apart).
     #[must_use]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        let Some(mf) = self.mf else { return (Vec3::ZERO, 0.0) };
-        if wo.z == 0.0 || wi.z == 0.0 {
-            return (Vec3::ZERO, 0.0);
-        }
-        let reflect = same_side(wo, wi);
-        let eta_o = self.eta_across(wo);
-        let h = if reflect { wo + wi } else { wo + wi * eta_o };
-        let h = h.normalize_or_zero();
-        let h = if h.z < 0.0 { -h } else { h };
-        if h == Vec3::ZERO {
-            return (Vec3::ZERO, 0.0);
-        }
+        let Some((mf, reflect, eta_o, h)) = self.half(wo, wi) else { return (Vec3::ZERO, 0.0) };
         let d = mf.d(h);
         let pm = mf.pdf_with_d(if wo.z < 0.0 { -wo } else { wo }, h, d);
         let (f, _) = fresnel_dielectric(wo.dot(h), self.eta);

@@ -262,6 +262,21 @@ struct Packed<B> {
     ok: [bool; CAP],
 }
 
+/// Runs `$body` for the packed lanes `$j` of `$bsdfs` (`$bsdf`: their BSDFs, `$n` of
+/// them): over a constant [`CAP`] lanes when [`Model::VECTOR`] padded them (a loop LLVM
+/// turns into whole vectors), else over `0..$n`.
+macro_rules! packed_loop {
+    ($bsdfs:expr, $n:expr, |$bsdf:ident, $j:ident| $body:block) => {
+        if B::VECTOR && $n == CAP {
+            let $bsdf = &$bsdfs[..CAP];
+            for $j in 0..CAP $body
+        } else {
+            let $bsdf = &$bsdfs[..$n];
+            for $j in 0..$n $body
+        }
+    };
+}
+
 impl<B: Model> Packed<B> {
     fn new() -> Box<Self> {
         let z = [[0.0; CAP]; 3];
@@ -316,53 +331,27 @@ impl<B: Model> Packed<B> {
     #[inline(always)]
     fn sample_all(&mut self) {
         let n = self.padded();
-        macro_rules! one {
-            ($bsdf:ident, $j:ident) => {{
-                let (s, ok) = $bsdf[$j].sample(get3(&self.wo, $j), self.u[$j], (self.u2[0][$j], self.u2[1][$j]));
-                self.ok[$j] = ok;
-                put3(&mut self.wi, $j, s.wi);
-                put3(&mut self.f, $j, s.weight);
-                self.pdf[$j] = s.pdf;
-                self.delta[$j] = s.delta;
-                self.eta[$j] = s.eta;
-            }};
-        }
-        if B::VECTOR && n == CAP {
-            let bsdf = &self.bsdf[..CAP];
-            for j in 0..CAP {
-                one!(bsdf, j);
-            }
-        } else {
-            let bsdf = &self.bsdf[..n];
-            for j in 0..n {
-                one!(bsdf, j);
-            }
-        }
+        packed_loop!(self.bsdf, n, |bsdf, j| {
+            let (s, ok) = bsdf[j].sample(get3(&self.wo, j), self.u[j], (self.u2[0][j], self.u2[1][j]));
+            self.ok[j] = ok;
+            put3(&mut self.wi, j, s.wi);
+            put3(&mut self.f, j, s.weight);
+            self.pdf[j] = s.pdf;
+            self.delta[j] = s.delta;
+            self.eta[j] = s.eta;
+        });
     }
 
     /// `eval` and `pdf` of every packed lane toward its `wi`.
     #[inline(always)]
     fn eval_all(&mut self) {
         let n = self.padded();
-        macro_rules! one {
-            ($bsdf:ident, $j:ident) => {{
-                let (wo, wi) = (get3(&self.wo, $j), get3(&self.wi, $j));
-                let (f, pdf) = $bsdf[$j].eval_pdf(wo, wi);
-                put3(&mut self.f, $j, f);
-                self.pdf[$j] = pdf;
-            }};
-        }
-        if B::VECTOR && n == CAP {
-            let bsdf = &self.bsdf[..CAP];
-            for j in 0..CAP {
-                one!(bsdf, j);
-            }
-        } else {
-            let bsdf = &self.bsdf[..n];
-            for j in 0..n {
-                one!(bsdf, j);
-            }
-        }
+        packed_loop!(self.bsdf, n, |bsdf, j| {
+            let (wo, wi) = (get3(&self.wo, j), get3(&self.wi, j));
+            let (f, pdf) = bsdf[j].eval_pdf(wo, wi);
+            put3(&mut self.f, j, f);
+            self.pdf[j] = pdf;
+        });
     }
 }
 
