@@ -32,6 +32,9 @@ BSDFS = {
     "plastic_nonlinear": {"type": "plastic", "diffuse_reflectance": {"type": "rgb", "value": [0.8, 0.2, 0.1]}, "nonlinear": True, "int_ior": 1.7},
     "roughplastic_ggx": {"type": "roughplastic", "distribution": "ggx", "alpha": 0.2, "diffuse_reflectance": {"type": "rgb", "value": [0.2, 0.6, 0.4]}},
     "roughplastic_beckmann": {"type": "roughplastic", "diffuse_reflectance": {"type": "rgb", "value": [0.6, 0.3, 0.2]}, "nonlinear": True},
+    "roughconductor_al_aniso_ggx": {"type": "roughconductor", "material": "Al", "distribution": "ggx", "alpha_u": 0.05, "alpha_v": 0.3},
+    "roughconductor_cu_aniso_beckmann": {"type": "roughconductor", "material": "Cu", "distribution": "beckmann", "alpha_u": 0.4, "alpha_v": 0.1},
+    "roughdielectric_aniso_ggx": {"type": "roughdielectric", "distribution": "ggx", "alpha_u": 0.1, "alpha_v": 0.35, "int_ior": 1.5, "ext_ior": 1.0},
 }
 
 

@@ -35,6 +35,8 @@ pub struct PreparedMaterial {
     /// The material reads texture coordinates (a texture anywhere in it: see
     /// [`lucent_scene::Material::uses_uv`]); analytic shapes compute them only then.
     pub(crate) uses_uv: bool,
+    /// A layer has anisotropic roughness: the shading frame's tangent is then ∂p/∂u.
+    pub(crate) anisotropic: bool,
 }
 
 /// The mean of a texture's texels (linear), for Mitsuba's `mean()` of a bitmap.
@@ -74,7 +76,9 @@ impl PreparedMaterial {
             blend: None,
             masked: None,
             uses_uv: false,
+            anisotropic: false,
         };
+        p.anisotropic = p.desc.anisotropic();
         if let Desc::Blend { first, second, .. } = &p.desc {
             p.blend = Some(Box::new((Self::new((**first).clone(), scene), Self::new((**second).clone(), scene))));
         }
@@ -110,7 +114,12 @@ impl PreparedMaterial {
         }
         let color = |c: &ColorTex| eval_color(c, textures, uv);
         let float = |f: &FloatTex| eval_float(f, textures, uv);
-        let rough = |r: &Option<lucent_scene::Rough>| r.as_ref().map(|r| Microfacet::new(r.dist, float(&r.alpha)));
+        let rough = |r: &Option<lucent_scene::Rough>| {
+            r.as_ref().map(|r| match &r.alpha_v {
+                None => Microfacet::new(r.dist, float(&r.alpha)),
+                Some(v) => Microfacet::anisotropic(r.dist, float(&r.alpha), float(v)),
+            })
+        };
         match &self.desc {
             Desc::Diffuse { reflectance } => Bsdf::Diffuse(Diffuse { r: color(reflectance) }),
             Desc::Conductor { eta, k, specular, rough: r } => {

@@ -94,6 +94,18 @@ impl ShadingFrame {
         let (t, b) = frame(n);
         Self { t, b, n }
     }
+    /// The frame about unit `n` whose x axis is `tangent` made orthogonal to `n` (and y
+    /// is n × x, as Mitsuba's shading frame); `new(n)`'s where the tangent is (nearly)
+    /// along `n` or not finite.
+    #[must_use]
+    pub fn with_tangent(n: Vec3, tangent: Vec3) -> Self {
+        let t = (tangent - n * n.dot(tangent)).normalize_or_zero();
+        if t == Vec3::ZERO || !t.is_finite() {
+            return Self::new(n);
+        }
+        Self { t, b: n.cross(t), n }
+    }
+
     /// World `v` in the frame.
     #[inline]
     #[must_use]

@@ -29,7 +29,12 @@ fn conductor(name: &str) -> (Vec3, Vec3) {
 }
 
 fn rough(dist: Distribution, alpha: f32) -> Option<Rough> {
-    Some(Rough { dist, alpha: FloatTex::Const(alpha) })
+    Some(Rough::isotropic(dist, FloatTex::Const(alpha)))
+}
+
+/// Anisotropic roughness: `ax` along the frame's x, `ay` along y.
+fn aniso(dist: Distribution, ax: f32, ay: f32) -> Option<Rough> {
+    Some(Rough { dist, alpha: FloatTex::Const(ax), alpha_v: Some(FloatTex::Const(ay)) })
 }
 
 /// Mitsuba's configurations in `values.json`, as lucent descriptions.
@@ -91,6 +96,20 @@ fn mitsuba_equivalent(name: &str) -> Desc {
             nonlinear: true,
             rough: Some((Distribution::Beckmann, 0.1)),
         },
+        "roughconductor_al_aniso_ggx" => {
+            let (eta, k) = conductor("Al");
+            Desc::Conductor { eta: eta / air, k: k / air, specular: ColorTex::grey(1.0), rough: aniso(Distribution::Ggx, 0.05, 0.3) }
+        }
+        "roughconductor_cu_aniso_beckmann" => {
+            let (eta, k) = conductor("Cu");
+            Desc::Conductor { eta: eta / air, k: k / air, specular: ColorTex::grey(1.0), rough: aniso(Distribution::Beckmann, 0.4, 0.1) }
+        }
+        "roughdielectric_aniso_ggx" => Desc::Dielectric {
+            eta: 1.5,
+            reflectance: ColorTex::grey(1.0),
+            transmittance: ColorTex::grey(1.0),
+            rough: aniso(Distribution::Ggx, 0.1, 0.35),
+        },
         other => panic!("no lucent equivalent for {other}"),
     }
 }
@@ -147,7 +166,7 @@ fn bsdfs_match_mitsuba() {
             }
         }
     }
-    assert!(checked > 14 * 64, "{checked}");
+    assert!(checked > 17 * 64, "{checked}");
 }
 
 /// Every BSDF the tests below exercise, with a name (non-delta lobes for the chi-square
@@ -163,6 +182,23 @@ fn all_bsdfs() -> Vec<(&'static str, Desc)> {
         (
             "rough conductor beckmann",
             Desc::Conductor { eta: au_eta, k: au_k, specular: ColorTex::grey(1.0), rough: rough(Distribution::Beckmann, 0.4) },
+        ),
+        (
+            "anisotropic rough conductor ggx",
+            Desc::Conductor { eta: au_eta, k: au_k, specular: ColorTex::grey(1.0), rough: aniso(Distribution::Ggx, 0.08, 0.4) },
+        ),
+        (
+            "anisotropic rough conductor beckmann",
+            Desc::Conductor { eta: au_eta, k: au_k, specular: ColorTex::grey(1.0), rough: aniso(Distribution::Beckmann, 0.5, 0.15) },
+        ),
+        (
+            "anisotropic rough dielectric beckmann",
+            Desc::Dielectric {
+                eta: 1.5,
+                reflectance: ColorTex::grey(1.0),
+                transmittance: ColorTex::grey(1.0),
+                rough: aniso(Distribution::Beckmann, 0.15, 0.45),
+            },
         ),
         (
             "rough dielectric ggx",

@@ -158,6 +158,13 @@ fn checkerboard_roughness() {
     converges_to_mitsuba("rough_checker");
 }
 
+/// Anisotropic roughness (`alpha_u` along ∂p/∂u, `alpha_v` across): a brushed floor (a
+/// rectangle turned about its normal) and a copper sphere.
+#[test]
+fn anisotropic_roughness() {
+    converges_to_mitsuba("anisotropic");
+}
+
 /// The crop window with Mitsuba's Gaussian filter: samples inside the window only.
 #[test]
 fn crop_window_with_a_wide_filter() {

@@ -137,13 +137,25 @@ pub enum Distribution {
     Ggx,
 }
 
-/// Roughness of a microfacet surface: the distribution and its α (isotropic).
+/// Roughness of a microfacet surface: the distribution and its α, isotropic or along the
+/// surface's two texture directions (Mitsuba's `alpha_u`, `alpha_v`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rough {
     /// Distribution.
     pub dist: Distribution,
-    /// α (the RMS slope for Beckmann), clamped to at least 10⁻⁴ as Mitsuba does.
+    /// α (the RMS slope for Beckmann), clamped to at least 10⁻⁴ as Mitsuba does; with
+    /// `alpha_v`, α along the tangent ∂p/∂u.
     pub alpha: FloatTex,
+    /// α along the bitangent (anisotropic roughness); `None`: isotropic.
+    pub alpha_v: Option<FloatTex>,
+}
+
+impl Rough {
+    /// Isotropic roughness `alpha` of distribution `dist`.
+    #[must_use]
+    pub fn isotropic(dist: Distribution, alpha: FloatTex) -> Self {
+        Self { dist, alpha, alpha_v: None }
+    }
 }
 
 /// Which BSDF a surface has.
@@ -442,7 +454,7 @@ impl Bsdf {
     pub fn uses_uv(&self) -> bool {
         let c = |t: &ColorTex| !matches!(t, ColorTex::Const(_));
         let f = |t: &FloatTex| !matches!(t, FloatTex::Const(_));
-        let r = |t: &Option<Rough>| t.as_ref().is_some_and(|r| f(&r.alpha));
+        let r = |t: &Option<Rough>| t.as_ref().is_some_and(|r| f(&r.alpha) || r.alpha_v.as_ref().is_some_and(f));
         match self {
             Self::Diffuse { reflectance } => c(reflectance),
             Self::Conductor { specular, rough, .. } => c(specular) || r(rough),
@@ -455,6 +467,19 @@ impl Bsdf {
             Self::DiffuseGlossy { diffuse, .. } => c(diffuse),
             Self::Blend { weight, first, second } => f(weight) || first.uses_uv() || second.uses_uv(),
             Self::Mask { opacity, inner } => f(opacity) || inner.uses_uv(),
+        }
+    }
+
+    /// Whether any of its microfacet layers has anisotropic roughness (its shading frame
+    /// then follows the surface's ∂p/∂u).
+    #[must_use]
+    pub fn anisotropic(&self) -> bool {
+        let r = |t: &Option<Rough>| t.as_ref().is_some_and(|r| r.alpha_v.is_some());
+        match self {
+            Self::Conductor { rough, .. } | Self::Dielectric { rough, .. } => r(rough),
+            Self::Blend { first, second, .. } => first.anisotropic() || second.anisotropic(),
+            Self::Mask { inner, .. } => inner.anisotropic(),
+            _ => false,
         }
     }
 

@@ -210,7 +210,7 @@ pub fn studio_scene() -> Scene {
             eta: au_eta,
             k: au_k,
             specular: ColorTex::grey(1.0),
-            rough: Some(Rough { dist: Distribution::Ggx, alpha: FloatTex::Const(0.05) }),
+            rough: Some(Rough::isotropic(Distribution::Ggx, FloatTex::Const(0.05))),
         },
     ));
     let (cu_eta, cu_k) = named_conductor("Cu").unwrap_or((Vec3::ONE, Vec3::ONE));
@@ -220,7 +220,7 @@ pub fn studio_scene() -> Scene {
             eta: cu_eta,
             k: cu_k,
             specular: ColorTex::grey(1.0),
-            rough: Some(Rough { dist: Distribution::Ggx, alpha: FloatTex::Const(0.3) }),
+            rough: Some(Rough::isotropic(Distribution::Ggx, FloatTex::Const(0.3))),
         },
     ));
     let blue = mat(Material::physical(

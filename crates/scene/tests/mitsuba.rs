@@ -461,3 +461,31 @@ fn area_emitters_by_reference() {
     let e = err(r#"<scene version="3.0.0"><emitter type="area"/></scene>"#);
     assert!(e.contains("belongs inside a <shape>"), "{e}");
 }
+
+#[test]
+fn anisotropic_roughness() {
+    let scene = |bsdf: &str| format!(r#"<scene version="3.0.0"><shape type="sphere">{bsdf}</shape></scene>"#);
+    let s = parse(&scene(
+        r#"<bsdf type="roughconductor"><string name="distribution" value="ggx"/>
+            <float name="alpha_u" value="0.05"/><float name="alpha_v" value="0.3"/></bsdf>"#,
+    ))
+    .expect("anisotropic roughconductor");
+    let r = s
+        .materials
+        .iter()
+        .find_map(|m| match &m.bsdf {
+            Some(Bsdf::Conductor { rough: Some(r), .. }) => Some(r.clone()),
+            _ => None,
+        })
+        .expect("a rough conductor");
+    assert_eq!((&r.alpha, &r.alpha_v), (&lucent_scene::FloatTex::Const(0.05), &Some(lucent_scene::FloatTex::Const(0.3))));
+    assert!(s.materials.iter().any(|m| m.bsdf().anisotropic()));
+    // Equal roughnesses are isotropic.
+    let s = parse(&scene(r#"<bsdf type="roughdielectric"><float name="alpha_u" value="0.2"/><float name="alpha_v" value="0.2"/></bsdf>"#))
+        .expect("roughdielectric");
+    assert!(s.materials.iter().any(|m| matches!(&m.bsdf, Some(Bsdf::Dielectric { rough: Some(_), .. }))));
+    assert!(!s.materials.iter().any(|m| m.bsdf().anisotropic()));
+    // One without the other, as Mitsuba: an error at its line.
+    let e = err(&scene("<bsdf type=\"roughconductor\">\n<float name=\"alpha_u\" value=\"0.05\"/></bsdf>"));
+    assert!(e.starts_with("t.xml:2:") && e.contains("alpha_u and alpha_v"), "{e}");
+}

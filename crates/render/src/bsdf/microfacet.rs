@@ -1,4 +1,5 @@
-//! Microfacet distributions, isotropic, in the local shading frame (z the normal): the
+//! Microfacet distributions, isotropic or anisotropic (α along the frame's x and y, as
+//! Mitsuba's `alpha_u`, `alpha_v`), in the local shading frame (z the normal): the
 //! Beckmann and GGX (Trowbridge-Reitz) normal distributions and Smith's shadowing after
 //! Walter, Marschner, Li and Torrance, "Microfacet Models for Refraction through Rough
 //! Surfaces" (EGSR 2007) — including, for Beckmann, their rational approximation of G1
@@ -17,21 +18,64 @@ use std::f32::consts::PI;
 /// The least α (Mitsuba clamps there too): below, the lobes are numerically a mirror.
 pub const MIN_ALPHA: f32 = 1e-4;
 
-/// An isotropic microfacet distribution.
+/// A microfacet distribution.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Microfacet {
     /// Which distribution.
     pub dist: Distribution,
-    /// Roughness α (at least [`MIN_ALPHA`]).
+    /// Roughness α (at least [`MIN_ALPHA`]); anisotropic: along the frame's x.
     pub alpha: f32,
+    /// Roughness along the frame's y: `alpha` when isotropic.
+    pub alpha_y: f32,
+}
+
+/// A roughness as the distributions take it: at least [`MIN_ALPHA`], 1 when not finite.
+fn clamp_alpha(alpha: f32) -> f32 {
+    if alpha.is_finite() {
+        alpha.max(MIN_ALPHA)
+    } else {
+        1.0
+    }
 }
 
 impl Microfacet {
     /// A distribution of roughness `alpha` (clamped to at least [`MIN_ALPHA`]).
     #[must_use]
     pub fn new(dist: Distribution, alpha: f32) -> Self {
-        let alpha = if alpha.is_finite() { alpha.max(MIN_ALPHA) } else { 1.0 };
-        Self { dist, alpha }
+        let alpha = clamp_alpha(alpha);
+        Self { dist, alpha, alpha_y: alpha }
+    }
+
+    /// A distribution of roughness `ax` along the frame's x (the tangent, ∂p/∂u) and `ay`
+    /// along its y (each clamped as in [`Microfacet::new`]).
+    #[must_use]
+    pub fn anisotropic(dist: Distribution, ax: f32, ay: f32) -> Self {
+        Self { dist, alpha: clamp_alpha(ax), alpha_y: clamp_alpha(ay) }
+    }
+
+    /// Whether its roughness is the same along x and y.
+    #[inline]
+    #[must_use]
+    pub fn is_isotropic(&self) -> bool {
+        self.alpha == self.alpha_y
+    }
+
+    /// The larger of its two roughnesses.
+    #[inline]
+    #[must_use]
+    pub fn alpha_max(&self) -> f32 {
+        self.alpha.max(self.alpha_y)
+    }
+
+    /// α² (x² + y²) for the projected roughness of a direction (x, y, ·): with anisotropy,
+    /// αx² x² + αy² y². (Isotropic: the former arithmetic, the same bits.)
+    #[inline]
+    fn alpha2_xy2(&self, x: f32, y: f32) -> f32 {
+        if self.is_isotropic() {
+            self.alpha * self.alpha * (x * x + y * y)
+        } else {
+            self.alpha * self.alpha * (x * x) + self.alpha_y * self.alpha_y * (y * y)
+        }
     }
 
     /// The density of microfacet normals `m` (per unit projected area: ∫ D cos θm = 1).
@@ -41,15 +85,28 @@ impl Microfacet {
         if m.z <= 0.0 {
             return 0.0;
         }
-        let a2 = self.alpha * self.alpha;
-        let r = match self.dist {
-            Distribution::Beckmann => {
-                let tan2 = (m.x * m.x + m.y * m.y) / cos2;
-                (-tan2 / a2).exp() / (PI * a2 * cos2 * cos2)
+        let r = if self.is_isotropic() {
+            let a2 = self.alpha * self.alpha;
+            match self.dist {
+                Distribution::Beckmann => {
+                    let tan2 = (m.x * m.x + m.y * m.y) / cos2;
+                    (-tan2 / a2).exp() / (PI * a2 * cos2 * cos2)
+                }
+                Distribution::Ggx => {
+                    let t = (m.x * m.x + m.y * m.y) / a2 + cos2;
+                    1.0 / (PI * a2 * t * t)
+                }
             }
-            Distribution::Ggx => {
-                let t = (m.x * m.x + m.y * m.y) / a2 + cos2;
-                1.0 / (PI * a2 * t * t)
+        } else {
+            // (The slopes scaled by each axis's α; the normalisation π αx αy.)
+            let (ax, ay) = (self.alpha, self.alpha_y);
+            let e = (m.x / ax) * (m.x / ax) + (m.y / ay) * (m.y / ay);
+            match self.dist {
+                Distribution::Beckmann => (-e / cos2).exp() / (PI * ax * ay * cos2 * cos2),
+                Distribution::Ggx => {
+                    let t = e + cos2;
+                    1.0 / (PI * ax * ay * t * t)
+                }
             }
         };
         // (As Mitsuba: values this small only make trouble downstream.)
@@ -71,7 +128,7 @@ impl Microfacet {
         if xy2 == 0.0 {
             return 1.0;
         }
-        let tan2_alpha2 = self.alpha * self.alpha * xy2 / (v.z * v.z);
+        let tan2_alpha2 = self.alpha2_xy2(v.x, v.y) / (v.z * v.z);
         match self.dist {
             Distribution::Beckmann => {
                 let a = 1.0 / tan2_alpha2.sqrt();
@@ -95,12 +152,12 @@ impl Microfacet {
     /// visible normals, Beckmann's D(m) cos θm.
     #[must_use]
     pub fn sample(&self, v: Vec3, u: (f32, f32)) -> Vec3 {
-        let a = self.alpha;
+        let (ax, ay) = (self.alpha, self.alpha_y);
         match self.dist {
             Distribution::Ggx => {
                 // The hemisphere of a stretched (α = 1) configuration, a disk sample warped
                 // toward the visible half, then unstretched (Heitz 2018, listing 1).
-                let vh = Vec3::new(a * v.x, a * v.y, v.z).normalize();
+                let vh = Vec3::new(ax * v.x, ay * v.y, v.z).normalize();
                 let len2 = vh.x * vh.x + vh.y * vh.y;
                 let t1 = if len2 > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / len2.sqrt() } else { Vec3::X };
                 let t2 = vh.cross(t1);
@@ -111,15 +168,15 @@ impl Microfacet {
                 let s = 0.5 * (1.0 + vh.z);
                 let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * (r * s_phi);
                 let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
-                Vec3::new(a * nh.x, a * nh.y, nh.z.max(1e-6)).normalize()
+                Vec3::new(ax * nh.x, ay * nh.y, nh.z.max(1e-6)).normalize()
             }
             Distribution::Beckmann => {
                 // Stretch to α = 1, sample the visible slopes there, rotate and unstretch.
-                let vs = Vec3::new(a * v.x, a * v.y, v.z).normalize();
+                let vs = Vec3::new(ax * v.x, ay * v.y, v.z).normalize();
                 let sin_t = (1.0 - vs.z * vs.z).max(0.0).sqrt();
                 let (cos_p, sin_p) = if sin_t > 1e-7 { (vs.x / sin_t, vs.y / sin_t) } else { (1.0, 0.0) };
                 let (sx, sy) = beckmann_visible_slopes(vs.z, u);
-                let (x, y) = ((cos_p * sx - sin_p * sy) * a, (sin_p * sx + cos_p * sy) * a);
+                let (x, y) = ((cos_p * sx - sin_p * sy) * ax, (sin_p * sx + cos_p * sy) * ay);
                 Vec3::new(-x, -y, 1.0).normalize()
             }
         }
@@ -161,7 +218,7 @@ impl Microfacet {
         if xy2 == 0.0 {
             return 1.0;
         }
-        let a = v.z.abs() / (self.alpha * xy2.sqrt());
+        let a = if self.is_isotropic() { v.z.abs() / (self.alpha * xy2.sqrt()) } else { v.z.abs() / self.alpha2_xy2(v.x, v.y).sqrt() };
         let lambda = 0.5 * ((-a * a).exp() / (a * std::f32::consts::PI.sqrt()) - erfc(a));
         1.0 / (1.0 + lambda)
     }
@@ -561,6 +618,34 @@ mod tests {
         assert!((fc.x - fresnel_dielectric(0.6, 1.5).0).abs() < 1e-5, "{fc}");
         // Mitsuba's "none": a perfect mirror.
         assert!((fresnel_conductor(0.3, Vec3::ZERO, Vec3::ONE) - Vec3::ONE).abs().max_element() < 1e-6);
+    }
+
+    #[test]
+    fn anisotropic_distributions_are_normalised_and_reduce_to_isotropic() {
+        // ∫ D(m) cos θm dω = 1 over θ and φ (Gauss-Legendre in cos θ and φ).
+        let q = gauss_legendre(200);
+        for dist in [Distribution::Beckmann, Distribution::Ggx] {
+            for (ax, ay) in [(0.05f32, 0.3f32), (0.4, 0.1), (0.2, 0.8)] {
+                let mf = Microfacet::anisotropic(dist, ax, ay);
+                assert!(!mf.is_isotropic());
+                let mut s = 0.0f64;
+                for &(a, wa) in &q {
+                    for &(b, wb) in &q {
+                        let c = 0.5 * (a + 1.0);
+                        let ph = std::f64::consts::PI * (b + 1.0);
+                        let st = (1.0 - c * c).max(0.0).sqrt();
+                        let m = Vec3::new((st * ph.cos()) as f32, (st * ph.sin()) as f32, c as f32);
+                        s += wa * wb * 0.5 * std::f64::consts::PI * f64::from(mf.d(m)) * c;
+                    }
+                }
+                assert!((s - 1.0).abs() < 5e-3, "{dist:?} ({ax}, {ay}): {s}");
+            }
+            // Equal roughnesses are the isotropic distribution, bit for bit.
+            let (iso, same) = (Microfacet::new(dist, 0.3), Microfacet::anisotropic(dist, 0.3, 0.3));
+            assert_eq!(iso, same);
+            let (v, m) = (Vec3::new(0.3, -0.5, 0.81).normalize(), Vec3::new(0.1, 0.2, 0.97).normalize());
+            assert_eq!(iso.pdf(v, m).to_bits(), same.pdf(v, m).to_bits());
+        }
     }
 
     #[test]

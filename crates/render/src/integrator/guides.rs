@@ -114,8 +114,10 @@ const NEAR_DELTA_ALPHA: f32 = 0.1;
 fn as_specular<'w>(b: Bsdf<'w>) -> Option<Bsdf<'w>> {
     match b {
         _ if b.is_delta() => Some(b),
-        Bsdf::Conductor(c) if c.mf.is_some_and(|m| m.alpha < NEAR_DELTA_ALPHA) => Some(Bsdf::Conductor(Conductor { mf: None, ..c })),
-        Bsdf::Dielectric(d) if d.mf.is_some_and(|m| m.alpha < NEAR_DELTA_ALPHA) => Some(Bsdf::Dielectric(Dielectric { mf: None, ..d })),
+        Bsdf::Conductor(c) if c.mf.is_some_and(|m| m.alpha_max() < NEAR_DELTA_ALPHA) => Some(Bsdf::Conductor(Conductor { mf: None, ..c })),
+        Bsdf::Dielectric(d) if d.mf.is_some_and(|m| m.alpha_max() < NEAR_DELTA_ALPHA) => {
+            Some(Bsdf::Dielectric(Dielectric { mf: None, ..d }))
+        }
         _ => None,
     }
 }
@@ -145,7 +147,7 @@ pub(crate) fn through_specular(w: &World, first: Option<(Ray, Hit)>) -> (Option<
         let ns = shading_normal(w, &r, &hit, &surf);
         let next = (followed < SPECULAR_DEPTH).then(|| {
             let d = r.dir.normalize();
-            let (bsdf, frame) = bsdf_frame(w, &surf, ns, d);
+            let (bsdf, frame) = bsdf_frame(w, &r, &hit, &surf, ns, d);
             let bsdf = as_specular(bsdf).filter(|_| emission_at(w, &r, &surf) == Vec3::ZERO)?;
             let s = bsdf.sample(frame.to_local(-d), 0.5, (0.5, 0.5))?;
             let b = beta * s.weight;

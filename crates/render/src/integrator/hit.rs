@@ -187,25 +187,31 @@ impl Bend {
 
 /// The BSDF of a surface point for a viewer along `-d`, and the frame to evaluate it in
 /// (sided as Mitsuba's: see the module's notes).
-pub(crate) fn bsdf_frame<'w>(w: &'w World, surf: &Surface, ns: Vec3, d: Vec3) -> (Bsdf<'w>, ShadingFrame) {
+pub(crate) fn bsdf_frame<'w>(w: &'w World, ray: &Ray, hit: &Hit, surf: &Surface, ns: Vec3, d: Vec3) -> (Bsdf<'w>, ShadingFrame) {
     let prep = w.prepared(surf.material);
     let mat = material(w, surf.material);
     let textures = &w.scene.textures;
     let back = -d.dot(ns) < 0.0;
     let bsdf = prep.bsdf_at(textures, surf.uv);
+    // (Anisotropic roughness is along ∂p/∂u, as Mitsuba's frame: its tangent is then the
+    // surface's, else any.)
+    let frame = |n: Vec3| match prep.anisotropic.then(|| w.uv_tangents(ray, hit)).flatten() {
+        Some((dpdu, _)) => ShadingFrame::with_tangent(n, dpdu),
+        None => ShadingFrame::new(n),
+    };
     if !back {
-        return (bsdf, ShadingFrame::new(ns));
+        return (bsdf, frame(ns));
     }
     match &mat.sides {
         Sides::Back(_) => match &prep.back {
             Some(b) => (b.bsdf_at(textures, surf.uv), ShadingFrame::new(-ns)),
-            None => (bsdf, ShadingFrame::new(-ns)),
+            None => (bsdf, frame(-ns)),
         },
         // (A dielectric's inside is told by the frame: never turned.)
         // (A mask's holes pass light either way: its two-sided surface turns as any.)
-        Sides::Both if !bsdf.transmits() || bsdf.symmetric() || matches!(bsdf, Bsdf::Mask(_)) => (bsdf, ShadingFrame::new(-ns)),
-        _ if bsdf.symmetric() => (bsdf, ShadingFrame::new(-ns)),
-        _ => (bsdf, ShadingFrame::new(ns)),
+        Sides::Both if !bsdf.transmits() || bsdf.symmetric() || matches!(bsdf, Bsdf::Mask(_)) => (bsdf, frame(-ns)),
+        _ if bsdf.symmetric() => (bsdf, frame(-ns)),
+        _ => (bsdf, frame(ns)),
     }
 }
 

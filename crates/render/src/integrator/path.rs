@@ -164,7 +164,7 @@ pub(crate) fn li(w: &World, camera_ray: &Ray, s: &PathSettings, x: u32, y: u32, 
         }
         let base = 1 + depth.saturating_mul(PAIRS);
         let ns = shading_normal(w, &ray, &hit, &surf);
-        let (bsdf, fr) = bsdf_frame(w, &surf, ns, d);
+        let (bsdf, fr) = bsdf_frame(w, &ray, &hit, &surf, ns, d);
         let bend = Bend::of(w, &surf, ns);
         let wo = fr.to_local(-d);
         let light_n = light_normal(&bsdf, &fr);

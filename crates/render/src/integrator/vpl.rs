@@ -224,7 +224,7 @@ impl<'w> VplSet<'w> {
                 let surf = w.surface(&hit_ray, &hit);
                 let d = hit_ray.dir.normalize();
                 let ns = shading_normal(w, &hit_ray, &hit, &surf);
-                let (bsdf, fr) = bsdf_frame(w, &surf, ns, d);
+                let (bsdf, fr) = bsdf_frame(w, &hit_ray, &hit, &surf, ns, d);
                 let wo = fr.to_local(-d);
                 if !bsdf.is_delta() {
                     let off = surf.offset();
@@ -343,7 +343,7 @@ fn camera_path<'w>(
         }
         let ns = shading_normal(w, &ray, &hit, &surf);
         dist += (surf.p - ray.org).length();
-        let (bsdf, fr) = bsdf_frame(w, &surf, ns, d);
+        let (bsdf, fr) = bsdf_frame(w, &ray, &hit, &surf, ns, d);
         let wo = fr.to_local(-d);
         // The guides of the surface lit, past mirrors and glass (as the path tracer's
         // guides, `guides::through_specular`): its normal, the distance along the way; the

@@ -665,7 +665,7 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
             continue;
         }
         let ns = shading_normal(w, &hit_ray, &hit, &surf);
-        let (bsdf, frame) = bsdf_frame(w, &surf, ns, d);
+        let (bsdf, frame) = bsdf_frame(w, &hit_ray, &hit, &surf, ns, d);
         wave.bend[i] = Bend::of(w, &surf, ns);
         wave.surf[i] = surf;
         wave.bsdf[i] = Some(bsdf);

@@ -567,31 +567,19 @@ impl<'a, 'd> Cx<'a, 'd> {
             Some("ggx") => Distribution::Ggx,
             Some(d) => return Err(self.err(b, format!("distribution '{d}': expected beckmann or ggx"))),
         };
-        let alpha = match self.prop(b, "alpha") {
-            Some(_) => self.float_tex(b, "alpha", 0.1)?,
+        match self.prop(b, "alpha") {
+            Some(_) => Ok(Rough::isotropic(dist, self.float_tex(b, "alpha", 0.1)?)),
             None => match (self.prop(b, "alpha_u"), self.prop(b, "alpha_v")) {
                 (Some(_), Some(_)) => {
                     let (u, v) = (self.float_tex(b, "alpha_u", 0.1)?, self.float_tex(b, "alpha_v", 0.1)?);
-                    let iso = |u: f32, v: f32| (u * v).abs().sqrt();
-                    if u != v {
-                        self.warn(b, "anisotropic", "anisotropic roughness is read as isotropic, α = √(α_u α_v)");
-                    }
-                    match (u, v) {
-                        (FloatTex::Const(u), FloatTex::Const(v)) => FloatTex::Const(iso(u, v)),
-                        // (Two checkerboards on one grid: square by square.)
-                        (FloatTex::Checker { a, b, to_uv }, FloatTex::Checker { a: a2, b: b2, to_uv: t2 }) if to_uv == t2 => {
-                            FloatTex::Checker { a: iso(a, a2), b: iso(b, b2), to_uv }
-                        }
-                        (u, _) => {
-                            self.warn(b, "anisotropic textures", "textured anisotropic roughness: α_u's texture is used for both");
-                            u
-                        }
-                    }
+                    Ok(if u == v { Rough::isotropic(dist, u) } else { Rough { dist, alpha: u, alpha_v: Some(v) } })
                 }
-                _ => FloatTex::Const(0.1),
+                (Some(p), None) | (None, Some(p)) => {
+                    Err(self.err(p, "alpha_u and alpha_v come together (anisotropic roughness)".to_string()))
+                }
+                (None, None) => Ok(Rough::isotropic(dist, FloatTex::Const(0.1))),
             },
-        };
-        Ok(Rough { dist, alpha })
+        }
     }
 
     /// The BSDFs inside an adapter `b` (children or references), in order.
@@ -678,6 +666,9 @@ impl<'a, 'd> Cx<'a, 'd> {
                 let eta = self.ior(b, "int_ior", "polypropylene")? / self.ior(b, "ext_ior", "air")?;
                 let rough = if kind == "roughplastic" {
                     let r = self.roughness(b)?;
+                    if r.alpha_v.is_some() {
+                        self.warn(b, "anisotropic plastic", "roughplastic is isotropic (as Mitsuba's): alpha_u is its roughness");
+                    }
                     let alpha = match r.alpha {
                         FloatTex::Const(a) => a,
                         _ => return Err(self.err(b, "roughplastic's alpha cannot be a texture (as in Mitsuba)")),
