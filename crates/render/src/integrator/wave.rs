@@ -34,6 +34,8 @@ use super::path::{LightSampling, PathSettings, CHOICES, PAIRS};
 use super::wave_profile::{now, Part, Watch};
 use crate::bsdf::{Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughPlastic};
 use crate::lanes::on_lanes;
+use crate::lights::area::EmissiveTri;
+use crate::lights::{flat_sample, Choice, LightSample};
 use crate::sampler::PixelSampler;
 use crate::sampling::{power_heuristic, ShadingFrame};
 use crate::tiles::{Block, SampleBlock, NO_RAYS};
@@ -713,21 +715,8 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
     let mut dist = [0.0f32; CAP];
     let mut alone = [0u8; CAP];
     let mut n_alone = 0;
-    for i in 0..wave.n {
-        let Some(bsdf) = wave.bsdf[i].filter(|_| wave.scatter[i]) else { continue };
-        if bsdf.is_delta() {
-            continue;
-        }
-        let Some(ls) = lights.sample(
-            wave.surf[i].p,
-            light_normal(&bsdf, &wave.frame[i]),
-            wave.u_light[i],
-            (wave.u2_light[0][i], wave.u2_light[1][i]),
-            textures,
-            s.sampling == LightSampling::Mis,
-        ) else {
-            continue;
-        };
+    // (A light sample's BSDF value, packed with its model's lanes.)
+    let mut pack = |models: &mut Models<'w>, i: usize, bsdf: Bsdf<'w>, ls: &LightSample| {
         sampled[i] = true;
         put3(&mut dir, i, ls.dir);
         put3(&mut li, i, ls.li);
@@ -736,6 +725,35 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         if !models.push(i, bsdf, get3(&wave.wo, i), wi, 0.0, (0.0, 0.0)) {
             alone[n_alone] = i as u8;
             n_alone += 1;
+        }
+    };
+    // The lights chosen lane by lane; untextured triangles and parallelograms are
+    // sampled after, on lanes (their square roots and divisions in vectors), the others
+    // here.
+    let mut flat = Flat::new();
+    for i in 0..wave.n {
+        let Some(bsdf) = wave.bsdf[i].filter(|_| wave.scatter[i]) else { continue };
+        if bsdf.is_delta() {
+            continue;
+        }
+        let (p, n) = (wave.surf[i].p, light_normal(&bsdf, &wave.frame[i]));
+        let u2 = (wave.u2_light[0][i], wave.u2_light[1][i]);
+        match lights.choice(p, n, wave.u_light[i]) {
+            Choice::Nothing => {}
+            Choice::Flat { light, quad, pmf } => flat.push(i, light, quad, pmf, p, u2),
+            Choice::Other => {
+                if let Some(ls) = lights.sample(p, n, wave.u_light[i], u2, textures, s.sampling == LightSampling::Mis) {
+                    pack(models, i, bsdf, &ls);
+                }
+            }
+        }
+    }
+    on_lanes!(|f: &mut Flat| f.sample_all())(&mut flat);
+    for j in 0..flat.n {
+        let i = usize::from(flat.lane[j]);
+        if let (true, Some(bsdf)) = (flat.ok[j], wave.bsdf[i]) {
+            let ls = LightSample { dir: get3(&flat.dir, j), dist: flat.dist[j], li: get3(&flat.li, j), pdf: flat.pdf[j], delta: false };
+            pack(models, i, bsdf, &ls);
         }
     }
     run_models!(&mut *models, eval_all);
@@ -779,6 +797,97 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         }
     }
     watch.lap(Part::ShadowRays);
+}
+
+/// The lanes whose chosen light is an untextured triangle or parallelogram
+/// ([`Choice::Flat`]), their lights' corners, edges, normals, areas and radiances copied
+/// into rows, sampled together by [`flat_sample`] (over rows, the loop vectorizes; over
+/// references to the lights, it did not).
+struct Flat {
+    n: usize,
+    lane: [u8; CAP],
+    p0: Rows,
+    e1: Rows,
+    e2: Rows,
+    normal: Rows,
+    area: [f32; CAP],
+    le: Rows,
+    quad: [bool; CAP],
+    pmf: [f32; CAP],
+    p: Rows,
+    u2: [[f32; CAP]; 2],
+    /// Out: the samples' directions, distances, radiances and densities, and whether
+    /// there is one.
+    dir: Rows,
+    dist: [f32; CAP],
+    li: Rows,
+    pdf: [f32; CAP],
+    ok: [bool; CAP],
+}
+
+impl Flat {
+    fn new() -> Box<Self> {
+        let z = [[0.0; CAP]; 3];
+        Box::new(Self {
+            n: 0,
+            lane: [0; CAP],
+            p0: z,
+            e1: z,
+            e2: z,
+            normal: z,
+            area: [1.0; CAP],
+            le: z,
+            quad: [false; CAP],
+            pmf: [0.0; CAP],
+            p: z,
+            u2: [[0.0; CAP]; 2],
+            dir: z,
+            dist: [0.0; CAP],
+            li: z,
+            pdf: [0.0; CAP],
+            ok: [false; CAP],
+        })
+    }
+
+    #[inline(always)]
+    fn push(&mut self, i: usize, light: &EmissiveTri, quad: bool, pmf: f32, p: Vec3, u2: (f32, f32)) {
+        let j = self.n;
+        self.lane[j] = i as u8;
+        put3(&mut self.p0, j, light.p0);
+        put3(&mut self.e1, j, light.e1);
+        put3(&mut self.e2, j, light.e2);
+        put3(&mut self.normal, j, light.n);
+        self.area[j] = light.area;
+        put3(&mut self.le, j, light.le);
+        self.quad[j] = quad;
+        self.pmf[j] = pmf;
+        put3(&mut self.p, j, p);
+        (self.u2[0][j], self.u2[1][j]) = u2;
+        self.n += 1;
+    }
+
+    /// Every lane's sample: over a constant [`CAP`] lanes, whole vectors (the lanes past
+    /// `n` hold an earlier step's light or none; their results go unused).
+    #[inline(always)]
+    fn sample_all(&mut self) {
+        for j in 0..CAP {
+            let light = EmissiveTri {
+                p0: get3(&self.p0, j),
+                e1: get3(&self.e1, j),
+                e2: get3(&self.e2, j),
+                n: get3(&self.normal, j),
+                area: self.area[j],
+                le: get3(&self.le, j),
+                tex: None,
+            };
+            let (s, ok) = flat_sample(&light, self.quad[j], self.pmf[j], get3(&self.p, j), (self.u2[0][j], self.u2[1][j]));
+            put3(&mut self.dir, j, s.dir);
+            self.dist[j] = s.dist;
+            put3(&mut self.li, j, s.li);
+            self.pdf[j] = s.pdf;
+            self.ok[j] = ok;
+        }
+    }
 }
 
 /// Stage 4: the BSDF's sample (on lanes, packed by model), then the throughput, roulette

@@ -164,13 +164,12 @@ fn tri_radiance(t: &EmissiveTri, a: f32, b: f32, textures: &[Texture]) -> Vec3 {
     }
 }
 
-/// A uniform point of a triangle for `u`, as barycentrics.
-fn tri_point(u: (f32, f32)) -> (f32, f32) {
-    let (mut a, mut b) = u;
-    if a + b > 1.0 {
-        (a, b) = (1.0 - a, 1.0 - b);
-    }
-    (a, b)
+/// A uniform point of a triangle for `u`, as barycentrics (branch-free).
+#[inline(always)]
+pub(crate) fn tri_point(u: (f32, f32)) -> (f32, f32) {
+    let (a, b) = u;
+    let fold = a + b > 1.0;
+    (if fold { 1.0 - a } else { a }, if fold { 1.0 - b } else { b })
 }
 
 impl AreaLight {
@@ -234,14 +233,20 @@ fn area_emission(q: Vec3, n: Vec3, area: f32, le: Vec3, u: (f32, f32)) -> Option
 
 /// An area light's point `q` (normal `n`, one-sided, of total area `area`) seen from `p`.
 fn area_sample(p: Vec3, q: Vec3, n: Vec3, area: f32, le: Vec3) -> Option<LightSample> {
+    let (s, ok) = area_sample_lane(p, q, n, area, le);
+    ok.then_some(s)
+}
+
+/// [`area_sample`] without a branch (for loops over lanes): the sample and whether there
+/// is one (when not, its fields mean nothing).
+#[inline(always)]
+pub(crate) fn area_sample_lane(p: Vec3, q: Vec3, n: Vec3, area: f32, le: Vec3) -> (LightSample, bool) {
     let to = q - p;
     let dist = to.length();
     let dir = to / dist;
     let cos_l = n.dot(-dir);
-    if !(cos_l > 0.0 && dist > 0.0 && dist.is_finite()) {
-        return None;
-    }
-    Some(LightSample { dir, dist, li: le, pdf: dist * dist / (cos_l * area), delta: false })
+    let ok = (cos_l > 0.0) & (dist > 0.0) & dist.is_finite();
+    (LightSample { dir, dist, li: le, pdf: dist * dist / (cos_l * area), delta: false }, ok)
 }
 
 /// A direction toward a sphere: uniformly within the cone it subtends from outside

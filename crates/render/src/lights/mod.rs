@@ -60,6 +60,29 @@ enum Entry {
     Custom(Arc<dyn LightModel>),
 }
 
+/// What [`LightSet::choice`] found.
+pub(crate) enum Choice<'a> {
+    /// No light (no sample).
+    Nothing,
+    /// An untextured triangle (`quad` false) or parallelogram, with the probability of its
+    /// choice: sampled as [`flat_sample`] does.
+    Flat { light: &'a area::EmissiveTri, quad: bool, pmf: f32 },
+    /// Another kind: [`LightSet::sample`] samples it.
+    Other,
+}
+
+/// [`LightSet::sample`] of a [`Choice::Flat`] light, branch-free for loops over lanes
+/// (the same bits): the direction, distance, radiance and density (times the choice's
+/// `pmf`), and whether there is a sample.
+#[inline(always)]
+pub(crate) fn flat_sample(light: &area::EmissiveTri, quad: bool, pmf: f32, p: Vec3, u2: (f32, f32)) -> (LightSample, bool) {
+    let (a, b) = if quad { u2 } else { area::tri_point(u2) };
+    let q = light.p0 + light.e1 * a + light.e2 * b;
+    let (s, ok) = area::area_sample_lane(p, q, light.n, light.area, light.le);
+    let pdf = s.pdf * pmf;
+    (LightSample { pdf, ..s }, ok & (pdf > 0.0) & pdf.is_finite() & s.li.is_finite())
+}
+
 /// The lights of a scene, for sampling.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct LightSet {
@@ -353,6 +376,22 @@ impl LightSet {
         let i = if end - start == 1 { start } else { (start + self.within[start..end].partition_point(|&c| c <= u)).min(end - 1) };
         let lo = if i == start { 0.0 } else { self.within[i - 1] };
         Some((i, pg * (self.within[i] - lo)))
+    }
+
+    /// The light [`LightSet::sample`] chooses with `u` from `p` (normal `n`), for the lane
+    /// integrator, which samples untextured triangles and parallelograms on lanes: what
+    /// `sample` would sample there.
+    #[inline]
+    pub(crate) fn choice(&self, p: Vec3, n: Vec3, u: f32) -> Choice<'_> {
+        let Some((i, pmf)) = self.choose(p, n, u) else { return Choice::Nothing };
+        if pmf <= 0.0 {
+            return Choice::Nothing;
+        }
+        match &self.entries[i] {
+            Entry::Area(AreaLight::Tri(t)) if t.tex.is_none() => Choice::Flat { light: t, quad: false, pmf },
+            Entry::Area(AreaLight::Quad(t)) => Choice::Flat { light: t, quad: true, pmf },
+            _ => Choice::Other,
+        }
     }
 
     /// A light sample from `p` (a point of a surface with unit normal `n`, or zero: see
