@@ -367,66 +367,33 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> (f32, f32) {
     (f, if cos_i >= 0.0 { -cos_t } else { cos_t })
 }
 
-/// A complex number, for conductors' Fresnel equations.
-#[derive(Clone, Copy, Debug)]
-struct C {
-    re: f32,
-    im: f32,
-}
-
-impl C {
-    fn add(self, o: C) -> C {
-        C { re: self.re + o.re, im: self.im + o.im }
-    }
-    fn sub(self, o: C) -> C {
-        C { re: self.re - o.re, im: self.im - o.im }
-    }
-    fn mul(self, o: C) -> C {
-        C { re: self.re * o.re - self.im * o.im, im: self.re * o.im + self.im * o.re }
-    }
-    fn div(self, o: C) -> C {
-        let d = o.re * o.re + o.im * o.im;
-        C { re: (self.re * o.re + self.im * o.im) / d, im: (self.im * o.re - self.re * o.im) / d }
-    }
-    fn norm2(self) -> f32 {
-        self.re * self.re + self.im * self.im
-    }
-    fn sqrt(self) -> C {
-        let n = self.norm2().sqrt();
-        if n == 0.0 {
-            return C { re: 0.0, im: 0.0 };
-        }
-        let re = (0.5 * (n + self.re)).max(0.0).sqrt();
-        let im = (0.5 * (n - self.re)).max(0.0).sqrt();
-        C { re, im: if self.im < 0.0 { -im } else { im } }
-    }
-}
-
 /// The unpolarised Fresnel reflectance of a conductor of complex relative index
-/// `eta + i k` for a direction of cosine `cos_i` (clamped to [0, 1]), per channel (the
-/// full equations, e.g. pbrt-v4 §9.3.6).
+/// `eta + i k` for a direction of cosine `cos_i` (clamped to [0, 1]), per channel: the
+/// full equations in real arithmetic (the form of Lagarde's "Memo on Fresnel equations",
+/// 2013, which pbrt-v3's `FrConductor` and Mitsuba 3's `fresnel_conductor` use: a² + b²,
+/// a, then r_s and r_p), two square roots and two divisions a channel where the complex
+/// form took nine and twelve. Tested against the complex form.
 #[must_use]
 pub fn fresnel_conductor(cos_i: f32, eta: Vec3, k: Vec3) -> Vec3 {
     let c = cos_i.clamp(0.0, 1.0);
-    let one = |ch: usize| {
-        let n = C { re: eta[ch], im: k[ch] };
-        if n.norm2() == 0.0 {
-            return 1.0;
-        }
-        let ci = C { re: c, im: 0.0 };
-        let sin2_i = C { re: 1.0 - c * c, im: 0.0 };
-        let sin2_t = sin2_i.div(n.mul(n));
-        let cos_t = C { re: 1.0, im: 0.0 }.sub(sin2_t).sqrt();
-        let r_parl = n.mul(ci).sub(cos_t).div(n.mul(ci).add(cos_t));
-        let r_perp = ci.sub(n.mul(cos_t)).div(ci.add(n.mul(cos_t)));
-        let f = 0.5 * (r_parl.norm2() + r_perp.norm2());
-        if f.is_finite() {
+    let (c2, s2) = (c * c, 1.0 - c * c);
+    let s4 = s2 * s2;
+    let one = |n: f32, k: f32| {
+        let t1 = n * n - k * k - s2;
+        let a2_b2 = (t1 * t1 + 4.0 * n * n * k * k).max(0.0).sqrt();
+        let a = (0.5 * (a2_b2 + t1)).max(0.0).sqrt();
+        let (term1, term2) = (a2_b2 + c2, 2.0 * c * a);
+        let r_s = (term1 - term2) / (term1 + term2);
+        let (term3, term4) = (a2_b2 * c2 + s4, term2 * s2);
+        let r_p = r_s * (term3 - term4) / (term3 + term4);
+        let f = 0.5 * (r_s + r_p);
+        if f.is_finite() && n * n + k * k > 0.0 {
             f.clamp(0.0, 1.0)
         } else {
             1.0
         }
     };
-    Vec3::new(one(0), one(1), one(2))
+    Vec3::new(one(eta.x, k.x), one(eta.y, k.y), one(eta.z, k.z))
 }
 
 /// Schlick's approximation of the Fresnel reflectance with reflectance `f0` at normal
@@ -604,6 +571,62 @@ mod tests {
         assert!((s - 2.0 / 11.0).abs() < 1e-12, "{s}");
         let s: f64 = q.iter().map(|(_, w)| w).sum();
         assert!((s - 2.0).abs() < 1e-12);
+    }
+
+    /// Complex numbers, for the reference form of the conductor's Fresnel term.
+    #[derive(Clone, Copy)]
+    struct C {
+        re: f64,
+        im: f64,
+    }
+
+    impl C {
+        fn add(self, o: C) -> C {
+            C { re: self.re + o.re, im: self.im + o.im }
+        }
+        fn sub(self, o: C) -> C {
+            C { re: self.re - o.re, im: self.im - o.im }
+        }
+        fn mul(self, o: C) -> C {
+            C { re: self.re * o.re - self.im * o.im, im: self.re * o.im + self.im * o.re }
+        }
+        fn div(self, o: C) -> C {
+            let d = o.re * o.re + o.im * o.im;
+            C { re: (self.re * o.re + self.im * o.im) / d, im: (self.im * o.re - self.re * o.im) / d }
+        }
+        fn norm2(self) -> f64 {
+            self.re * self.re + self.im * self.im
+        }
+        fn sqrt(self) -> C {
+            let n = self.norm2().sqrt();
+            let re = (0.5 * (n + self.re)).max(0.0).sqrt();
+            let im = (0.5 * (n - self.re)).max(0.0).sqrt();
+            C { re, im: if self.im < 0.0 { -im } else { im } }
+        }
+    }
+
+    /// The conductor's reflectance from the complex Fresnel equations (Snell's law with a
+    /// complex index, r_parallel and r_perpendicular), in f64.
+    fn fresnel_complex(c: f64, eta: f64, k: f64) -> f64 {
+        let n = C { re: eta, im: k };
+        let ci = C { re: c, im: 0.0 };
+        let sin2_t = C { re: 1.0 - c * c, im: 0.0 }.div(n.mul(n));
+        let cos_t = C { re: 1.0, im: 0.0 }.sub(sin2_t).sqrt();
+        let r_parl = n.mul(ci).sub(cos_t).div(n.mul(ci).add(cos_t));
+        let r_perp = ci.sub(n.mul(cos_t)).div(ci.add(n.mul(cos_t)));
+        0.5 * (r_parl.norm2() + r_perp.norm2())
+    }
+
+    #[test]
+    fn conductor_fresnel_is_the_complex_equations() {
+        for &(eta, k) in &[(0.2f32, 3.9f32), (0.27, 2.78), (1.1, 2.6), (1.5, 0.0), (2.9, 3.1), (0.05, 1.0), (0.9, 7.5), (3.5, 0.2)] {
+            for i in 0..=200 {
+                let c = i as f32 / 200.0;
+                let got = fresnel_conductor(c, Vec3::splat(eta), Vec3::splat(k)).x;
+                let want = fresnel_complex(f64::from(c), f64::from(eta), f64::from(k));
+                assert!((f64::from(got) - want).abs() < 2e-5, "η {eta}, k {k}, cos {c}: {got} against {want}");
+            }
+        }
     }
 
     #[test]
