@@ -511,6 +511,7 @@ fn shade_with(settings: &PathSettings, s: &SampleBlock, block: &Block, mut emit:
     let mut vals = vec![Vec3::ZERO; CHUNK.min(total)];
     let mut wave = Wave::new();
     let mut models = Models::new();
+    let mut flat = Flat::new();
     let mut watch = Watch::new();
     let mut next = 0usize;
     while next < total {
@@ -533,7 +534,7 @@ fn shade_with(settings: &PathSettings, s: &SampleBlock, block: &Block, mut emit:
             watch.lap(Part::Camera);
             camera_packets(w, &mut wave, fresh, block.among, s.traversal.packets);
             watch.lap(Part::ClosestHits);
-            step(w, settings, &mut wave, &mut models, &mut vals, &mut watch);
+            step(w, settings, &mut wave, &mut models, &mut flat, &mut vals, &mut watch);
         }
         // The chunk's values, pixel by pixel in order of the sample index.
         for e in chunk.clone() {
@@ -574,7 +575,15 @@ fn camera_packets(w: &World, wave: &mut Wave, fresh: usize, among: Option<&[u32]
 }
 
 /// One bounce of every lane; ended paths write their values and leave.
-fn step<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, vals: &mut [Vec3], watch: &mut Watch) {
+fn step<'w>(
+    w: &'w World,
+    s: &PathSettings,
+    wave: &mut Wave<'w>,
+    models: &mut Models<'w>,
+    flat: &mut Flat,
+    vals: &mut [Vec3],
+    watch: &mut Watch,
+) {
     if let Some(p) = &mut watch.p {
         p.steps += 1;
         p.lanes += wave.n as u64;
@@ -584,7 +593,7 @@ fn step<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Mo
     watch.moved(rays, Part::Surfaces, Part::ClosestHits);
     numbers(wave);
     watch.lap(Part::Numbers);
-    light(w, s, wave, models, watch);
+    light(w, s, wave, models, flat, watch);
     scatter(s, wave, models, watch);
     watch.lap(Part::Scatter);
     // Ended paths leave (their order among the lanes does not matter): from the back, so
@@ -700,7 +709,7 @@ fn numbers(wave: &mut Wave) {
 /// Stage 3: next-event estimation. A light sample per lane that scatters (lane by lane),
 /// the BSDF toward it on lanes (packed by model), then every shadow ray.
 #[inline(never)]
-fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, watch: &mut Watch) {
+fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, flat: &mut Flat, watch: &mut Watch) {
     let lights = &w.light_set;
     if lights.is_empty() || s.sampling == LightSampling::Bsdf {
         return;
@@ -730,7 +739,7 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
     // The lights chosen lane by lane; untextured triangles and parallelograms are
     // sampled after, on lanes (their square roots and divisions in vectors), the others
     // here.
-    let mut flat = Flat::new();
+    flat.n = 0;
     for i in 0..wave.n {
         let Some(bsdf) = wave.bsdf[i].filter(|_| wave.scatter[i]) else { continue };
         if bsdf.is_delta() {
@@ -741,14 +750,14 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         match lights.choice(p, n, wave.u_light[i]) {
             Choice::Nothing => {}
             Choice::Flat { light, quad, pmf } => flat.push(i, light, quad, pmf, p, u2),
-            Choice::Other => {
-                if let Some(ls) = lights.sample(p, n, wave.u_light[i], u2, textures, s.sampling == LightSampling::Mis) {
+            Choice::Other { entry, pmf } => {
+                if let Some(ls) = lights.sample_entry(entry, pmf, p, n, u2, textures, s.sampling == LightSampling::Mis) {
                     pack(models, i, bsdf, &ls);
                 }
             }
         }
     }
-    on_lanes!(|f: &mut Flat| f.sample_all())(&mut flat);
+    on_lanes!(|f: &mut Flat| f.sample_all())(flat);
     for j in 0..flat.n {
         let i = usize::from(flat.lane[j]);
         if let (true, Some(bsdf)) = (flat.ok[j], wave.bsdf[i]) {

@@ -67,8 +67,9 @@ pub(crate) enum Choice<'a> {
     /// An untextured triangle (`quad` false) or parallelogram, with the probability of its
     /// choice: sampled as [`flat_sample`] does.
     Flat { light: &'a area::EmissiveTri, quad: bool, pmf: f32 },
-    /// Another kind: [`LightSet::sample`] samples it.
-    Other,
+    /// Another kind: entry `entry`, chosen with probability `pmf`;
+    /// [`LightSet::sample_entry`] samples it.
+    Other { entry: usize, pmf: f32 },
 }
 
 /// [`LightSet::sample`] of a [`Choice::Flat`] light, branch-free for loops over lanes
@@ -390,7 +391,7 @@ impl LightSet {
         match &self.entries[i] {
             Entry::Area(AreaLight::Tri(t)) if t.tex.is_none() => Choice::Flat { light: t, quad: false, pmf },
             Entry::Area(AreaLight::Quad(t)) => Choice::Flat { light: t, quad: true, pmf },
-            _ => Choice::Other,
+            _ => Choice::Other { entry: i, pmf },
         }
     }
 
@@ -401,10 +402,26 @@ impl LightSet {
     /// compensated density, zero where the map is dimmer than its mean.
     pub fn sample(&self, p: Vec3, n: Vec3, u: f32, u2: (f32, f32), textures: &[lucent_scene::Texture], mis: bool) -> Option<LightSample> {
         let (i, pmf) = self.choose(p, n, u)?;
+        self.sample_entry(i, pmf, p, n, u2, textures, mis)
+    }
+
+    /// [`LightSet::sample`] of entry `i`, once chosen with probability `pmf` (as
+    /// [`LightSet::choice`] reports it).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn sample_entry(
+        &self,
+        i: usize,
+        pmf: f32,
+        p: Vec3,
+        n: Vec3,
+        u2: (f32, f32),
+        textures: &[lucent_scene::Texture],
+        mis: bool,
+    ) -> Option<LightSample> {
         if pmf <= 0.0 {
             return None;
         }
-        let mut s = match &self.entries[i] {
+        let mut s = match self.entries.get(i)? {
             Entry::Area(a) => a.sample(p, u2, textures)?,
             Entry::Delta(k) => delta::sample(self.delta.get(*k)?, p)?,
             Entry::Env => self.env.as_ref()?.1.sample(u2, n, mis)?,
