@@ -459,7 +459,7 @@ pub(crate) trait Leaves {
 
 /// Asks for the cache lines that hold `x` (a hint; no effect off x86-64).
 #[inline(always)]
-pub(crate) fn prefetch<T>(x: &T) {
+pub fn prefetch<T>(x: &T) {
     #[cfg(target_arch = "x86_64")]
     {
         let p = (x as *const T).cast::<i8>();

@@ -6,6 +6,7 @@
 
 use crate::lanes::sin_cos;
 use glam::{Vec2, Vec3};
+use lucent_accel::traverse::prefetch;
 use std::f32::consts::PI;
 
 /// A point on Shirley and Chiu's concentric map of the unit disk.
@@ -168,15 +169,49 @@ impl Distribution1D {
 
     /// The cell of `u`: the last whose cumulative start is at most `u` (the first for
     /// `u` below 0 or NaN, the last for `u` at or above 1).
-    #[inline]
+    #[cfg(test)]
     fn cell(&self, u: f32) -> usize {
+        self.search(self.start(u), u)
+    }
+
+    /// The guide table's slot for `u` (`None` below 0 or NaN: the first cell).
+    #[inline]
+    fn slot(&self, u: f32) -> Option<usize> {
         let n = self.pdf.len();
-        if u.is_nan() || u < 0.0 {
-            return 0;
+        (!u.is_nan() && u >= 0.0).then(|| ((u * n as f32) as usize).min(n - 1))
+    }
+
+    /// Where the search for `u`'s cell starts: the guide table's cell (see
+    /// [`Distribution1D::sample_from`]).
+    #[inline]
+    #[must_use]
+    pub fn start(&self, u: f32) -> usize {
+        self.slot(u).map_or(0, |j| self.guide[j] as usize)
+    }
+
+    /// Asks for the guide table's line that [`Distribution1D::start`] of `u` reads (a
+    /// hint: batches of samples ask for every lane's lines before reading any).
+    #[inline]
+    pub fn prefetch_start(&self, u: f32) {
+        if let Some(g) = self.slot(u).and_then(|j| self.guide.get(j)) {
+            prefetch(g);
         }
-        let j = ((u * n as f32) as usize).min(n - 1);
-        let mut i = self.guide[j] as usize;
-        // (Back where rounding put `j` one too far; then forward to the cell.)
+    }
+
+    /// Asks for the lines of cell `i` that [`Distribution1D::sample_from`] reads.
+    #[inline]
+    pub fn prefetch_cell(&self, i: usize) {
+        if let (Some(c), Some(p)) = (self.cdf.get(i + 1), self.pdf.get(i)) {
+            prefetch(c);
+            prefetch(p);
+        }
+    }
+
+    /// The cell of `u`, searched from cell `i` (back where rounding put the guide's
+    /// slot one too far; then forward).
+    #[inline]
+    fn search(&self, mut i: usize, u: f32) -> usize {
+        let n = self.pdf.len();
         while i > 0 && self.cdf[i] > u {
             i -= 1;
         }
@@ -189,8 +224,16 @@ impl Distribution1D {
     /// A point in [0, 1) for `u`, the density there and its cell.
     #[must_use]
     pub fn sample(&self, u: f32) -> (f32, f32, usize) {
+        self.sample_from(self.start(u), u)
+    }
+
+    /// [`Distribution1D::sample`], its search started at `start` (that of
+    /// [`Distribution1D::start`]: the same bits).
+    #[inline]
+    #[must_use]
+    pub fn sample_from(&self, start: usize, u: f32) -> (f32, f32, usize) {
         let n = self.pdf.len();
-        let i = self.cell(u);
+        let i = self.search(start.min(n - 1), u);
         let (lo, hi) = (self.cdf[i], self.cdf[i + 1]);
         let t = if hi > lo { (u - lo) / (hi - lo) } else { 0.5 };
         (((i as f32 + t) / n as f32).min(1.0 - f32::EPSILON), self.pdf[i], i)
@@ -221,12 +264,37 @@ impl Distribution2D {
         Self { rows, marginal }
     }
 
+    /// The marginal's sample of `v`: the point along v, its density, and its row.
+    #[inline]
+    #[must_use]
+    pub fn sample_row(&self, v: f32) -> (f32, f32, usize) {
+        self.marginal.sample(v)
+    }
+
+    /// Row `r` (of [`Distribution2D::sample_row`]), its distribution along u.
+    #[inline]
+    #[must_use]
+    pub fn row(&self, r: usize) -> &Distribution1D {
+        &self.rows[r.min(self.rows.len() - 1)]
+    }
+
     /// A point in [0, 1)² for `u` and the density there.
     #[must_use]
     pub fn sample(&self, u: (f32, f32)) -> (Vec2, f32) {
         let (v, pv, row) = self.marginal.sample(u.1);
         let (x, pu, _) = self.rows[row].sample(u.0);
         (Vec2::new(x, v), pv * pu)
+    }
+
+    /// Asks for the line [`Distribution2D::pdf`] at `uv` reads in its row.
+    #[inline]
+    pub fn prefetch(&self, uv: Vec2) {
+        let h = self.rows.len();
+        let row = &self.rows[((uv.y * h as f32) as usize).min(h - 1)];
+        let n = row.pdf.len();
+        if let Some(p) = row.pdf.get(((uv.x * n as f32) as usize).min(n - 1)) {
+            prefetch(p);
+        }
     }
 
     /// The density at `uv`.

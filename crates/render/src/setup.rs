@@ -152,7 +152,9 @@ pub fn prepare(mut scene: Scene, recipe: &Recipe) -> Result<Prepared, SetupError
     let spp = recipe.spp.or(hints.map(|h| h.spp)).unwrap_or(if matches!(recipe.integrator, Integrator::Path(_)) { 16 } else { 1 });
     let desc = camera_desc(&scene, recipe.view.as_ref(), recipe.ortho)?;
     let mut world = World::new(scene, recipe.mesh)?;
-    let headlight = world.ensure_light(desc.eye);
+    // (Whitted and the debug views light with point lights; the path and VPL integrators
+    // sample the scene's own lights, or the white sky above.)
+    let headlight = !matches!(recipe.integrator, Integrator::Path(_) | Integrator::Vpl(_)) && world.ensure_light(desc.eye);
     let settings = RenderSettings {
         spp: spp.max(1),
         integrator: recipe.integrator,
@@ -209,7 +211,7 @@ mod tests {
             filter: None,
         };
         let p = prepare(scene.clone(), &recipe("path")).expect("prepared");
-        assert!(p.sky && p.settings.spp == 16);
+        assert!(p.sky && !p.headlight && p.settings.spp == 16);
         let w = prepare(scene.clone(), &recipe("whitted")).expect("prepared");
         assert!(!w.sky && w.headlight && w.settings.spp == 1);
         let empty = prepare(Scene::default(), &recipe("path"));

@@ -141,31 +141,41 @@ impl RoughPlasticTables {
     }
 
     fn compute(mf: &Microfacet, eta: f32) -> Self {
+        use rayon::prelude::*;
         let q = gauss_legendre(128);
+        // (Each cosine's two integrals apart, in parallel: 2 × 128² evaluations each,
+        // 60 ms a coating on one thread; summed after, in order: the same bits.)
+        let rows: Vec<(f32, f64)> = (0..RES)
+            .into_par_iter()
+            .map(|i| {
+                let mu = (i as f32 / (RES - 1) as f32).max(1e-6);
+                let wi = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+                let t = visible_integral(mf, wi, &q, |m| {
+                    let (f, cos_t) = fresnel_dielectric(wi.dot(m), eta);
+                    let wt = refract(wi, m, cos_t, eta);
+                    if wt.z * wi.z >= 0.0 {
+                        0.0
+                    } else {
+                        (1.0 - f) * mf.g1(wt, m)
+                    }
+                }) as f32;
+                let r = visible_integral(mf, wi, &q, |m| {
+                    let (f, _) = fresnel_dielectric(wi.dot(m), 1.0 / eta);
+                    let wr = reflect(wi, m);
+                    if wr.z <= 0.0 {
+                        0.0
+                    } else {
+                        f * mf.g1(wr, m)
+                    }
+                });
+                (t, r * f64::from(mu))
+            })
+            .collect();
         let mut transmittance = [0.0f32; RES];
         let mut internal = 0.0f64;
-        for (i, t) in transmittance.iter_mut().enumerate() {
-            let mu = (i as f32 / (RES - 1) as f32).max(1e-6);
-            let wi = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-            *t = visible_integral(mf, wi, &q, |m| {
-                let (f, cos_t) = fresnel_dielectric(wi.dot(m), eta);
-                let wt = refract(wi, m, cos_t, eta);
-                if wt.z * wi.z >= 0.0 {
-                    0.0
-                } else {
-                    (1.0 - f) * mf.g1(wt, m)
-                }
-            }) as f32;
-            let r = visible_integral(mf, wi, &q, |m| {
-                let (f, _) = fresnel_dielectric(wi.dot(m), 1.0 / eta);
-                let wr = reflect(wi, m);
-                if wr.z <= 0.0 {
-                    0.0
-                } else {
-                    f * mf.g1(wr, m)
-                }
-            });
-            internal += r * f64::from(mu);
+        for (t, &(ti, ri)) in transmittance.iter_mut().zip(&rows) {
+            *t = ti;
+            internal += ri;
         }
         Self { eta, transmittance, internal: (2.0 * internal / RES as f64) as f32 }
     }

@@ -35,6 +35,7 @@ use super::wave_profile::{now, Part, Watch};
 use crate::bsdf::{Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughPlastic};
 use crate::lanes::on_lanes;
 use crate::lights::area::EmissiveTri;
+use crate::lights::environment::EnvBatch;
 use crate::lights::{flat_sample, Choice, LightSample};
 use crate::sampler::PixelSampler;
 use crate::sampling::{power_heuristic, ShadingFrame};
@@ -512,6 +513,7 @@ fn shade_with(settings: &PathSettings, s: &SampleBlock, block: &Block, mut emit:
     let mut wave = Wave::new();
     let mut models = Models::new();
     let mut flat = Flat::new();
+    let mut envs = EnvBatch::new();
     let mut watch = Watch::new();
     let mut next = 0usize;
     while next < total {
@@ -534,7 +536,7 @@ fn shade_with(settings: &PathSettings, s: &SampleBlock, block: &Block, mut emit:
             watch.lap(Part::Camera);
             camera_packets(w, &mut wave, fresh, block.among, s.traversal.packets);
             watch.lap(Part::ClosestHits);
-            step(w, settings, &mut wave, &mut models, &mut flat, &mut vals, &mut watch);
+            step(w, settings, &mut wave, &mut models, (&mut flat, &mut envs), &mut vals, &mut watch);
         }
         // The chunk's values, pixel by pixel in order of the sample index.
         for e in chunk.clone() {
@@ -580,7 +582,7 @@ fn step<'w>(
     s: &PathSettings,
     wave: &mut Wave<'w>,
     models: &mut Models<'w>,
-    flat: &mut Flat,
+    batches: (&mut Flat, &mut EnvBatch),
     vals: &mut [Vec3],
     watch: &mut Watch,
 ) {
@@ -593,7 +595,7 @@ fn step<'w>(
     watch.moved(rays, Part::Surfaces, Part::ClosestHits);
     numbers(wave);
     watch.lap(Part::Numbers);
-    light(w, s, wave, models, flat, watch);
+    light(w, s, wave, models, batches, watch);
     scatter(s, wave, models, watch);
     watch.lap(Part::Scatter);
     // Ended paths leave (their order among the lanes does not matter): from the back, so
@@ -619,6 +621,9 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
     let mut ray_ticks = 0u64;
     let lights = &w.light_set;
     let hidden = |depth: u32| depth == 0 && s.hide_emitters;
+    let mis = s.sampling == LightSampling::Mis;
+    // The lanes whose rays left the scene: their directions and previous normals.
+    let (mut esc_lane, mut esc_dir, mut esc_n, mut n_esc) = ([0u8; CAP], [Vec3::ZERO; CAP], [Vec3::ZERO; CAP], 0);
     for i in 0..wave.n {
         wave.scatter[i] = false;
         let depth = wave.depth[i];
@@ -630,26 +635,11 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
         }
         let Some((hit_ray, hit)) = found else {
             if !hidden(depth) {
-                let d = wave.ray[i].dir.normalize();
-                let add = match lights.env_radiance_pdf(d, get3(&wave.prev_n, i), s.sampling == LightSampling::Mis) {
-                    Some((le, dir_pdf)) => {
-                        let weight = if wave.prev_delta[i] {
-                            1.0
-                        } else {
-                            match s.sampling {
-                                LightSampling::Bsdf => 1.0,
-                                LightSampling::Nee => 0.0,
-                                LightSampling::Mis => power_heuristic(
-                                    wave.prev_pdf[i],
-                                    lights.env_choice(get3(&wave.prev_p, i), get3(&wave.prev_n, i)) * dir_pdf,
-                                ),
-                            }
-                        };
-                        beta * le * weight
-                    }
-                    None => beta * w.scene.background,
-                };
-                add3(&mut wave.radiance, i, add);
+                // (The environment's radiance and density after the loop, together.)
+                esc_lane[n_esc] = i as u8;
+                esc_dir[n_esc] = wave.ray[i].dir.normalize();
+                esc_n[n_esc] = get3(&wave.prev_n, i);
+                n_esc += 1;
             }
             wave.done[i] = true;
             continue;
@@ -684,6 +674,29 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
         put3(&mut wave.wo, i, frame.to_local(-d));
         wave.scatter[i] = true;
     }
+    // Light from the environment (or the background) along the rays that left.
+    let mut env = [(Vec3::ZERO, 0.0f32); CAP];
+    let has_env = lights.env_radiance_pdf_batch(&esc_dir[..n_esc], &esc_n[..n_esc], mis, &mut env[..n_esc]);
+    for j in 0..n_esc {
+        let i = usize::from(esc_lane[j]);
+        let beta = get3(&wave.beta, i);
+        let add = if has_env {
+            let (le, dir_pdf) = env[j];
+            let weight = if wave.prev_delta[i] {
+                1.0
+            } else {
+                match s.sampling {
+                    LightSampling::Bsdf => 1.0,
+                    LightSampling::Nee => 0.0,
+                    LightSampling::Mis => power_heuristic(wave.prev_pdf[i], lights.env_choice(get3(&wave.prev_p, i), esc_n[j]) * dir_pdf),
+                }
+            };
+            beta * le * weight
+        } else {
+            beta * w.scene.background
+        };
+        add3(&mut wave.radiance, i, add);
+    }
     ray_ticks
 }
 
@@ -709,7 +722,14 @@ fn numbers(wave: &mut Wave) {
 /// Stage 3: next-event estimation. A light sample per lane that scatters (lane by lane),
 /// the BSDF toward it on lanes (packed by model), then every shadow ray.
 #[inline(never)]
-fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, flat: &mut Flat, watch: &mut Watch) {
+fn light<'w>(
+    w: &'w World,
+    s: &PathSettings,
+    wave: &mut Wave<'w>,
+    models: &mut Models<'w>,
+    (flat, envs): (&mut Flat, &mut EnvBatch),
+    watch: &mut Watch,
+) {
     let lights = &w.light_set;
     if lights.is_empty() || s.sampling == LightSampling::Bsdf {
         return;
@@ -737,9 +757,10 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         }
     };
     // The lights chosen lane by lane; untextured triangles and parallelograms are
-    // sampled after, on lanes (their square roots and divisions in vectors), the others
-    // here.
+    // sampled after, on lanes (their square roots and divisions in vectors), environment
+    // maps after in a batch (their cache misses overlapped), the others here.
     flat.n = 0;
+    envs.n = 0;
     for i in 0..wave.n {
         let Some(bsdf) = wave.bsdf[i].filter(|_| wave.scatter[i]) else { continue };
         if bsdf.is_delta() {
@@ -750,6 +771,7 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         match lights.choice(p, n, wave.u_light[i]) {
             Choice::Nothing => {}
             Choice::Flat { light, quad, pmf } => flat.push(i, light, quad, pmf, p, u2),
+            Choice::Env { pmf } => envs.push(i as u8, u2, n, pmf),
             Choice::Other { entry, pmf } => {
                 if let Some(ls) = lights.sample_entry(entry, pmf, p, n, u2, textures, s.sampling == LightSampling::Mis) {
                     pack(models, i, bsdf, &ls);
@@ -762,6 +784,13 @@ fn light<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, models: &mut M
         let i = usize::from(flat.lane[j]);
         if let (true, Some(bsdf)) = (flat.ok[j], wave.bsdf[i]) {
             let ls = LightSample { dir: get3(&flat.dir, j), dist: flat.dist[j], li: get3(&flat.li, j), pdf: flat.pdf[j], delta: false };
+            pack(models, i, bsdf, &ls);
+        }
+    }
+    lights.sample_env_batch(envs, s.sampling == LightSampling::Mis);
+    for j in 0..envs.n {
+        let i = usize::from(envs.lane[j]);
+        if let (Some(ls), Some(bsdf)) = (envs.out[j], wave.bsdf[i]) {
             pack(models, i, bsdf, &ls);
         }
     }

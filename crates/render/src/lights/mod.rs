@@ -67,6 +67,9 @@ pub(crate) enum Choice<'a> {
     /// An untextured triangle (`quad` false) or parallelogram, with the probability of its
     /// choice: sampled as [`flat_sample`] does.
     Flat { light: &'a area::EmissiveTri, quad: bool, pmf: f32 },
+    /// The environment map, chosen with probability `pmf`: sampled in batches
+    /// ([`LightSet::sample_env_batch`]).
+    Env { pmf: f32 },
     /// Another kind: entry `entry`, chosen with probability `pmf`;
     /// [`LightSet::sample_entry`] samples it.
     Other { entry: usize, pmf: f32 },
@@ -391,6 +394,7 @@ impl LightSet {
         match &self.entries[i] {
             Entry::Area(AreaLight::Tri(t)) if t.tex.is_none() => Choice::Flat { light: t, quad: false, pmf },
             Entry::Area(AreaLight::Quad(t)) => Choice::Flat { light: t, quad: true, pmf },
+            Entry::Env => Choice::Env { pmf },
             _ => Choice::Other { entry: i, pmf },
         }
     }
@@ -501,6 +505,30 @@ impl LightSet {
         };
         e.flux /= pmf;
         (e.flux.is_finite() && e.flux.max_element() > 0.0 && e.dir != Vec3::ZERO && e.p.is_finite()).then_some(e)
+    }
+
+    /// [`LightSet::sample_entry`] of the environment for the lanes of `b` (each chosen with
+    /// its `pmf`; the same bits), into `b.out`.
+    pub(crate) fn sample_env_batch(&self, b: &mut environment::EnvBatch, mis: bool) {
+        let Some((_, env)) = &self.env else {
+            b.out.fill(None);
+            return;
+        };
+        env.sample_batch(b, mis);
+        for (out, &pmf) in b.out.iter_mut().zip(&b.pmf).take(b.n) {
+            *out = out
+                .filter(|_| pmf > 0.0)
+                .map(|s| LightSample { pdf: s.pdf * pmf, ..s })
+                .filter(|s| s.pdf > 0.0 && s.pdf.is_finite() && s.li.is_finite());
+        }
+    }
+
+    /// [`LightSet::env_radiance_pdf`] of many directions into `out`; false (and `out`
+    /// untouched) without an environment.
+    pub(crate) fn env_radiance_pdf_batch(&self, dirs: &[Vec3], normals: &[Vec3], mis: bool, out: &mut [(Vec3, f32)]) -> bool {
+        let Some((_, env)) = &self.env else { return false };
+        env.eval_pdf_batch(dirs, normals, mis, out);
+        true
     }
 
     /// Radiance of the environment along unit `dir` ([`LightSet::env_radiance`]) and the
