@@ -3,8 +3,9 @@
 //! normals).
 
 use super::microfacet::{fresnel_conductor, reflect, Microfacet};
-use super::sample::{by_density, mirror, BsdfSample};
+use super::sample::{mirror, BsdfSample};
 use glam::Vec3;
+use lucent_scene::Distribution;
 
 /// A smooth (`mf` = None) or rough conductor.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -23,74 +24,101 @@ impl Conductor {
     /// f(wo, wi)·|cos θi| (zero for the mirror).
     #[must_use]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        let Some(mf) = self.mf else { return Vec3::ZERO };
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Vec3::ZERO;
-        }
-        let h = (wo + wi).normalize();
-        let d = mf.d(h);
-        if d == 0.0 {
-            return Vec3::ZERO;
-        }
-        fresnel_conductor(wo.dot(h), self.eta, self.k) * self.spec * (d * mf.g(wo, wi, h) / (4.0 * wo.z))
+        self.eval_pdf(wo, wi).0
     }
 
     /// The density of [`Conductor::sample`] (zero for the mirror).
     #[must_use]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        let Some(mf) = self.mf else { return 0.0 };
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
-        }
-        let h = (wo + wi).normalize();
-        mf.pdf(wo, h) / (4.0 * wo.dot(h))
+        self.eval_pdf(wo, wi).1
     }
 
-    /// [`Conductor::eval`] and [`Conductor::pdf`] at once (the half vector and D once;
-    /// the same bits as apart).
+    /// [`Conductor::eval`] and [`Conductor::pdf`] at once.
     #[must_use]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        let Some(mf) = self.mf else { return (Vec3::ZERO, 0.0) };
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return (Vec3::ZERO, 0.0);
+        match self.mf {
+            None => (Vec3::ZERO, 0.0),
+            Some(mf) => match mf.dist {
+                Distribution::Beckmann => RoughConductor::<true>::of(self, mf).eval_pdf(wo, wi),
+                Distribution::Ggx => RoughConductor::<false>::of(self, mf).eval_pdf(wo, wi),
+            },
         }
-        let h = (wo + wi).normalize();
-        let d = mf.d(h);
-        let pdf = mf.pdf_with_d(wo, h, d) / (4.0 * wo.dot(h));
-        if d == 0.0 {
-            return (Vec3::ZERO, pdf);
-        }
-        (fresnel_conductor(wo.dot(h), self.eta, self.k) * self.spec * (d * mf.g(wo, wi, h) / (4.0 * wo.z)), pdf)
     }
 
     /// The mirror direction, or a visible facet's reflection for `u2`.
     #[must_use]
     pub fn sample(&self, wo: Vec3, u2: (f32, f32)) -> Option<BsdfSample> {
-        if wo.z <= 0.0 {
-            return None;
-        }
-        match self.mf {
+        let (s, ok) = match self.mf {
             None => {
                 let wi = mirror(wo);
-                Some(BsdfSample { wi, weight: self.spec * fresnel_conductor(wo.z, self.eta, self.k), pdf: 1.0, delta: true, eta: 1.0 })
+                let s = BsdfSample { wi, weight: self.spec * fresnel_conductor(wo.z, self.eta, self.k), pdf: 1.0, delta: true, eta: 1.0 };
+                (s, wo.z > 0.0)
             }
-            Some(mf) => {
-                let m = mf.sample(wo, u2);
-                let wi = reflect(wo, m);
-                if wi.z <= 0.0 {
-                    return None;
-                }
-                let (f, pdf) = self.eval_pdf(wo, wi);
-                by_density(wo, wi, pdf, || f, 1.0)
-            }
+            Some(mf) => match mf.dist {
+                Distribution::Beckmann => RoughConductor::<true>::of(self, mf).sample(wo, u2),
+                Distribution::Ggx => RoughConductor::<false>::of(self, mf).sample(wo, u2),
+            },
+        };
+        ok.then_some(s)
+    }
+}
+
+/// A rough conductor of a known distribution (Beckmann's when `BECKMANN`, else GGX), as
+/// the lane integrator packs it: its value, density and (for GGX) sample are branch-free,
+/// so that a loop over lanes of one distribution vectorizes; [`Conductor`] answers through
+/// the same code (the same bits).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RoughConductor<const BECKMANN: bool> {
+    /// Real part of the index.
+    pub eta: Vec3,
+    /// Imaginary part.
+    pub k: Vec3,
+    /// Factor.
+    pub spec: Vec3,
+    /// Roughness (of the distribution `BECKMANN` names).
+    pub mf: Microfacet,
+}
+
+impl<const BECKMANN: bool> RoughConductor<BECKMANN> {
+    /// `c` with roughness `mf`.
+    #[inline(always)]
+    #[must_use]
+    pub fn of(c: &Conductor, mf: Microfacet) -> Self {
+        Self { eta: c.eta, k: c.k, spec: c.spec, mf }
+    }
+
+    /// f(wo, wi)·|cos θi| and the density of [`RoughConductor::sample`].
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let mf = self.mf;
+        let h = (wo + wi).normalize();
+        let d = mf.d_of::<BECKMANN>(h);
+        let pdf = mf.pdf_with_d_of::<BECKMANN>(wo, h, d) / (4.0 * wo.dot(h));
+        let f = fresnel_conductor(wo.dot(h), self.eta, self.k) * self.spec * (d * mf.g_of::<BECKMANN>(wo, wi, h) / (4.0 * wo.z));
+        let f = if d == 0.0 { Vec3::ZERO } else { f };
+        if (wo.z <= 0.0) | (wi.z <= 0.0) {
+            (Vec3::ZERO, 0.0)
+        } else {
+            (f, pdf)
         }
+    }
+
+    /// A visible facet's reflection for `u2`, and whether there is one.
+    #[inline(always)]
+    #[must_use]
+    pub fn sample(&self, wo: Vec3, u2: (f32, f32)) -> (BsdfSample, bool) {
+        let m = if BECKMANN { self.mf.sample(wo, u2) } else { self.mf.ggx_sample(wo, u2) };
+        let wi = reflect(wo, m);
+        let (f, pdf) = self.eval_pdf(wo, wi);
+        let ok = (wo.z > 0.0) & (wi.z > 0.0) & (pdf > 0.0) & pdf.is_finite();
+        (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta: 1.0 }, ok)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lucent_scene::Distribution;
 
     /// A perfect mirror (k → ∞ makes the Fresnel term 1) reflects everything into the
     /// mirror direction; a rough one's sampled weights average to its albedo, which is at

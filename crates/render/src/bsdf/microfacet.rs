@@ -10,7 +10,7 @@
 //! (EGSR 2014), the visible slope's CDF inverted by safeguarded Newton steps. The densities
 //! of those samples use the exact Smith masking (the erf form for Beckmann).
 
-use crate::lanes::pow_unit;
+use crate::lanes::{exp, pow_unit, sin_cos};
 use glam::Vec3;
 use lucent_scene::Distribution;
 use std::f32::consts::PI;
@@ -68,49 +68,50 @@ impl Microfacet {
     }
 
     /// α² (x² + y²) for the projected roughness of a direction (x, y, ·): with anisotropy,
-    /// αx² x² + αy² y². (Isotropic: the former arithmetic, the same bits.)
-    #[inline]
+    /// αx² x² + αy² y². (Isotropic: the former arithmetic, the same bits.) Branch-free.
+    #[inline(always)]
     fn alpha2_xy2(&self, x: f32, y: f32) -> f32 {
+        let iso = self.alpha * self.alpha * (x * x + y * y);
+        let aniso = self.alpha * self.alpha * (x * x) + self.alpha_y * self.alpha_y * (y * y);
         if self.is_isotropic() {
-            self.alpha * self.alpha * (x * x + y * y)
+            iso
         } else {
-            self.alpha * self.alpha * (x * x) + self.alpha_y * self.alpha_y * (y * y)
+            aniso
         }
     }
 
     /// The density of microfacet normals `m` (per unit projected area: ∫ D cos θm = 1).
     #[must_use]
     pub fn d(&self, m: Vec3) -> f32 {
-        let cos2 = m.z * m.z;
-        if m.z <= 0.0 {
-            return 0.0;
+        match self.dist {
+            Distribution::Beckmann => self.d_of::<true>(m),
+            Distribution::Ggx => self.d_of::<false>(m),
         }
-        let r = if self.is_isotropic() {
-            let a2 = self.alpha * self.alpha;
-            match self.dist {
-                Distribution::Beckmann => {
-                    let tan2 = (m.x * m.x + m.y * m.y) / cos2;
-                    (-tan2 / a2).exp() / (PI * a2 * cos2 * cos2)
-                }
-                Distribution::Ggx => {
-                    let t = (m.x * m.x + m.y * m.y) / a2 + cos2;
-                    1.0 / (PI * a2 * t * t)
-                }
-            }
+    }
+
+    /// [`Microfacet::d`] of the distribution `BECKMANN` names (the caller knows it: its
+    /// lanes were packed by distribution), branch-free: a loop over lanes that calls it
+    /// vectorizes, and one call gives the same bits. (So are the other `_of` forms.)
+    #[inline(always)]
+    #[must_use]
+    pub fn d_of<const BECKMANN: bool>(&self, m: Vec3) -> f32 {
+        let cos2 = m.z * m.z;
+        let (ax, ay) = (self.alpha, self.alpha_y);
+        let iso = self.is_isotropic();
+        let a2 = ax * ax;
+        let xy2 = m.x * m.x + m.y * m.y;
+        // (Anisotropic: the slopes scaled by each axis's α, the normalisation π αx αy.)
+        let e = (m.x / ax) * (m.x / ax) + (m.y / ay) * (m.y / ay);
+        let k = if iso { PI * a2 } else { PI * ax * ay };
+        let r = if BECKMANN {
+            let arg = if iso { -(xy2 / cos2) / a2 } else { -e / cos2 };
+            exp(arg) / (k * cos2 * cos2)
         } else {
-            // (The slopes scaled by each axis's α; the normalisation π αx αy.)
-            let (ax, ay) = (self.alpha, self.alpha_y);
-            let e = (m.x / ax) * (m.x / ax) + (m.y / ay) * (m.y / ay);
-            match self.dist {
-                Distribution::Beckmann => (-e / cos2).exp() / (PI * ax * ay * cos2 * cos2),
-                Distribution::Ggx => {
-                    let t = e + cos2;
-                    1.0 / (PI * ax * ay * t * t)
-                }
-            }
+            let t = if iso { xy2 / a2 + cos2 } else { e + cos2 };
+            1.0 / (k * t * t)
         };
         // (As Mitsuba: values this small only make trouble downstream.)
-        if r * m.z > 1e-20 && r.is_finite() {
+        if m.z > 0.0 && r * m.z > 1e-20 && r.is_finite() {
             r
         } else {
             0.0
@@ -121,31 +122,52 @@ impl Microfacet {
     /// the back of the facet or the facet from the other side of the surface.
     #[must_use]
     pub fn g1(&self, v: Vec3, m: Vec3) -> f32 {
-        if v.dot(m) * v.z <= 0.0 {
-            return 0.0;
-        }
-        let xy2 = v.x * v.x + v.y * v.y;
-        if xy2 == 0.0 {
-            return 1.0;
-        }
-        let tan2_alpha2 = self.alpha2_xy2(v.x, v.y) / (v.z * v.z);
         match self.dist {
-            Distribution::Beckmann => {
-                let a = 1.0 / tan2_alpha2.sqrt();
-                if a >= 1.6 {
-                    1.0
-                } else {
-                    (3.535 * a + 2.181 * a * a) / (1.0 + 2.276 * a + 2.577 * a * a)
-                }
-            }
-            Distribution::Ggx => 2.0 / (1.0 + (1.0 + tan2_alpha2).sqrt()),
+            Distribution::Beckmann => self.g1_of::<true>(v, m),
+            Distribution::Ggx => self.g1_of::<false>(v, m),
         }
+    }
+
+    /// [`Microfacet::g1`], branch-free (see [`Microfacet::d_of`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn g1_of<const BECKMANN: bool>(&self, v: Vec3, m: Vec3) -> f32 {
+        let xy2 = v.x * v.x + v.y * v.y;
+        let tan2_alpha2 = self.alpha2_xy2(v.x, v.y) / (v.z * v.z);
+        let g = if BECKMANN {
+            let a = 1.0 / tan2_alpha2.sqrt();
+            let r = (3.535 * a + 2.181 * a * a) / (1.0 + 2.276 * a + 2.577 * a * a);
+            if a >= 1.6 {
+                1.0
+            } else {
+                r
+            }
+        } else {
+            2.0 / (1.0 + (1.0 + tan2_alpha2).sqrt())
+        };
+        if v.dot(m) * v.z <= 0.0 {
+            0.0
+        } else if xy2 == 0.0 {
+            1.0
+        } else {
+            g
+        }
+    }
+
+    /// [`Microfacet::g`], branch-free (see [`Microfacet::d_of`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn g_of<const BECKMANN: bool>(&self, wo: Vec3, wi: Vec3, m: Vec3) -> f32 {
+        self.g1_of::<BECKMANN>(wo, m) * self.g1_of::<BECKMANN>(wi, m)
     }
 
     /// The separable shadowing-masking of a pair of directions.
     #[must_use]
     pub fn g(&self, wo: Vec3, wi: Vec3, m: Vec3) -> f32 {
-        self.g1(wo, m) * self.g1(wi, m)
+        match self.dist {
+            Distribution::Beckmann => self.g_of::<true>(wo, wi, m),
+            Distribution::Ggx => self.g_of::<false>(wo, wi, m),
+        }
     }
 
     /// A microfacet normal for direction `v` (with `v.z > 0`) from `u` in [0, 1)²: GGX's
@@ -154,22 +176,7 @@ impl Microfacet {
     pub fn sample(&self, v: Vec3, u: (f32, f32)) -> Vec3 {
         let (ax, ay) = (self.alpha, self.alpha_y);
         match self.dist {
-            Distribution::Ggx => {
-                // The hemisphere of a stretched (α = 1) configuration, a disk sample warped
-                // toward the visible half, then unstretched (Heitz 2018, listing 1).
-                let vh = Vec3::new(ax * v.x, ay * v.y, v.z).normalize();
-                let len2 = vh.x * vh.x + vh.y * vh.y;
-                let t1 = if len2 > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / len2.sqrt() } else { Vec3::X };
-                let t2 = vh.cross(t1);
-                let r = u.0.sqrt();
-                let phi = 2.0 * PI * u.1;
-                let (s_phi, c_phi) = phi.sin_cos();
-                let p1 = r * c_phi;
-                let s = 0.5 * (1.0 + vh.z);
-                let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * (r * s_phi);
-                let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
-                Vec3::new(ax * nh.x, ay * nh.y, nh.z.max(1e-6)).normalize()
-            }
+            Distribution::Ggx => self.ggx_sample(v, u),
             Distribution::Beckmann => {
                 // Stretch to α = 1, sample the visible slopes there, rotate and unstretch.
                 let vs = Vec3::new(ax * v.x, ay * v.y, v.z).normalize();
@@ -180,6 +187,28 @@ impl Microfacet {
                 Vec3::new(-x, -y, 1.0).normalize()
             }
         }
+    }
+
+    /// GGX's visible normal for direction `v` and `u` (see [`Microfacet::sample`]),
+    /// branch-free: the hemisphere of a stretched (α = 1) configuration, a disk sample
+    /// warped toward the visible half, then unstretched (Heitz 2018, listing 1), the
+    /// angle's sine and cosine by [`crate::lanes::sin_cos`].
+    #[inline(always)]
+    #[must_use]
+    pub fn ggx_sample(&self, v: Vec3, u: (f32, f32)) -> Vec3 {
+        let (ax, ay) = (self.alpha, self.alpha_y);
+        let vh = Vec3::new(ax * v.x, ay * v.y, v.z).normalize();
+        let len2 = vh.x * vh.x + vh.y * vh.y;
+        let inv = 1.0 / len2.sqrt();
+        let t1 = if len2 > 0.0 { Vec3::new(-vh.y * inv, vh.x * inv, 0.0) } else { Vec3::X };
+        let t2 = vh.cross(t1);
+        let r = u.0.sqrt();
+        let (s_phi, c_phi) = sin_cos(2.0 * PI * u.1);
+        let p1 = r * c_phi;
+        let s = 0.5 * (1.0 + vh.z);
+        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * (r * s_phi);
+        let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
+        Vec3::new(ax * nh.x, ay * nh.y, nh.z.max(1e-6)).normalize()
     }
 
     /// The density (per solid angle of normals) with which [`Microfacet::sample`] picks `m`
@@ -194,33 +223,55 @@ impl Microfacet {
     #[inline]
     #[must_use]
     pub fn pdf_with_d(&self, v: Vec3, m: Vec3, d: f32) -> f32 {
-        if v.z <= 0.0 {
-            return 0.0;
+        match self.dist {
+            Distribution::Beckmann => self.pdf_with_d_of::<true>(v, m, d),
+            Distribution::Ggx => self.pdf_with_d_of::<false>(v, m, d),
         }
-        let g1 = match self.dist {
-            Distribution::Ggx => self.g1(v, m),
-            Distribution::Beckmann => self.g1_exact(v, m),
-        };
-        d * g1 * v.dot(m).max(0.0) / v.z
+    }
+
+    /// [`Microfacet::pdf_with_d`], branch-free (see [`Microfacet::d_of`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn pdf_with_d_of<const BECKMANN: bool>(&self, v: Vec3, m: Vec3, d: f32) -> f32 {
+        let g1 = if BECKMANN { self.g1_exact_of::<true>(v, m) } else { self.g1_of::<false>(v, m) };
+        let p = d * g1 * v.dot(m).max(0.0) / v.z;
+        if v.z <= 0.0 {
+            0.0
+        } else {
+            p
+        }
     }
 
     /// Smith's masking without approximation (for Beckmann, 2 / (1 + erf a + e^(−a²) /
     /// (a √π)) with a = 1 / (α tan θ); GGX's is exact already).
     #[must_use]
     pub fn g1_exact(&self, v: Vec3, m: Vec3) -> f32 {
-        if self.dist == Distribution::Ggx {
-            return self.g1(v, m);
+        match self.dist {
+            Distribution::Beckmann => self.g1_exact_of::<true>(v, m),
+            Distribution::Ggx => self.g1_of::<false>(v, m),
         }
-        if v.dot(m) * v.z <= 0.0 {
-            return 0.0;
+    }
+
+    /// [`Microfacet::g1_exact`], branch-free (see [`Microfacet::d_of`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn g1_exact_of<const BECKMANN: bool>(&self, v: Vec3, m: Vec3) -> f32 {
+        if !BECKMANN {
+            return self.g1_of::<false>(v, m);
         }
         let xy2 = v.x * v.x + v.y * v.y;
-        if xy2 == 0.0 {
-            return 1.0;
+        let a_iso = v.z.abs() / (self.alpha * xy2.sqrt());
+        let a_aniso = v.z.abs() / self.alpha2_xy2(v.x, v.y).sqrt();
+        let a = if self.is_isotropic() { a_iso } else { a_aniso };
+        let lambda = 0.5 * (exp(-a * a) / (a * std::f32::consts::PI.sqrt()) - erfc(a));
+        let g = 1.0 / (1.0 + lambda);
+        if v.dot(m) * v.z <= 0.0 {
+            0.0
+        } else if xy2 == 0.0 {
+            1.0
+        } else {
+            g
         }
-        let a = if self.is_isotropic() { v.z.abs() / (self.alpha * xy2.sqrt()) } else { v.z.abs() / self.alpha2_xy2(v.x, v.y).sqrt() };
-        let lambda = 0.5 * ((-a * a).exp() / (a * std::f32::consts::PI.sqrt()) - erfc(a));
-        1.0 / (1.0 + lambda)
     }
 }
 
@@ -279,6 +330,7 @@ const FRAC_1_SQRT_PI: f32 = 0.564_189_6;
 /// Numerical Recipes (§6.2, `erfcc`: fractional error below 1.2 × 10⁻⁷ everywhere).
 // (The fit's coefficients as published, past f32's digits.)
 #[allow(clippy::excessive_precision)]
+#[inline(always)]
 fn erfc(x: f32) -> f32 {
     let z = x.abs();
     let t = 1.0 / (1.0 + 0.5 * z);
@@ -288,7 +340,7 @@ fn erfc(x: f32) -> f32 {
     {
         p = c + t * p;
     }
-    let r = t * (-z * z + p).exp();
+    let r = t * exp(-z * z + p);
     if x >= 0.0 {
         r
     } else {
@@ -349,22 +401,26 @@ fn erfinv(y: f32) -> f32 {
 /// outside). Returns the reflectance and the cosine of the refracted direction (negative
 /// of the incident side's sign; zero under total internal reflection).
 #[must_use]
+#[inline(always)]
 pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> (f32, f32) {
-    if eta == 1.0 {
-        return (0.0, -cos_i);
-    }
-    let (eta_it, cos_abs) = if cos_i >= 0.0 { (eta, cos_i) } else { (1.0 / eta, -cos_i) };
-    let cos_abs = cos_abs.min(1.0);
+    // (Branch-free, so that loops over lanes that call it vectorize.)
+    let outside = cos_i >= 0.0;
+    let eta_it = if outside { eta } else { 1.0 / eta };
+    let cos_abs = if outside { cos_i } else { -cos_i }.min(1.0);
     // Snell: sin_t = sin_i / eta_it.
     let sin2_t = (1.0 - cos_abs * cos_abs) / (eta_it * eta_it);
-    if sin2_t >= 1.0 {
-        return (1.0, 0.0);
-    }
     let cos_t = (1.0 - sin2_t).sqrt();
     let rs = (cos_abs - eta_it * cos_t) / (cos_abs + eta_it * cos_t);
     let rp = (eta_it * cos_abs - cos_t) / (eta_it * cos_abs + cos_t);
     let f = 0.5 * (rs * rs + rp * rp);
-    (f, if cos_i >= 0.0 { -cos_t } else { cos_t })
+    let signed = if outside { -cos_t } else { cos_t };
+    if eta == 1.0 {
+        (0.0, -cos_i)
+    } else if sin2_t >= 1.0 {
+        (1.0, 0.0)
+    } else {
+        (f, signed)
+    }
 }
 
 /// The unpolarised Fresnel reflectance of a conductor of complex relative index
@@ -374,6 +430,7 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> (f32, f32) {
 /// a, then r_s and r_p), two square roots and two divisions a channel where the complex
 /// form took nine and twelve. Tested against the complex form.
 #[must_use]
+#[inline(always)]
 pub fn fresnel_conductor(cos_i: f32, eta: Vec3, k: Vec3) -> Vec3 {
     let c = cos_i.clamp(0.0, 1.0);
     let (c2, s2) = (c * c, 1.0 - c * c);

@@ -37,14 +37,14 @@ pub mod rough_plastic;
 mod sample;
 pub mod thin_dielectric;
 
-pub use conductor::Conductor;
+pub use conductor::{Conductor, RoughConductor};
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use diffuse_glossy::DiffuseGlossy;
 pub use metallic_roughness::MetallicRoughness;
 pub use microfacet::{fresnel_conductor, fresnel_dielectric, Microfacet};
 pub use plastic::{plastic_spec_weight, Plastic};
-pub use rough_plastic::{RoughPlastic, RoughPlasticTables};
+pub use rough_plastic::{RoughPlastic, RoughPlasticLane, RoughPlasticTables};
 pub use sample::BsdfSample;
 pub use thin_dielectric::ThinDielectric;
 

@@ -7,9 +7,10 @@
 //! microfacet normals, here by Gauss-Legendre quadrature.
 
 use super::microfacet::{fresnel_dielectric, gauss_legendre, reflect, refract, Microfacet};
-use super::sample::{by_density, BsdfSample};
+use super::sample::BsdfSample;
 use crate::sampling::cosine_hemisphere;
 use glam::Vec3;
+use lucent_scene::Distribution;
 use std::f32::consts::FRAC_1_PI;
 
 /// Rough plastic.
@@ -29,79 +30,142 @@ pub struct RoughPlastic<'a> {
     pub tables: &'a RoughPlasticTables,
 }
 
-impl RoughPlastic<'_> {
+impl<'a> RoughPlastic<'a> {
     /// f(wo, wi)·|cos θi|: the coating's lobe plus the base's light through it.
     #[must_use]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Vec3::ZERO;
-        }
-        let (mf, tables, diffuse) = (self.mf, self.tables, self.diffuse);
-        let h = (wo + wi).normalize();
-        let (f, _) = fresnel_dielectric(wo.dot(h), tables.eta);
-        let specular = self.spec * (f * mf.d(h) * mf.g(wo, wi, h) / (4.0 * wo.z));
-        let (to, ti) = (tables.external(wo.z), tables.external(wi.z));
-        let ri = tables.internal;
-        let base = if self.nonlinear { diffuse / (Vec3::ONE - diffuse * ri) } else { diffuse / (1.0 - ri) };
-        specular + base * (FRAC_1_PI / (tables.eta * tables.eta) * wi.z * to * ti)
+        self.eval_pdf(wo, wi).0
     }
 
     /// The density of [`RoughPlastic::sample`].
     #[must_use]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
-        }
-        let (ps, pd) = probs(self.tables.external(wo.z), self.spec_weight);
-        let h = (wo + wi).normalize();
-        ps * self.mf.pdf(wo, h) / (4.0 * wo.dot(h)) + pd * wi.z * FRAC_1_PI
+        self.eval_pdf(wo, wi).1
     }
 
-    /// [`RoughPlastic::eval`] and [`RoughPlastic::pdf`] at once (the half vector, D and
-    /// the coating's transmittance once; the same bits as apart).
+    /// [`RoughPlastic::eval`] and [`RoughPlastic::pdf`] at once.
     #[must_use]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return (Vec3::ZERO, 0.0);
+        match self.mf.dist {
+            Distribution::Beckmann => RoughPlasticLane::<true>::new(self, wo, wi).eval_pdf(wo, wi),
+            Distribution::Ggx => RoughPlasticLane::<false>::new(self, wo, wi).eval_pdf(wo, wi),
         }
-        let (mf, tables, diffuse) = (self.mf, self.tables, self.diffuse);
-        let h = (wo + wi).normalize();
-        let d = mf.d(h);
-        let (f, _) = fresnel_dielectric(wo.dot(h), tables.eta);
-        let specular = self.spec * (f * d * mf.g(wo, wi, h) / (4.0 * wo.z));
-        let (to, ti) = (tables.external(wo.z), tables.external(wi.z));
-        let ri = tables.internal;
-        let base = if self.nonlinear { diffuse / (Vec3::ONE - diffuse * ri) } else { diffuse / (1.0 - ri) };
-        let value = specular + base * (FRAC_1_PI / (tables.eta * tables.eta) * wi.z * to * ti);
-        let (ps, pd) = probs(to, self.spec_weight);
-        (value, ps * mf.pdf_with_d(wo, h, d) / (4.0 * wo.dot(h)) + pd * wi.z * FRAC_1_PI)
     }
 
     /// The coating's lobe or the base's cosine lobe, chosen by `u`.
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
-        if wo.z <= 0.0 {
-            return None;
+        let (s, ok) = match self.mf.dist {
+            Distribution::Beckmann => RoughPlasticLane::<true>::new(self, wo, Vec3::Z).sample(wo, u, u2),
+            Distribution::Ggx => RoughPlasticLane::<false>::new(self, wo, Vec3::Z).sample(wo, u, u2),
+        };
+        ok.then_some(s)
+    }
+}
+
+/// A rough plastic of a known distribution (Beckmann's when `BECKMANN`, else GGX) as the
+/// lane integrator packs it: the coating's transmittance toward `wo` and `wi` read from
+/// its table ahead (lane by lane), the rest branch-free, so that a loop over lanes of one
+/// distribution vectorizes; [`RoughPlastic`] answers through the same code (the same bits).
+#[derive(Clone, Copy, Debug)]
+pub struct RoughPlasticLane<'a, const BECKMANN: bool> {
+    diffuse: Vec3,
+    spec: Vec3,
+    nonlinear: bool,
+    spec_weight: f32,
+    mf: Microfacet,
+    eta: f32,
+    internal: f32,
+    /// The transmittance toward `wo` and toward `wi`.
+    to: f32,
+    ti: f32,
+    tables: &'a RoughPlasticTables,
+}
+
+impl<'a, const BECKMANN: bool> RoughPlasticLane<'a, BECKMANN> {
+    /// `b` seen from `wo`, toward `wi` (for a sample, any: [`RoughPlasticLane::prepare`]
+    /// reads its transmittance once the direction is known).
+    #[inline(always)]
+    #[must_use]
+    pub fn new(b: &RoughPlastic<'a>, wo: Vec3, wi: Vec3) -> Self {
+        let t = b.tables;
+        Self {
+            diffuse: b.diffuse,
+            spec: b.spec,
+            nonlinear: b.nonlinear,
+            spec_weight: b.spec_weight,
+            mf: b.mf,
+            eta: t.eta,
+            internal: t.internal,
+            to: t.external(wo.z),
+            ti: t.external(wi.z),
+            tables: t,
         }
-        let (ps, _) = probs(self.tables.external(wo.z), self.spec_weight);
+    }
+
+    /// f(wo, wi)·|cos θi| and the density of the sample, with the transmittances read
+    /// for these `wo` and `wi`.
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let (mf, diffuse) = (self.mf, self.diffuse);
+        let h = (wo + wi).normalize();
+        let d = mf.d_of::<BECKMANN>(h);
+        let (f, _) = fresnel_dielectric(wo.dot(h), self.eta);
+        let specular = self.spec * (f * d * mf.g_of::<BECKMANN>(wo, wi, h) / (4.0 * wo.z));
+        let (to, ti) = (self.to, self.ti);
+        let ri = self.internal;
+        let linear = diffuse / (1.0 - ri);
+        let nonlinear = diffuse / (Vec3::ONE - diffuse * ri);
+        let base = Vec3::select(glam::BVec3::splat(self.nonlinear), nonlinear, linear);
+        let value = specular + base * (FRAC_1_PI / (self.eta * self.eta) * wi.z * to * ti);
+        let (ps, pd) = probs(to, self.spec_weight);
+        let pdf = ps * mf.pdf_with_d_of::<BECKMANN>(wo, h, d) / (4.0 * wo.dot(h)) + pd * wi.z * FRAC_1_PI;
+        if (wo.z <= 0.0) | (wi.z <= 0.0) {
+            (Vec3::ZERO, 0.0)
+        } else {
+            (value, pdf)
+        }
+    }
+
+    /// The sample's direction (the coating's lobe or the base's, chosen by `u`), its
+    /// transmittance read into `self`: what does not vectorize.
+    #[inline(always)]
+    pub fn prepare(&mut self, wo: Vec3, u: f32, u2: (f32, f32)) -> Vec3 {
+        let (ps, _) = probs(self.to, self.spec_weight);
         let wi = if u < ps { reflect(wo, self.mf.sample(wo, u2)) } else { cosine_hemisphere(u2) };
-        if wi.z <= 0.0 {
-            return None;
-        }
+        self.ti = self.tables.external(wi.z);
+        wi
+    }
+
+    /// The sample toward `wi` (of [`RoughPlasticLane::prepare`]), and whether there is one.
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_of(&self, wo: Vec3, wi: Vec3) -> (BsdfSample, bool) {
         let (f, pdf) = self.eval_pdf(wo, wi);
-        by_density(wo, wi, pdf, || f, 1.0)
+        let ok = (wo.z > 0.0) & (wi.z > 0.0) & (pdf > 0.0) & pdf.is_finite();
+        (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta: 1.0 }, ok)
+    }
+
+    /// The coating's lobe or the base's cosine lobe, chosen by `u`.
+    #[inline(always)]
+    #[must_use]
+    pub fn sample(mut self, wo: Vec3, u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        let wi = self.prepare(wo, u, u2);
+        self.sample_of(wo, wi)
     }
 }
 
 /// Mitsuba's lobe probabilities for rough plastic: (specular, diffuse) from the coating's
 /// transmittance toward the viewer.
-#[inline]
+#[inline(always)]
 fn probs(t_o: f32, spec_weight: f32) -> (f32, f32) {
     let ps = (1.0 - t_o) * spec_weight;
     let pd = t_o * (1.0 - spec_weight);
     let s = ps + pd;
+    let (a, b) = (ps / s, pd / s);
     if s > 0.0 {
-        (ps / s, pd / s)
+        (a, b)
     } else {
         (0.0, 1.0)
     }
@@ -141,6 +205,13 @@ impl RoughPlasticTables {
     }
 
     fn compute(mf: &Microfacet, eta: f32) -> Self {
+        match mf.dist {
+            Distribution::Beckmann => Self::compute_of::<true>(mf, eta),
+            Distribution::Ggx => Self::compute_of::<false>(mf, eta),
+        }
+    }
+
+    fn compute_of<const BECKMANN: bool>(mf: &Microfacet, eta: f32) -> Self {
         use rayon::prelude::*;
         let q = gauss_legendre(128);
         // (Each cosine's two integrals apart, in parallel: 2 × 128² evaluations each,
@@ -150,22 +221,22 @@ impl RoughPlasticTables {
             .map(|i| {
                 let mu = (i as f32 / (RES - 1) as f32).max(1e-6);
                 let wi = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-                let t = visible_integral(mf, wi, &q, |m| {
+                let t = visible_integral::<BECKMANN>(mf, wi, &q, |m| {
                     let (f, cos_t) = fresnel_dielectric(wi.dot(m), eta);
                     let wt = refract(wi, m, cos_t, eta);
                     if wt.z * wi.z >= 0.0 {
                         0.0
                     } else {
-                        (1.0 - f) * mf.g1(wt, m)
+                        (1.0 - f) * mf.g1_of::<BECKMANN>(wt, m)
                     }
                 }) as f32;
-                let r = visible_integral(mf, wi, &q, |m| {
+                let r = visible_integral::<BECKMANN>(mf, wi, &q, |m| {
                     let (f, _) = fresnel_dielectric(wi.dot(m), 1.0 / eta);
                     let wr = reflect(wi, m);
                     if wr.z <= 0.0 {
                         0.0
                     } else {
-                        f * mf.g1(wr, m)
+                        f * mf.g1_of::<BECKMANN>(wr, m)
                     }
                 });
                 (t, r * f64::from(mu))
@@ -181,6 +252,7 @@ impl RoughPlasticTables {
     }
 
     /// The transmittance for a direction of cosine `cos` (linear between the table's).
+    #[inline(always)]
     #[must_use]
     pub fn external(&self, cos: f32) -> f32 {
         let x = cos.clamp(0.0, 1.0) * (RES - 1) as f32;
@@ -196,31 +268,41 @@ impl RoughPlasticTables {
 /// GGX the visible normals' own (exact and smooth: each node weighs one), for Beckmann
 /// the map onto D(m) cos θm (Walter et al. 2007, eq. 28: its visible map inverts a CDF
 /// numerically, too slow for a million nodes), each node weighed by visible / D cos.
-fn visible_integral(mf: &Microfacet, wi: Vec3, q: &[(f64, f64)], g: impl Fn(Vec3) -> f32) -> f64 {
+///
+/// PERF: each row of nodes' values in one loop over the row (branch-free, it vectorizes),
+/// then summed in order in f64 (the same bits as one node after another).
+#[inline(always)]
+fn visible_integral<const BECKMANN: bool>(mf: &Microfacet, wi: Vec3, q: &[(f64, f64)], g: impl Fn(Vec3) -> f32) -> f64 {
     let mut sum = 0.0f64;
     let a2 = f64::from(mf.alpha * mf.alpha);
+    // (Each column's azimuth, for Beckmann's map.)
+    let azimuths: Vec<(f64, f64)> = q.iter().map(|&(y, _)| (2.0 * std::f64::consts::PI * (0.5 * (y + 1.0))).sin_cos()).collect();
+    let mut row = vec![0f32; q.len()];
     for &(x, wx) in q {
         let u = 0.5 * (x + 1.0);
         // tan² θm of D cos θm at u (Beckmann).
         let tan2 = -a2 * (1.0 - u).max(1e-300).ln();
         let cos = 1.0 / (1.0 + tan2).sqrt();
         let sin = (1.0 - cos * cos).max(0.0).sqrt();
-        for &(y, wy) in q {
-            let v = 0.5 * (y + 1.0);
+        for ((value, &(y, _)), &(sp, cp)) in row.iter_mut().zip(q).zip(&azimuths) {
+            *value = if BECKMANN {
+                let m = Vec3::new((sin * cp) as f32, (sin * sp) as f32, cos as f32);
+                let d = mf.d_of::<true>(m);
+                let sample_pdf = d * m.z;
+                let visible = d * mf.g1_exact_of::<true>(wi, m) * wi.dot(m).max(0.0) / wi.z;
+                let v = g(m) * visible / sample_pdf;
+                if sample_pdf.is_nan() || sample_pdf <= 0.0 {
+                    0.0
+                } else {
+                    v
+                }
+            } else {
+                g(mf.ggx_sample(wi, (u as f32, (0.5 * (y + 1.0)) as f32)))
+            };
+        }
+        for (&value, &(_, wy)) in row.iter().zip(q) {
             let weight = 0.25 * wx * wy;
-            if mf.dist == lucent_scene::Distribution::Ggx {
-                let m = mf.sample(wi, (u as f32, v as f32));
-                sum += weight * f64::from(g(m));
-                continue;
-            }
-            let phi = 2.0 * std::f64::consts::PI * v;
-            let m = Vec3::new((sin * phi.cos()) as f32, (sin * phi.sin()) as f32, cos as f32);
-            let sample_pdf = mf.d(m) * m.z;
-            if sample_pdf.is_nan() || sample_pdf <= 0.0 {
-                continue;
-            }
-            let visible = mf.d(m) * mf.g1_exact(wi, m) * wi.dot(m).max(0.0) / wi.z;
-            sum += weight * f64::from(g(m) * visible / sample_pdf);
+            sum += weight * f64::from(value);
         }
     }
     sum

@@ -32,7 +32,9 @@
 use super::hit::{bsdf_frame, coherent, emitted, light_normal, material, shading_normal, Bend};
 use super::path::{LightSampling, PathSettings, CHOICES, PAIRS};
 use super::wave_profile::{now, Part, Watch};
-use crate::bsdf::{Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughPlastic};
+use crate::bsdf::{
+    Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughConductor, RoughPlasticLane,
+};
 use crate::lanes::on_lanes;
 use crate::lights::area::EmissiveTri;
 use crate::lights::environment::EnvBatch;
@@ -44,6 +46,7 @@ use crate::world::surface::Surface;
 use crate::world::World;
 use glam::Vec3;
 use lucent_accel::{Hit, Ray, MAX_PACKET};
+use lucent_scene::Distribution;
 
 /// Paths in flight per thread.
 pub const CAP: usize = 64;
@@ -201,9 +204,21 @@ trait Model: Copy {
     /// Whether the model's loops vectorize (their lane counts are then padded to whole
     /// vectors: a scalar remainder costs more than the padding's extra lanes).
     const VECTOR: bool = false;
+    /// Whether its sample is taken in two parts: the direction lane by lane
+    /// ([`Model::prepare`]: what does not vectorize, such as a facet normal or a table's
+    /// entry), then its value and density on lanes ([`Model::eval_pdf`]); the sample is a
+    /// reflection (weight f / pdf, where the directions lie on the same side and the
+    /// density is positive).
+    const TWO_PHASE: bool = false;
     /// The sample and whether there is one (when not, its fields go unused).
     fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (BsdfSample, bool);
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32);
+    /// With [`Model::TWO_PHASE`]: the sample's direction (it may keep what `eval_pdf`
+    /// needs for it in `self`).
+    #[inline(always)]
+    fn prepare(&mut self, _wo: Vec3, _u: f32, _u2: (f32, f32)) -> Vec3 {
+        Vec3::Z
+    }
 }
 
 /// A sample as [`Model::sample`] gives it.
@@ -240,9 +255,51 @@ impl Model for Diffuse {
     }
 }
 model!(Conductor, |b, wo, _u, u2| some(b.sample(wo, u2)), |b, wo, wi| b.eval_pdf(wo, wi));
+impl Model for RoughConductor<false> {
+    const VECTOR: bool = true;
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, _u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        RoughConductor::sample(self, wo, u2)
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        RoughConductor::eval_pdf(self, wo, wi)
+    }
+}
+impl Model for RoughConductor<true> {
+    const VECTOR: bool = true;
+    const TWO_PHASE: bool = true;
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, _u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        RoughConductor::sample(self, wo, u2)
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        RoughConductor::eval_pdf(self, wo, wi)
+    }
+    #[inline(always)]
+    fn prepare(&mut self, wo: Vec3, _u: f32, u2: (f32, f32)) -> Vec3 {
+        crate::bsdf::microfacet::reflect(wo, self.mf.sample(wo, u2))
+    }
+}
 model!(Dielectric, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| b.eval_pdf(wo, wi));
 model!(Plastic, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
-model!(RoughPlastic<'_>, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| b.eval_pdf(wo, wi));
+impl<const BECKMANN: bool> Model for RoughPlasticLane<'_, BECKMANN> {
+    const VECTOR: bool = true;
+    const TWO_PHASE: bool = true;
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        RoughPlasticLane::sample(*self, wo, u, u2)
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        RoughPlasticLane::eval_pdf(self, wo, wi)
+    }
+    #[inline(always)]
+    fn prepare(&mut self, wo: Vec3, u: f32, u2: (f32, f32)) -> Vec3 {
+        RoughPlasticLane::prepare(self, wo, u, u2)
+    }
+}
 model!(MetallicRoughness, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
 model!(DiffuseGlossy, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
 
@@ -270,15 +327,26 @@ struct Packed<B> {
 /// turns into whole vectors), else over `0..$n`.
 macro_rules! packed_loop {
     ($bsdfs:expr, $n:expr, |$bsdf:ident, $j:ident| $body:block) => {
-        if B::VECTOR && $n == CAP {
-            let $bsdf = &$bsdfs[..CAP];
-            for $j in 0..CAP $body
+        if B::VECTOR && $n % STRIP == 0 {
+            let $bsdf = &$bsdfs[..$n];
+            for strip in 0..$n / STRIP {
+                let base = strip * STRIP;
+                assert!(base + STRIP <= CAP && base + STRIP <= $bsdf.len());
+                for k in 0..STRIP {
+                    let $j = base + k;
+                    $body
+                }
+            }
         } else {
             let $bsdf = &$bsdfs[..$n];
             for $j in 0..$n $body
         }
     };
 }
+
+/// Lanes per strip of a vector model's loops: its packed lanes are padded to whole strips,
+/// each strip a loop of this constant count (whole vectors: two of AVX2, one of AVX-512).
+const STRIP: usize = 16;
 
 impl<B: Model> Packed<B> {
     fn new() -> Box<Self> {
@@ -316,16 +384,17 @@ impl<B: Model> Packed<B> {
         (self.u2[0][j], self.u2[1][j]) = u2;
     }
 
-    /// The number of lanes the loops run over: with [`Model::VECTOR`], all [`CAP`], the
-    /// BSDFs padded with copies of the last (their results go unused). PERF: a loop of a
-    /// constant [`CAP`] lanes is whole vectors; over `0..n` LLVM vectorized 4 vectors per
-    /// step and sent any `n` below 64 down its scalar remainder.
+    /// The number of lanes the loops run over: with [`Model::VECTOR`], whole strips of
+    /// [`STRIP`] lanes, the BSDFs padded with copies of the last (their results go unused).
+    /// PERF: a loop of a constant count is whole vectors; over `0..n` LLVM vectorized 4
+    /// vectors per step and sent any `n` below 64 down its scalar remainder; padded to all
+    /// [`CAP`] lanes, a few lanes of a costly model (a rough conductor) paid for 64.
     #[inline(always)]
     fn padded(&mut self) -> usize {
         let n = self.bsdf.len();
         if B::VECTOR && n > 0 {
             let last = self.bsdf[n - 1];
-            self.bsdf.resize(CAP, last);
+            self.bsdf.resize(n.div_ceil(STRIP) * STRIP, last);
         }
         self.bsdf.len()
     }
@@ -333,6 +402,30 @@ impl<B: Model> Packed<B> {
     /// The sample of every packed lane.
     #[inline(always)]
     fn sample_all(&mut self) {
+        if B::TWO_PHASE {
+            // (The directions lane by lane, then their values and densities on lanes as
+            // `eval_all` takes them, then the weights. PERF: one loop for the last two, as
+            // `sample` is written, did not vectorize.)
+            for j in 0..self.bsdf.len() {
+                let wi = self.bsdf[j].prepare(get3(&self.wo, j), self.u[j], (self.u2[0][j], self.u2[1][j]));
+                put3(&mut self.wi, j, wi);
+            }
+            let n = self.padded();
+            packed_loop!(self.bsdf, n, |bsdf, j| {
+                let (f, pdf) = bsdf[j].eval_pdf(get3(&self.wo, j), get3(&self.wi, j));
+                put3(&mut self.f, j, f);
+                self.pdf[j] = pdf;
+            });
+            packed_loop!(self.bsdf, n, |_bsdf, j| {
+                let (wo, wi, pdf) = (get3(&self.wo, j), get3(&self.wi, j), self.pdf[j]);
+                self.ok[j] = (wo.z > 0.0) & (wi.z > 0.0) & (pdf > 0.0) & pdf.is_finite();
+                let w = get3(&self.f, j) / pdf;
+                put3(&mut self.f, j, w);
+                self.delta[j] = false;
+                self.eta[j] = 1.0;
+            });
+            return;
+        }
         let n = self.padded();
         packed_loop!(self.bsdf, n, |bsdf, j| {
             let (s, ok) = bsdf[j].sample(get3(&self.wo, j), self.u[j], (self.u2[0][j], self.u2[1][j]));
@@ -369,14 +462,23 @@ macro_rules! run_models {
         if !m.conductor.bsdf.is_empty() {
             on_lanes!(|p: &mut Packed<Conductor>| p.$method())(&mut m.conductor);
         }
+        if !m.ggx_conductor.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<RoughConductor<false>>| p.$method())(&mut m.ggx_conductor);
+        }
+        if !m.beckmann_conductor.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<RoughConductor<true>>| p.$method())(&mut m.beckmann_conductor);
+        }
         if !m.dielectric.bsdf.is_empty() {
             on_lanes!(|p: &mut Packed<Dielectric>| p.$method())(&mut m.dielectric);
         }
         if !m.plastic.bsdf.is_empty() {
             on_lanes!(|p: &mut Packed<Plastic>| p.$method())(&mut m.plastic);
         }
-        if !m.rough_plastic.bsdf.is_empty() {
-            on_lanes!(|p: &mut Packed<RoughPlastic<'_>>| p.$method())(&mut m.rough_plastic);
+        if !m.beckmann_plastic.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<RoughPlasticLane<'_, true>>| p.$method())(&mut m.beckmann_plastic);
+        }
+        if !m.ggx_plastic.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<RoughPlasticLane<'_, false>>| p.$method())(&mut m.ggx_plastic);
         }
         if !m.metallic_roughness.bsdf.is_empty() {
             on_lanes!(|p: &mut Packed<MetallicRoughness>| p.$method())(&mut m.metallic_roughness);
@@ -400,6 +502,14 @@ macro_rules! each_model {
             $body
         }
         {
+            let $p = &mut m.ggx_conductor;
+            $body
+        }
+        {
+            let $p = &mut m.beckmann_conductor;
+            $body
+        }
+        {
             let $p = &mut m.dielectric;
             $body
         }
@@ -408,7 +518,11 @@ macro_rules! each_model {
             $body
         }
         {
-            let $p = &mut m.rough_plastic;
+            let $p = &mut m.beckmann_plastic;
+            $body
+        }
+        {
+            let $p = &mut m.ggx_plastic;
             $body
         }
         {
@@ -426,9 +540,12 @@ macro_rules! each_model {
 struct Models<'w> {
     diffuse: Box<Packed<Diffuse>>,
     conductor: Box<Packed<Conductor>>,
+    ggx_conductor: Box<Packed<RoughConductor<false>>>,
+    beckmann_conductor: Box<Packed<RoughConductor<true>>>,
     dielectric: Box<Packed<Dielectric>>,
     plastic: Box<Packed<Plastic>>,
-    rough_plastic: Box<Packed<RoughPlastic<'w>>>,
+    beckmann_plastic: Box<Packed<RoughPlasticLane<'w, true>>>,
+    ggx_plastic: Box<Packed<RoughPlasticLane<'w, false>>>,
     metallic_roughness: Box<Packed<MetallicRoughness>>,
     diffuse_glossy: Box<Packed<DiffuseGlossy>>,
 }
@@ -438,9 +555,12 @@ impl<'w> Models<'w> {
         Self {
             diffuse: Packed::new(),
             conductor: Packed::new(),
+            ggx_conductor: Packed::new(),
+            beckmann_conductor: Packed::new(),
             dielectric: Packed::new(),
             plastic: Packed::new(),
-            rough_plastic: Packed::new(),
+            beckmann_plastic: Packed::new(),
+            ggx_plastic: Packed::new(),
             metallic_roughness: Packed::new(),
             diffuse_glossy: Packed::new(),
         }
@@ -467,10 +587,17 @@ impl<'w> Models<'w> {
     fn push(&mut self, i: usize, b: Bsdf<'w>, wo: Vec3, wi: Vec3, u: f32, u2: (f32, f32)) -> bool {
         match b {
             Bsdf::Diffuse(b) => self.diffuse.push(i, b, wo, wi, u, u2),
-            Bsdf::Conductor(b) => self.conductor.push(i, b, wo, wi, u, u2),
+            Bsdf::Conductor(b) => match b.mf {
+                Some(mf) if mf.dist == Distribution::Ggx => self.ggx_conductor.push(i, RoughConductor::of(&b, mf), wo, wi, u, u2),
+                Some(mf) => self.beckmann_conductor.push(i, RoughConductor::of(&b, mf), wo, wi, u, u2),
+                None => self.conductor.push(i, b, wo, wi, u, u2),
+            },
             Bsdf::Dielectric(b) => self.dielectric.push(i, b, wo, wi, u, u2),
             Bsdf::Plastic(b) => self.plastic.push(i, b, wo, wi, u, u2),
-            Bsdf::RoughPlastic(b) => self.rough_plastic.push(i, b, wo, wi, u, u2),
+            Bsdf::RoughPlastic(b) => match b.mf.dist {
+                Distribution::Beckmann => self.beckmann_plastic.push(i, RoughPlasticLane::new(&b, wo, wi), wo, wi, u, u2),
+                Distribution::Ggx => self.ggx_plastic.push(i, RoughPlasticLane::new(&b, wo, wi), wo, wi, u, u2),
+            },
             Bsdf::MetallicRoughness(b) => self.metallic_roughness.push(i, b, wo, wi, u, u2),
             Bsdf::DiffuseGlossy(b) => self.diffuse_glossy.push(i, b, wo, wi, u, u2),
             Bsdf::Thin(_) | Bsdf::Blend(_) | Bsdf::Mask(_) | Bsdf::Custom(..) => return false,
