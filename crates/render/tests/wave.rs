@@ -28,10 +28,11 @@ fn bits(f: &Film) -> Vec<[u32; 3]> {
 }
 
 /// Every level the CPU runs gives the portable build's bits (every BSDF and light kind of
-/// the materials scene, and the Cornell box).
+/// the materials scene, the Cornell box, Beckmann's rough conductors and plastics with
+/// their vector loops (bumpmap), anisotropic roughness, and an environment map's batches).
 #[test]
 fn every_build_of_the_lanes_gives_the_same_bits() {
-    for name in ["materials", "cornell_box"] {
+    for name in ["materials", "cornell_box", "bumpmap", "anisotropic", "envmap"] {
         let (w, cam) = scene(name);
         let mut images = Vec::new();
         for level in [Level::Portable, Level::Avx2, Level::Avx512] {
