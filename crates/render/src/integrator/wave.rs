@@ -38,7 +38,7 @@ use crate::bsdf::{
 use crate::lanes::on_lanes;
 use crate::lights::area::EmissiveTri;
 use crate::lights::environment::EnvBatch;
-use crate::lights::{flat_sample, Choice, LightSample};
+use crate::lights::{flat_sample, Choice, LightSample, Weights};
 use crate::sampler::PixelSampler;
 use crate::sampling::{power_heuristic, ShadingFrame};
 use crate::tiles::{Block, SampleBlock, NO_RAYS};
@@ -103,6 +103,10 @@ struct Wave<'w> {
     /// (Its light normal, `light_normal`: where the light choice was weighed and the
     /// sky sampled.)
     prev_n: Rows,
+    /// The light-choice weights at the previous bounce (its light stage weighed them
+    /// there, `weighed`): the probability of choosing a light met after it.
+    weights: [Weights; CAP],
+    weighed: [bool; CAP],
     depth: [u32; CAP],
     eta: [f32; CAP],
     /// This bounce (stage 1): whether the path scatters here, its surface, BSDF, frame
@@ -141,6 +145,8 @@ impl<'w> Wave<'w> {
             prev_delta: [true; CAP],
             prev_p: zero,
             prev_n: zero,
+            weights: [Weights::UNIFORM; CAP],
+            weighed: [false; CAP],
             depth: [0; CAP],
             eta: [1.0; CAP],
             scatter: [false; CAP],
@@ -171,6 +177,7 @@ impl<'w> Wave<'w> {
         self.prev_delta[i] = true;
         put3(&mut self.prev_p, i, ray.org);
         put3(&mut self.prev_n, i, Vec3::ZERO);
+        self.weighed[i] = false;
         self.depth[i] = 0;
         self.eta[i] = 1.0;
         self.done[i] = false;
@@ -191,6 +198,8 @@ impl<'w> Wave<'w> {
         }
         self.prev_pdf[to] = self.prev_pdf[from];
         self.prev_delta[to] = self.prev_delta[from];
+        self.weights[to] = self.weights[from];
+        self.weighed[to] = self.weighed[from];
         self.depth[to] = self.depth[from];
         self.eta[to] = self.eta[from];
         self.done[to] = self.done[from];
@@ -257,6 +266,9 @@ impl Model for Diffuse {
 model!(Conductor, |b, wo, _u, u2| some(b.sample(wo, u2)), |b, wo, wi| b.eval_pdf(wo, wi));
 impl Model for RoughConductor<false> {
     const VECTOR: bool = true;
+    // (PERF: one loop of sample, value, density and weight did not vectorize; in two
+    // parts it does.)
+    const TWO_PHASE: bool = true;
     #[inline(always)]
     fn sample(&self, wo: Vec3, _u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
         RoughConductor::sample(self, wo, u2)
@@ -264,6 +276,10 @@ impl Model for RoughConductor<false> {
     #[inline(always)]
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         RoughConductor::eval_pdf(self, wo, wi)
+    }
+    #[inline(always)]
+    fn prepare(&mut self, wo: Vec3, _u: f32, u2: (f32, f32)) -> Vec3 {
+        crate::bsdf::microfacet::reflect(wo, self.mf.ggx_sample(wo, u2))
     }
 }
 impl Model for RoughConductor<true> {
@@ -780,7 +796,9 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
             let weight = if wave.prev_delta[i] {
                 1.0
             } else {
-                match (s.sampling, lights.pdf_hit(hit.inst, hit.prim, get3(&wave.prev_p, i), get3(&wave.prev_n, i), surf.p, d)) {
+                let prev_p = get3(&wave.prev_p, i);
+                let wt = if wave.weighed[i] { wave.weights[i] } else { lights.weigh(prev_p, get3(&wave.prev_n, i)) };
+                match (s.sampling, lights.pdf_hit_in(&wt, hit.inst, hit.prim, prev_p, surf.p, d)) {
                     (LightSampling::Bsdf, _) | (_, None) => 1.0,
                     (LightSampling::Nee, Some(_)) => 0.0,
                     (LightSampling::Mis, Some(light_pdf)) => power_heuristic(wave.prev_pdf[i], light_pdf),
@@ -815,7 +833,10 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
                 match s.sampling {
                     LightSampling::Bsdf => 1.0,
                     LightSampling::Nee => 0.0,
-                    LightSampling::Mis => power_heuristic(wave.prev_pdf[i], lights.env_choice(get3(&wave.prev_p, i), esc_n[j]) * dir_pdf),
+                    LightSampling::Mis => {
+                        let wt = if wave.weighed[i] { wave.weights[i] } else { lights.weigh(get3(&wave.prev_p, i), esc_n[j]) };
+                        power_heuristic(wave.prev_pdf[i], lights.env_choice_in(&wt) * dir_pdf)
+                    }
                 }
             };
             beta * le * weight
@@ -858,6 +879,7 @@ fn light<'w>(
     watch: &mut Watch,
 ) {
     let lights = &w.light_set;
+    wave.weighed = [false; CAP];
     if lights.is_empty() || s.sampling == LightSampling::Bsdf {
         return;
     }
@@ -895,7 +917,9 @@ fn light<'w>(
         }
         let (p, n) = (wave.surf[i].p, light_normal(&bsdf, &wave.frame[i]));
         let u2 = (wave.u2_light[0][i], wave.u2_light[1][i]);
-        match lights.choice(p, n, wave.u_light[i]) {
+        let wt = lights.weigh(p, n);
+        (wave.weights[i], wave.weighed[i]) = (wt, true);
+        match lights.choice(&wt, wave.u_light[i]) {
             Choice::Nothing => {}
             Choice::Flat { light, quad, pmf } => flat.push(i, light, quad, pmf, p, u2),
             Choice::Env { pmf } => envs.push(i as u8, u2, n, pmf),

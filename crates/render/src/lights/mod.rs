@@ -60,6 +60,22 @@ enum Entry {
     Custom(Arc<dyn LightModel>),
 }
 
+/// The weights of the light objects at a point, as [`LightSet`] chooses among them there
+/// ([`LightSet::weigh`]): kept by the lane integrator for the next bounce's multiple
+/// importance sampling, which asks for the probability of choosing the light it met from
+/// the same point.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Weights {
+    w: [f32; MAX_WEIGHED],
+    /// Their sum; `None`: chosen uniformly.
+    total: Option<f32>,
+}
+
+impl Weights {
+    /// None yet (uniform).
+    pub(crate) const UNIFORM: Self = Self { w: [0.0; MAX_WEIGHED], total: None };
+}
+
 /// What [`LightSet::choice`] found.
 pub(crate) enum Choice<'a> {
     /// No light (no sample).
@@ -329,15 +345,28 @@ impl LightSet {
         (total > 0.0 && total.is_finite()).then_some(total)
     }
 
+    /// The weights of the light objects at `p` (unit normal `n`, or zero).
+    #[inline]
+    pub(crate) fn weigh(&self, p: Vec3, n: Vec3) -> Weights {
+        let mut w = [0.0; MAX_WEIGHED];
+        let total = self.weights(p, n, &mut w);
+        Weights { w, total }
+    }
+
     /// The probability of choosing entry `i` from `p` (normal `n`).
+    #[cfg(test)]
     fn pmf(&self, i: usize, p: Vec3, n: Vec3) -> f32 {
+        self.pmf_in(i, &self.weigh(p, n))
+    }
+
+    /// The probability of choosing entry `i` where the weights are `wt`.
+    fn pmf_in(&self, i: usize, wt: &Weights) -> f32 {
         let (Some(&g), Some(&c)) = (self.group_of.get(i), self.within.get(i)) else { return 0.0 };
         let Some(ids) = self.groups.get(g as usize) else { return 0.0 };
         let in_group = if i == ids.start as usize { c } else { c - self.within[i - 1] };
-        let mut w = [0.0; MAX_WEIGHED];
         in_group
-            * match self.weights(p, n, &mut w) {
-                Some(total) => w[g as usize] / total,
+            * match wt.total {
+                Some(total) => wt.w[g as usize] / total,
                 None => 1.0 / self.groups.len() as f32,
             }
     }
@@ -345,10 +374,16 @@ impl LightSet {
     /// The entry `u` chooses from `p` (normal `n`), and its probability.
     #[inline]
     fn choose(&self, p: Vec3, n: Vec3, u: f32) -> Option<(usize, f32)> {
+        self.choose_in(&self.weigh(p, n), u)
+    }
+
+    /// The entry `u` chooses where the weights are `wt`, and its probability.
+    #[inline]
+    fn choose_in(&self, wt: &Weights, u: f32) -> Option<(usize, f32)> {
         let count = self.groups.len();
-        let mut w = [0.0; MAX_WEIGHED];
+        let w = &wt.w;
         // The group, its probability, and `u` within it.
-        let (g, pg, u) = match self.weights(p, n, &mut w) {
+        let (g, pg, u) = match wt.total {
             Some(total) => {
                 let target = u * total;
                 // (Rounding may leave `target` past the last sum: the last group with
@@ -386,8 +421,8 @@ impl LightSet {
     /// integrator, which samples untextured triangles and parallelograms on lanes: what
     /// `sample` would sample there.
     #[inline]
-    pub(crate) fn choice(&self, p: Vec3, n: Vec3, u: f32) -> Choice<'_> {
-        let Some((i, pmf)) = self.choose(p, n, u) else { return Choice::Nothing };
+    pub(crate) fn choice(&self, wt: &Weights, u: f32) -> Choice<'_> {
+        let Some((i, pmf)) = self.choose_in(wt, u) else { return Choice::Nothing };
         if pmf <= 0.0 {
             return Choice::Nothing;
         }
@@ -444,6 +479,11 @@ impl LightSet {
     /// `q` of instance `inst`'s triangle `prim` or shape, seen along unit `dir`; `None`
     /// when that surface is not a sampled light.
     pub fn pdf_hit(&self, inst: u32, prim: u32, p: Vec3, n: Vec3, q: Vec3, dir: Vec3) -> Option<f32> {
+        self.pdf_hit_in(&self.weigh(p, n), inst, prim, p, q, dir)
+    }
+
+    /// [`LightSet::pdf_hit`] where the weights at `p` are `wt` (of [`LightSet::weigh`]).
+    pub(crate) fn pdf_hit_in(&self, wt: &Weights, inst: u32, prim: u32, p: Vec3, q: Vec3, dir: Vec3) -> Option<f32> {
         let tris = self.index.get(inst as usize)?.as_ref()?;
         // (A shape's table has its one entry.)
         let i = *tris.get(if tris.len() == 1 { 0 } else { prim as usize })?;
@@ -451,7 +491,7 @@ impl LightSet {
             return None;
         }
         let i = i as usize;
-        let pmf = self.pmf(i, p, n);
+        let pmf = self.pmf_in(i, wt);
         let d2 = (q - p).length_squared();
         Some(
             pmf * match &self.entries[i] {
@@ -541,7 +581,12 @@ impl LightSet {
 
     /// The probability of choosing the environment from `p` (normal `n`).
     pub fn env_choice(&self, p: Vec3, n: Vec3) -> f32 {
-        self.env.as_ref().map_or(0.0, |(i, _)| self.pmf(*i as usize, p, n))
+        self.env_choice_in(&self.weigh(p, n))
+    }
+
+    /// [`LightSet::env_choice`] where the weights are `wt` (of [`LightSet::weigh`]).
+    pub(crate) fn env_choice_in(&self, wt: &Weights) -> f32 {
+        self.env.as_ref().map_or(0.0, |(i, _)| self.pmf_in(*i as usize, wt))
     }
 }
 
