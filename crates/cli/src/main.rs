@@ -19,6 +19,7 @@ mod run_cmd;
 mod stats;
 mod threads;
 mod view_cmd;
+mod viewer_bench;
 mod vpl_bench;
 
 #[derive(Parser)]
@@ -391,6 +392,31 @@ enum BenchCmd {
         #[arg(long = "scene")]
         scenes: Vec<String>,
     },
+    /// The viewer's path mode without a window: frames per second while the camera moves
+    /// (one sample per pixel at the resolution the viewer's planner picks to hold the
+    /// target frame rate) and seconds until the still image has its samples, on the
+    /// feature demo and Sponza (point and spot lights, depth 6), with the lane path
+    /// tracer and the scalar one. Run from the checkout's root.
+    Viewer {
+        /// The reference scenes' folder.
+        #[arg(long, default_value = "crates/render/tests/data/mitsuba")]
+        data: PathBuf,
+        /// The shared scenes folder.
+        #[arg(long, default_value = "../shared/scenes")]
+        dir: PathBuf,
+        /// Window size.
+        #[arg(long, default_value = "1024x768", value_parser = render_cmd::parse_size)]
+        size: (u32, u32),
+        /// Frames while moving (the second half is reported).
+        #[arg(long, default_value_t = 40)]
+        frames: usize,
+        /// The frame rate the planner holds while moving.
+        #[arg(long, default_value_t = 30.0)]
+        target_fps: f64,
+        /// Samples per pixel of the still image.
+        #[arg(long, default_value_t = 64)]
+        spp: u32,
+    },
     /// REND3R's Table IV scenes (1..4096 spheres, 0/1 lights): frame times, and words per
     /// second through the assembler and the processor.
     ///
@@ -536,6 +562,9 @@ fn run() -> Result<()> {
         }
         Cmd::Bench(BenchCmd::Leaks { rays, seed }) => leaks_bench::run(rays, seed),
         Cmd::Bench(BenchCmd::Path { data, dir, scenes }) => path_bench::run(&data, &dir, &scenes),
+        Cmd::Bench(BenchCmd::Viewer { data, dir, size, frames, target_fps, spp }) => {
+            viewer_bench::run(&viewer_bench::ViewerOptions { data: &data, dir: &dir, size, frames, target_fps, spp })
+        }
         Cmd::Bench(BenchCmd::Vpl { dir, size, frames, reference_spp, speed_only, only }) => {
             vpl_bench::run(&vpl_bench::VplOptions { dir, size, frames, reference_spp, speed_only, only })
         }
