@@ -104,12 +104,19 @@ impl<const BECKMANN: bool> RoughConductor<BECKMANN> {
         }
     }
 
+    /// The reflection of `wo` about a visible facet chosen by `u2`.
+    #[inline(always)]
+    #[must_use]
+    pub fn direction(&self, wo: Vec3, u2: (f32, f32)) -> Vec3 {
+        let m = if BECKMANN { self.mf.sample(wo, u2) } else { self.mf.ggx_sample(wo, u2) };
+        reflect(wo, m)
+    }
+
     /// A visible facet's reflection for `u2`, and whether there is one.
     #[inline(always)]
     #[must_use]
     pub fn sample(&self, wo: Vec3, u2: (f32, f32)) -> (BsdfSample, bool) {
-        let m = if BECKMANN { self.mf.sample(wo, u2) } else { self.mf.ggx_sample(wo, u2) };
-        let wi = reflect(wo, m);
+        let wi = self.direction(wo, u2);
         let (f, pdf) = self.eval_pdf(wo, wi);
         let ok = (wo.z > 0.0) & (wi.z > 0.0) & (pdf > 0.0) & pdf.is_finite();
         (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta: 1.0 }, ok)

@@ -264,10 +264,10 @@ impl Model for Diffuse {
     }
 }
 model!(Conductor, |b, wo, _u, u2| some(b.sample(wo, u2)), |b, wo, wi| b.eval_pdf(wo, wi));
-impl Model for RoughConductor<false> {
+impl<const BECKMANN: bool> Model for RoughConductor<BECKMANN> {
     const VECTOR: bool = true;
-    // (PERF: one loop of sample, value, density and weight did not vectorize; in two
-    // parts it does.)
+    // (PERF: for GGX, one loop of sample, value, density and weight did not vectorize; in
+    // two parts it does. Beckmann's sample does not vectorize at all.)
     const TWO_PHASE: bool = true;
     #[inline(always)]
     fn sample(&self, wo: Vec3, _u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
@@ -279,23 +279,7 @@ impl Model for RoughConductor<false> {
     }
     #[inline(always)]
     fn prepare(&mut self, wo: Vec3, _u: f32, u2: (f32, f32)) -> Vec3 {
-        crate::bsdf::microfacet::reflect(wo, self.mf.ggx_sample(wo, u2))
-    }
-}
-impl Model for RoughConductor<true> {
-    const VECTOR: bool = true;
-    const TWO_PHASE: bool = true;
-    #[inline(always)]
-    fn sample(&self, wo: Vec3, _u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
-        RoughConductor::sample(self, wo, u2)
-    }
-    #[inline(always)]
-    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        RoughConductor::eval_pdf(self, wo, wi)
-    }
-    #[inline(always)]
-    fn prepare(&mut self, wo: Vec3, _u: f32, u2: (f32, f32)) -> Vec3 {
-        crate::bsdf::microfacet::reflect(wo, self.mf.sample(wo, u2))
+        self.direction(wo, u2)
     }
 }
 model!(Dielectric, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| b.eval_pdf(wo, wi));
