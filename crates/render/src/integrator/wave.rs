@@ -213,6 +213,10 @@ trait Model: Copy {
     /// Whether the model's loops vectorize (their lane counts are then padded to whole
     /// vectors: a scalar remainder costs more than the padding's extra lanes).
     const VECTOR: bool = false;
+    /// With [`Model::VECTOR`]: padded to all [`CAP`] lanes, one loop of a constant count
+    /// (a cheap model: the Lambertian's strip loops did not vectorize, its 64-lane loop
+    /// does), else to whole strips of [`STRIP`] lanes.
+    const PAD_ALL: bool = false;
     /// Whether its sample is taken in two parts: the direction lane by lane
     /// ([`Model::prepare`]: what does not vectorize, such as a facet normal or a table's
     /// entry), then its value and density on lanes ([`Model::eval_pdf`]); the sample is a
@@ -254,6 +258,7 @@ macro_rules! model {
 }
 impl Model for Diffuse {
     const VECTOR: bool = true;
+    const PAD_ALL: bool = true;
     #[inline(always)]
     fn sample(&self, wo: Vec3, _u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
         self.sample_lane(wo, u2)
@@ -327,7 +332,10 @@ struct Packed<B> {
 /// turns into whole vectors), else over `0..$n`.
 macro_rules! packed_loop {
     ($bsdfs:expr, $n:expr, |$bsdf:ident, $j:ident| $body:block) => {
-        if B::VECTOR && $n % STRIP == 0 {
+        if B::VECTOR && $n == CAP {
+            let $bsdf = &$bsdfs[..CAP];
+            for $j in 0..CAP $body
+        } else if B::VECTOR && $n % STRIP == 0 {
             let $bsdf = &$bsdfs[..$n];
             for strip in 0..$n / STRIP {
                 let base = strip * STRIP;
@@ -394,7 +402,7 @@ impl<B: Model> Packed<B> {
         let n = self.bsdf.len();
         if B::VECTOR && n > 0 {
             let last = self.bsdf[n - 1];
-            self.bsdf.resize(n.div_ceil(STRIP) * STRIP, last);
+            self.bsdf.resize(if B::PAD_ALL { CAP } else { n.div_ceil(STRIP) * STRIP }, last);
         }
         self.bsdf.len()
     }
@@ -902,7 +910,10 @@ fn light<'w>(
         let (p, n) = (wave.surf[i].p, light_normal(&bsdf, &wave.frame[i]));
         let u2 = (wave.u2_light[0][i], wave.u2_light[1][i]);
         let wt = lights.weigh(p, n);
-        (wave.weights[i], wave.weighed[i]) = (wt, true);
+        // (Kept only when weighed: uniform weights cost nothing to find again.)
+        if wt.is_weighed() {
+            (wave.weights[i], wave.weighed[i]) = (wt, true);
+        }
         match lights.choice(&wt, wave.u_light[i]) {
             Choice::Nothing => {}
             Choice::Flat { light, quad, pmf } => flat.push(i, light, quad, pmf, p, u2),

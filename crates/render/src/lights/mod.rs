@@ -74,6 +74,12 @@ pub(crate) struct Weights {
 impl Weights {
     /// None yet (uniform).
     pub(crate) const UNIFORM: Self = Self { w: [0.0; MAX_WEIGHED], total: None };
+
+    /// Whether the lights are chosen by these weights (not uniformly).
+    #[inline(always)]
+    pub(crate) fn is_weighed(&self) -> bool {
+        self.total.is_some()
+    }
 }
 
 /// What [`LightSet::choice`] found.
@@ -346,8 +352,11 @@ impl LightSet {
     }
 
     /// The weights of the light objects at `p` (unit normal `n`, or zero).
-    #[inline]
+    #[inline(always)]
     pub(crate) fn weigh(&self, p: Vec3, n: Vec3) -> Weights {
+        if !self.weighed || self.groups.len() < 2 {
+            return Weights::UNIFORM;
+        }
         let mut w = [0.0; MAX_WEIGHED];
         let total = self.weights(p, n, &mut w);
         Weights { w, total }
@@ -378,7 +387,7 @@ impl LightSet {
     }
 
     /// The entry `u` chooses where the weights are `wt`, and its probability.
-    #[inline]
+    #[inline(always)]
     fn choose_in(&self, wt: &Weights, u: f32) -> Option<(usize, f32)> {
         let count = self.groups.len();
         let w = &wt.w;
