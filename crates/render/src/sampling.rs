@@ -242,8 +242,14 @@ impl Distribution1D {
     /// The density at `x` in [0, 1).
     #[must_use]
     pub fn pdf_at(&self, x: f32) -> f32 {
+        self.pdf[self.index(x)]
+    }
+
+    /// The cell `x` in [0, 1) lies in.
+    #[inline]
+    fn index(&self, x: f32) -> usize {
         let n = self.pdf.len();
-        self.pdf[((x * n as f32) as usize).min(n - 1)]
+        ((x * n as f32) as usize).min(n - 1)
     }
 }
 
@@ -289,10 +295,8 @@ impl Distribution2D {
     /// Asks for the line [`Distribution2D::pdf`] at `uv` reads in its row.
     #[inline]
     pub fn prefetch(&self, uv: Vec2) {
-        let h = self.rows.len();
-        let row = &self.rows[((uv.y * h as f32) as usize).min(h - 1)];
-        let n = row.pdf.len();
-        if let Some(p) = row.pdf.get(((uv.x * n as f32) as usize).min(n - 1)) {
+        let row = &self.rows[self.marginal.index(uv.y)];
+        if let Some(p) = row.pdf.get(row.index(uv.x)) {
             prefetch(p);
         }
     }
@@ -300,9 +304,8 @@ impl Distribution2D {
     /// The density at `uv`.
     #[must_use]
     pub fn pdf(&self, uv: Vec2) -> f32 {
-        let h = self.rows.len();
-        let row = ((uv.y * h as f32) as usize).min(h - 1);
-        self.marginal.pdf_at(uv.y) * self.rows[row].pdf_at(uv.x)
+        // (The marginal has a cell per row.)
+        self.marginal.pdf_at(uv.y) * self.rows[self.marginal.index(uv.y)].pdf_at(uv.x)
     }
 }
 

@@ -3,7 +3,7 @@
 //! normals).
 
 use super::microfacet::{fresnel_conductor, reflect, Microfacet};
-use super::sample::{mirror, BsdfSample};
+use super::sample::{mirror, reflection_lane, BsdfSample};
 use glam::Vec3;
 use lucent_scene::Distribution;
 
@@ -118,8 +118,7 @@ impl<const BECKMANN: bool> RoughConductor<BECKMANN> {
     pub fn sample(&self, wo: Vec3, u2: (f32, f32)) -> (BsdfSample, bool) {
         let wi = self.direction(wo, u2);
         let (f, pdf) = self.eval_pdf(wo, wi);
-        let ok = (wo.z > 0.0) & (wi.z > 0.0) & (pdf > 0.0) & pdf.is_finite();
-        (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta: 1.0 }, ok)
+        reflection_lane(wo, wi, f, pdf)
     }
 }
 

@@ -34,7 +34,7 @@ pub mod metallic_roughness;
 pub mod microfacet;
 pub mod plastic;
 pub mod rough_plastic;
-mod sample;
+pub(crate) mod sample;
 pub mod thin_dielectric;
 
 pub use conductor::{Conductor, RoughConductor};

@@ -7,7 +7,7 @@
 //! microfacet normals, here by Gauss-Legendre quadrature.
 
 use super::microfacet::{fresnel_dielectric, gauss_legendre, reflect, refract, Microfacet};
-use super::sample::BsdfSample;
+use super::sample::{reflection_lane, BsdfSample};
 use crate::sampling::cosine_hemisphere;
 use glam::Vec3;
 use lucent_scene::Distribution;
@@ -143,8 +143,7 @@ impl<'a, const BECKMANN: bool> RoughPlasticLane<'a, BECKMANN> {
     #[must_use]
     pub fn sample_of(&self, wo: Vec3, wi: Vec3) -> (BsdfSample, bool) {
         let (f, pdf) = self.eval_pdf(wo, wi);
-        let ok = (wo.z > 0.0) & (wi.z > 0.0) & (pdf > 0.0) & pdf.is_finite();
-        (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta: 1.0 }, ok)
+        reflection_lane(wo, wi, f, pdf)
     }
 
     /// The coating's lobe or the base's cosine lobe, chosen by `u`.

@@ -47,6 +47,15 @@ pub(crate) fn by_density(wo: Vec3, wi: Vec3, pdf: f32, eval: impl FnOnce() -> Ve
     Some(BsdfSample { wi, weight, pdf, delta: false, eta })
 }
 
+/// [`by_density`] for a reflection toward `wi` of value `f` and density `pdf`, without a
+/// branch (for loops over lanes): the sample and whether there is one (both directions
+/// above the surface, the density positive and finite).
+#[inline(always)]
+pub(crate) fn reflection_lane(wo: Vec3, wi: Vec3, f: Vec3, pdf: f32) -> (BsdfSample, bool) {
+    let ok = (wo.z > 0.0) & (wi.z > 0.0) & (pdf > 0.0) & pdf.is_finite();
+    (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta: 1.0 }, ok)
+}
+
 /// The mirror direction of `wo` about the normal (local frame).
 #[inline]
 pub(crate) fn mirror(wo: Vec3) -> Vec3 {

@@ -32,6 +32,7 @@
 use super::hit::{bsdf_frame, coherent, emitted, light_normal, material, shading_normal, Bend};
 use super::path::{LightSampling, PathSettings, CHOICES, PAIRS};
 use super::wave_profile::{now, Part, Watch};
+use crate::bsdf::sample::reflection_lane;
 use crate::bsdf::{
     Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughConductor, RoughPlasticLane,
 };
@@ -181,6 +182,17 @@ impl<'w> Wave<'w> {
         self.depth[i] = 0;
         self.eta[i] = 1.0;
         self.done[i] = false;
+    }
+
+    /// The light-choice weights at lane `i`'s previous bounce: kept by its light stage,
+    /// else found again.
+    #[inline]
+    fn prev_weights(&self, lights: &crate::lights::LightSet, i: usize) -> Weights {
+        if self.weighed[i] {
+            self.weights[i]
+        } else {
+            lights.weigh(get3(&self.prev_p, i), get3(&self.prev_n, i))
+        }
     }
 
     /// Moves the path of lane `from` into lane `to` (what a path carries between bounces).
@@ -425,12 +437,12 @@ impl<B: Model> Packed<B> {
                 self.pdf[j] = pdf;
             });
             packed_loop!(self.bsdf, n, |_bsdf, j| {
-                let (wo, wi, pdf) = (get3(&self.wo, j), get3(&self.wi, j), self.pdf[j]);
-                self.ok[j] = (wo.z > 0.0) & (wi.z > 0.0) & (pdf > 0.0) & pdf.is_finite();
-                let w = get3(&self.f, j) / pdf;
-                put3(&mut self.f, j, w);
-                self.delta[j] = false;
-                self.eta[j] = 1.0;
+                let (wo, wi) = (get3(&self.wo, j), get3(&self.wi, j));
+                let (s, ok) = reflection_lane(wo, wi, get3(&self.f, j), self.pdf[j]);
+                self.ok[j] = ok;
+                put3(&mut self.f, j, s.weight);
+                self.delta[j] = s.delta;
+                self.eta[j] = s.eta;
             });
             return;
         }
@@ -788,9 +800,8 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
             let weight = if wave.prev_delta[i] {
                 1.0
             } else {
-                let prev_p = get3(&wave.prev_p, i);
-                let wt = if wave.weighed[i] { wave.weights[i] } else { lights.weigh(prev_p, get3(&wave.prev_n, i)) };
-                match (s.sampling, lights.pdf_hit_in(&wt, hit.inst, hit.prim, prev_p, surf.p, d)) {
+                let wt = wave.prev_weights(lights, i);
+                match (s.sampling, lights.pdf_hit_in(&wt, hit.inst, hit.prim, get3(&wave.prev_p, i), surf.p, d)) {
                     (LightSampling::Bsdf, _) | (_, None) => 1.0,
                     (LightSampling::Nee, Some(_)) => 0.0,
                     (LightSampling::Mis, Some(light_pdf)) => power_heuristic(wave.prev_pdf[i], light_pdf),
@@ -825,10 +836,7 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
                 match s.sampling {
                     LightSampling::Bsdf => 1.0,
                     LightSampling::Nee => 0.0,
-                    LightSampling::Mis => {
-                        let wt = if wave.weighed[i] { wave.weights[i] } else { lights.weigh(get3(&wave.prev_p, i), esc_n[j]) };
-                        power_heuristic(wave.prev_pdf[i], lights.env_choice_in(&wt) * dir_pdf)
-                    }
+                    LightSampling::Mis => power_heuristic(wave.prev_pdf[i], lights.env_choice_in(&wave.prev_weights(lights, i)) * dir_pdf),
                 }
             };
             beta * le * weight

@@ -61,15 +61,6 @@ impl EnvLight {
         let (kx, ky) = (256usize.div_ceil(w).max(1), 128usize.div_ceil(h - 1).max(1));
         let (gw, gh) = (w * kx, (h - 1) * ky);
         let shift = 0.5 / w as f32;
-        let unit = Self {
-            scale: Vec3::ONE,
-            map: None,
-            compensated: None,
-            to_world: Affine3A::IDENTITY,
-            to_local: Affine3A::IDENTITY,
-            mean: Vec3::ONE,
-            shift,
-        };
         let lum = |x: usize, y: usize| luminance(img.texels[y.min(h - 1) * w + x % w]).max(0.0);
         let mut f = vec![0f32; gw * gh];
         // (Each cell's mean luminance, for the compensated density.)
@@ -79,7 +70,7 @@ impl EnvLight {
             let st = (PI * v).sin();
             let r0 = gy / ky;
             for (gx, (cell, lcell)) in row.iter_mut().zip(lrow.iter_mut()).enumerate() {
-                let l = luminance(unit.lookup(&img, (gx as f32 + 0.5) / gw as f32 + shift, v)).max(0.0);
+                let l = luminance(Self::lookup(&img, (gx as f32 + 0.5) / gw as f32 + shift, v)).max(0.0);
                 let c0 = gx / kx;
                 let m = lum(c0, r0).max(lum(c0 + 1, r0)).max(lum(c0, r0 + 1)).max(lum(c0 + 1, r0 + 1));
                 *lcell = l;
@@ -139,7 +130,7 @@ impl EnvLight {
     pub(crate) fn eval(&self, dir: Vec3) -> Vec3 {
         let Some((img, _)) = &self.map else { return self.scale };
         let (_, u, v) = self.map_uv(dir);
-        self.lookup(img, u, v) * self.scale
+        Self::lookup(img, u, v) * self.scale
     }
 
     /// World direction `dir` in the map's frame (unit), and its (u, v) there (u not yet
@@ -185,8 +176,7 @@ impl EnvLight {
             for (a, &dir) in at.iter_mut().zip(dirs) {
                 let (d, u, v) = self.map_uv(dir);
                 self.prefetch_texels(img, u, v);
-                let x = u - self.shift;
-                dist.prefetch(Vec2::new(x - x.floor(), v));
+                dist.prefetch(Vec2::new(self.density_u(u), v));
                 *a = (d.y, u, v);
             }
             for (o, &(cos, u, v)) in out.iter_mut().zip(&at) {
@@ -199,11 +189,17 @@ impl EnvLight {
     /// map's frame, cos θ).
     #[inline]
     fn eval_pdf_at(&self, img: &HdrImage, dist: &Distribution2D, cos: f32, u: f32, v: f32) -> (Vec3, f32) {
-        let le = self.lookup(img, u, v) * self.scale;
+        let le = Self::lookup(img, u, v) * self.scale;
         let st = (1.0 - cos * cos).max(0.0).sqrt();
-        let x = u - self.shift;
-        let pdf = if st <= 0.0 { 0.0 } else { dist.pdf(Vec2::new(x - x.floor(), v)) / (2.0 * PI * PI * st) };
+        let pdf = if st <= 0.0 { 0.0 } else { dist.pdf(Vec2::new(self.density_u(u), v)) / (2.0 * PI * PI * st) };
         (le, pdf)
+    }
+
+    /// The map's `u` (not yet wrapped) as the densities' cells take it, in [0, 1).
+    #[inline]
+    fn density_u(&self, u: f32) -> f32 {
+        let x = u - self.shift;
+        x - x.floor()
     }
 
     /// The texel lattice's cell of (u, v): its top-left texel's column and row, and the
@@ -230,7 +226,7 @@ impl EnvLight {
     }
 
     /// The map's bilinear value at (u, v) (see [`EnvLight::eval`]).
-    fn lookup(&self, img: &HdrImage, u: f32, v: f32) -> Vec3 {
+    fn lookup(img: &HdrImage, u: f32, v: f32) -> Vec3 {
         let w = img.width as usize;
         let (x0, y0, fx, fy) = Self::texel_cell(img, u, v);
         // (The column after the last is the first: a compare, not a division.)
@@ -286,7 +282,7 @@ impl EnvLight {
         }
         // (The radiance where the sample is, read at its (u, v): no way back from the
         // direction.)
-        let li = self.lookup(img, u, uv.y) * self.scale;
+        let li = Self::lookup(img, u, uv.y) * self.scale;
         let dir = self.to_world.transform_vector3(Vec3::new(sp * st, ct, -cp * st)).normalize_or_zero();
         if dir == Vec3::ZERO {
             return None;

@@ -109,6 +109,14 @@ pub(crate) fn flat_sample(light: &area::EmissiveTri, quad: bool, pmf: f32, p: Ve
     (LightSample { pdf, ..s }, ok & (pdf > 0.0) & pdf.is_finite() & s.li.is_finite())
 }
 
+/// A light's sample `s` once its light was chosen with probability `pmf`: its density
+/// times `pmf`, where that is positive and finite and the radiance finite.
+#[inline]
+fn chosen(s: LightSample, pmf: f32) -> Option<LightSample> {
+    let s = LightSample { pdf: s.pdf * pmf, ..s };
+    (s.pdf > 0.0 && s.pdf.is_finite() && s.li.is_finite()).then_some(s)
+}
+
 /// The lights of a scene, for sampling.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct LightSet {
@@ -469,7 +477,7 @@ impl LightSet {
         if pmf <= 0.0 {
             return None;
         }
-        let mut s = match self.entries.get(i)? {
+        let s = match self.entries.get(i)? {
             Entry::Area(a) => a.sample(p, u2, textures)?,
             Entry::Delta(k) => delta::sample(self.delta.get(*k)?, p)?,
             Entry::Env => self.env.as_ref()?.1.sample(u2, n, mis)?,
@@ -480,8 +488,7 @@ impl LightSet {
                 s
             }
         };
-        s.pdf *= pmf;
-        (s.pdf > 0.0 && s.pdf.is_finite() && s.li.is_finite()).then_some(s)
+        chosen(s, pmf)
     }
 
     /// The density with which [`LightSet::sample`] from `p` (normal `n`) picks the point
@@ -565,10 +572,7 @@ impl LightSet {
         };
         env.sample_batch(b, mis);
         for (out, &pmf) in b.out.iter_mut().zip(&b.pmf).take(b.n) {
-            *out = out
-                .filter(|_| pmf > 0.0)
-                .map(|s| LightSample { pdf: s.pdf * pmf, ..s })
-                .filter(|s| s.pdf > 0.0 && s.pdf.is_finite() && s.li.is_finite());
+            *out = out.filter(|_| pmf > 0.0).and_then(|s| chosen(s, pmf));
         }
     }
 
