@@ -23,19 +23,34 @@ impl DiffuseGlossy {
     /// f(wo, wi)·|cos θi|.
     #[must_use]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Vec3::ZERO;
-        }
+        self.eval_pdf(wo, wi).0
+    }
+
+    /// f(wo, wi)·|cos θi| and the density of [`DiffuseGlossy::sample`], branch-free (a loop
+    /// over lanes that calls it vectorizes; one call gives the same bits as apart).
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let mf = self.mf;
         let h = (wo + wi).normalize();
-        self.kd * (FRAC_1_PI * wi.z) + self.ks * (self.mf.d(h) * self.mf.g(wo, wi, h) / (4.0 * wo.z))
+        let d = mf.d_of::<true>(h);
+        let f = self.kd * (FRAC_1_PI * wi.z) + self.ks * (d * mf.g_of::<true>(wo, wi, h) / (4.0 * wo.z));
+        let pg = self.glossy_prob();
+        let pdf = pg * mf.pdf_with_d_of::<true>(wo, h, d) / (4.0 * wo.dot(h)) + (1.0 - pg) * wi.z * FRAC_1_PI;
+        if (wo.z <= 0.0) | (wi.z <= 0.0) {
+            (Vec3::ZERO, 0.0)
+        } else {
+            (f, pdf)
+        }
     }
 
     /// The probability of sampling the glossy lobe: its share of the reflectance.
-    #[inline]
+    #[inline(always)]
     fn glossy_prob(&self) -> f32 {
         let (d, s) = (lum(self.kd), lum(self.ks));
+        let p = s / (d + s);
         if d + s > 0.0 {
-            s / (d + s)
+            p
         } else {
             0.5
         }
@@ -44,12 +59,7 @@ impl DiffuseGlossy {
     /// The density of [`DiffuseGlossy::sample`].
     #[must_use]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
-        }
-        let pg = self.glossy_prob();
-        let h = (wo + wi).normalize();
-        pg * self.mf.pdf(wo, h) / (4.0 * wo.dot(h)) + (1.0 - pg) * wi.z * FRAC_1_PI
+        self.eval_pdf(wo, wi).1
     }
 
     /// The glossy or the diffuse lobe, chosen by `u`.
@@ -58,11 +68,23 @@ impl DiffuseGlossy {
         if wo.z <= 0.0 {
             return None;
         }
-        let wi = if u < self.glossy_prob() { reflect(wo, self.mf.sample(wo, u2)) } else { cosine_hemisphere(u2) };
+        let wi = self.direction(wo, u, u2);
         if wi.z <= 0.0 {
             return None;
         }
-        by_density(wo, wi, self.pdf(wo, wi), || self.eval(wo, wi), 1.0)
+        let (f, pdf) = self.eval_pdf(wo, wi);
+        by_density(wo, wi, pdf, || f, 1.0)
+    }
+
+    /// The direction [`DiffuseGlossy::sample`] takes (`wo` above the surface): a Beckmann
+    /// facet's reflection or a cosine-distributed one, chosen by `u`.
+    #[must_use]
+    pub fn direction(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Vec3 {
+        if u < self.glossy_prob() {
+            reflect(wo, self.mf.sample(wo, u2))
+        } else {
+            cosine_hemisphere(u2)
+        }
     }
 }
 

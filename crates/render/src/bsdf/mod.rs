@@ -38,7 +38,7 @@ pub(crate) mod sample;
 pub mod thin_dielectric;
 
 pub use conductor::{Conductor, RoughConductor};
-pub use dielectric::Dielectric;
+pub use dielectric::{Dielectric, RoughDielectric};
 pub use diffuse::Diffuse;
 pub use diffuse_glossy::DiffuseGlossy;
 pub use metallic_roughness::MetallicRoughness;

@@ -34,7 +34,8 @@ use super::path::{LightSampling, PathSettings, CHOICES, PAIRS};
 use super::wave_profile::{now, Part, Watch};
 use crate::bsdf::sample::reflection_lane;
 use crate::bsdf::{
-    Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughConductor, RoughPlasticLane,
+    Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughConductor, RoughDielectric,
+    RoughPlasticLane,
 };
 use crate::lanes::on_lanes;
 use crate::lights::area::EmissiveTri;
@@ -244,6 +245,12 @@ trait Model: Copy {
     fn prepare(&mut self, _wo: Vec3, _u: f32, _u2: (f32, f32)) -> Vec3 {
         Vec3::Z
     }
+    /// With [`Model::TWO_PHASE`]: the sample from its direction, value and density, and
+    /// whether there is one (by default a reflection's, see [`reflection_lane`]).
+    #[inline(always)]
+    fn finish(&self, wo: Vec3, wi: Vec3, f: Vec3, pdf: f32) -> (BsdfSample, bool) {
+        reflection_lane(wo, wi, f, pdf)
+    }
 }
 
 /// A sample as [`Model::sample`] gives it.
@@ -299,7 +306,38 @@ impl<const BECKMANN: bool> Model for RoughConductor<BECKMANN> {
         self.direction(wo, u2)
     }
 }
-model!(Dielectric, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| b.eval_pdf(wo, wi));
+/// Smooth dielectrics only (the rough ones are packed as [`RoughDielectric`]).
+impl Model for Dielectric {
+    const VECTOR: bool = true;
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, u: f32, _u2: (f32, f32)) -> (BsdfSample, bool) {
+        self.smooth_sample(wo, u)
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, _wo: Vec3, _wi: Vec3) -> (Vec3, f32) {
+        (Vec3::ZERO, 0.0)
+    }
+}
+impl<const BECKMANN: bool> Model for RoughDielectric<BECKMANN> {
+    const VECTOR: bool = true;
+    const TWO_PHASE: bool = true;
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        RoughDielectric::sample(*self, wo, u, u2)
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        RoughDielectric::eval_pdf(self, wo, wi)
+    }
+    #[inline(always)]
+    fn prepare(&mut self, wo: Vec3, u: f32, u2: (f32, f32)) -> Vec3 {
+        self.direction(wo, u, u2)
+    }
+    #[inline(always)]
+    fn finish(&self, wo: Vec3, wi: Vec3, f: Vec3, pdf: f32) -> (BsdfSample, bool) {
+        RoughDielectric::finish(self, wo, wi, f, pdf)
+    }
+}
 model!(Plastic, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
 impl<const BECKMANN: bool> Model for RoughPlasticLane<'_, BECKMANN> {
     const VECTOR: bool = true;
@@ -318,7 +356,27 @@ impl<const BECKMANN: bool> Model for RoughPlasticLane<'_, BECKMANN> {
     }
 }
 model!(MetallicRoughness, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
-model!(DiffuseGlossy, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
+impl Model for DiffuseGlossy {
+    const VECTOR: bool = true;
+    const TWO_PHASE: bool = true;
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        some(DiffuseGlossy::sample(self, wo, u, u2))
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        DiffuseGlossy::eval_pdf(self, wo, wi)
+    }
+    #[inline(always)]
+    fn prepare(&mut self, wo: Vec3, u: f32, u2: (f32, f32)) -> Vec3 {
+        // (Below the surface there is no sample: the second phase finds it so.)
+        if wo.z > 0.0 {
+            self.direction(wo, u, u2)
+        } else {
+            Vec3::Z
+        }
+    }
+}
 
 /// The lanes of one model, packed: which lanes, their BSDFs and directions; the sample's
 /// results, or `eval` and `pdf` toward `wi`.
@@ -363,6 +421,10 @@ macro_rules! packed_loop {
         }
     };
 }
+
+/// At most this many lanes of a vector model run unpadded (lane by lane): a strip's
+/// vectors cost more than a few lanes one by one.
+const SPARSE: usize = 4;
 
 /// Lanes per strip of a vector model's loops: its packed lanes are padded to whole strips,
 /// each strip a loop of this constant count (whole vectors: two of AVX2, one of AVX-512).
@@ -412,7 +474,7 @@ impl<B: Model> Packed<B> {
     #[inline(always)]
     fn padded(&mut self) -> usize {
         let n = self.bsdf.len();
-        if B::VECTOR && n > 0 {
+        if B::VECTOR && n > SPARSE {
             let last = self.bsdf[n - 1];
             self.bsdf.resize(if B::PAD_ALL { CAP } else { n.div_ceil(STRIP) * STRIP }, last);
         }
@@ -436,9 +498,9 @@ impl<B: Model> Packed<B> {
                 put3(&mut self.f, j, f);
                 self.pdf[j] = pdf;
             });
-            packed_loop!(self.bsdf, n, |_bsdf, j| {
+            packed_loop!(self.bsdf, n, |bsdf, j| {
                 let (wo, wi) = (get3(&self.wo, j), get3(&self.wi, j));
-                let (s, ok) = reflection_lane(wo, wi, get3(&self.f, j), self.pdf[j]);
+                let (s, ok) = bsdf[j].finish(wo, wi, get3(&self.f, j), self.pdf[j]);
                 self.ok[j] = ok;
                 put3(&mut self.f, j, s.weight);
                 self.delta[j] = s.delta;
@@ -491,6 +553,12 @@ macro_rules! run_models {
         if !m.dielectric.bsdf.is_empty() {
             on_lanes!(|p: &mut Packed<Dielectric>| p.$method())(&mut m.dielectric);
         }
+        if !m.ggx_dielectric.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<RoughDielectric<false>>| p.$method())(&mut m.ggx_dielectric);
+        }
+        if !m.beckmann_dielectric.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<RoughDielectric<true>>| p.$method())(&mut m.beckmann_dielectric);
+        }
         if !m.plastic.bsdf.is_empty() {
             on_lanes!(|p: &mut Packed<Plastic>| p.$method())(&mut m.plastic);
         }
@@ -534,6 +602,14 @@ macro_rules! each_model {
             $body
         }
         {
+            let $p = &mut m.ggx_dielectric;
+            $body
+        }
+        {
+            let $p = &mut m.beckmann_dielectric;
+            $body
+        }
+        {
             let $p = &mut m.plastic;
             $body
         }
@@ -563,6 +639,8 @@ struct Models<'w> {
     ggx_conductor: Box<Packed<RoughConductor<false>>>,
     beckmann_conductor: Box<Packed<RoughConductor<true>>>,
     dielectric: Box<Packed<Dielectric>>,
+    ggx_dielectric: Box<Packed<RoughDielectric<false>>>,
+    beckmann_dielectric: Box<Packed<RoughDielectric<true>>>,
     plastic: Box<Packed<Plastic>>,
     beckmann_plastic: Box<Packed<RoughPlasticLane<'w, true>>>,
     ggx_plastic: Box<Packed<RoughPlasticLane<'w, false>>>,
@@ -578,6 +656,8 @@ impl<'w> Models<'w> {
             ggx_conductor: Packed::new(),
             beckmann_conductor: Packed::new(),
             dielectric: Packed::new(),
+            ggx_dielectric: Packed::new(),
+            beckmann_dielectric: Packed::new(),
             plastic: Packed::new(),
             beckmann_plastic: Packed::new(),
             ggx_plastic: Packed::new(),
@@ -612,7 +692,11 @@ impl<'w> Models<'w> {
                 Some(mf) => self.beckmann_conductor.push(i, RoughConductor::of(&b, mf), wo, wi, u, u2),
                 None => self.conductor.push(i, b, wo, wi, u, u2),
             },
-            Bsdf::Dielectric(b) => self.dielectric.push(i, b, wo, wi, u, u2),
+            Bsdf::Dielectric(b) => match b.mf {
+                Some(mf) if mf.dist == Distribution::Ggx => self.ggx_dielectric.push(i, RoughDielectric::of(&b, mf), wo, wi, u, u2),
+                Some(mf) => self.beckmann_dielectric.push(i, RoughDielectric::of(&b, mf), wo, wi, u, u2),
+                None => self.dielectric.push(i, b, wo, wi, u, u2),
+            },
             Bsdf::Plastic(b) => self.plastic.push(i, b, wo, wi, u, u2),
             Bsdf::RoughPlastic(b) => match b.mf.dist {
                 Distribution::Beckmann => self.beckmann_plastic.push(i, RoughPlasticLane::new(&b, wo, wi), wo, wi, u, u2),
