@@ -161,6 +161,10 @@ impl Bsdf<'_> {
             Self::Conductor(b) => b.eval_pdf(wo, wi),
             Self::Dielectric(b) => b.eval_pdf(wo, wi),
             Self::RoughPlastic(b) => b.eval_pdf(wo, wi),
+            Self::Plastic(b) => b.eval_pdf(wo, wi),
+            Self::DiffuseGlossy(b) => b.eval_pdf(wo, wi),
+            Self::Blend(b) => b.eval_pdf(wo, wi),
+            Self::Mask(b) => b.eval_pdf(wo, wi),
             _ => (self.eval(wo, wi), self.pdf(wo, wi)),
         }
     }
@@ -259,6 +263,26 @@ impl<'a> Blend<'a> {
         a + b
     }
 
+    /// [`Blend::eval`] and [`Blend::pdf`] at once (each BSDF resolved once; the same bits
+    /// as apart).
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let w = self.weight;
+        let (fa, pa) = if w < 1.0 {
+            let (f, p) = self.first().eval_pdf(wo, wi);
+            (f * (1.0 - w), p * (1.0 - w))
+        } else {
+            (Vec3::ZERO, 0.0)
+        };
+        let (fb, pb) = if w > 0.0 {
+            let (f, p) = self.second().eval_pdf(wo, wi);
+            (f * w, p * w)
+        } else {
+            (Vec3::ZERO, 0.0)
+        };
+        (fa + fb, pa + pb)
+    }
+
     /// A direction: the second BSDF's with probability w (`u` reused, rescaled).
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
@@ -270,8 +294,9 @@ impl<'a> Blend<'a> {
         // delta sample's probability is mixed with the other's density as well, as
         // Mitsuba 3.9.1's blendbsdf does: not the mix's estimate where a delta and a
         // glossy lobe overlap, but Mitsuba's image.)
-        let f = s.weight * s.pdf * p + other.eval(wo, s.wi) * (1.0 - p);
-        let pdf = s.pdf * p + other.pdf(wo, s.wi) * (1.0 - p);
+        let (of, op) = other.eval_pdf(wo, s.wi);
+        let f = s.weight * s.pdf * p + of * (1.0 - p);
+        let pdf = s.pdf * p + op * (1.0 - p);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
@@ -330,6 +355,17 @@ impl<'a> Mask<'a> {
             self.inner().pdf(wo, wi) * self.opacity
         } else {
             0.0
+        }
+    }
+
+    /// [`Mask::eval`] and [`Mask::pdf`] at once (the inner BSDF resolved once).
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if self.opacity > 0.0 {
+            let (f, p) = self.inner().eval_pdf(wo, wi);
+            (f * self.opacity, p * self.opacity)
+        } else {
+            (Vec3::ZERO, 0.0)
         }
     }
 

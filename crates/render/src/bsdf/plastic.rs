@@ -4,7 +4,7 @@
 //! reflection a delta lobe.
 
 use super::microfacet::fresnel_dielectric;
-use super::sample::{by_density, mean, mirror, BsdfSample};
+use super::sample::{mean, mirror, reflection_lane, BsdfSample};
 use crate::sampling::cosine_hemisphere;
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
@@ -30,50 +30,69 @@ impl Plastic {
     /// f(wo, wi)·|cos θi| of the diffuse part (the coating's reflection is a delta lobe).
     #[must_use]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Vec3::ZERO;
-        }
-        let (diffuse, eta, fdr_int) = (self.diffuse, self.eta, self.fdr_int);
-        let (fo, _) = fresnel_dielectric(wo.z, eta);
-        let (fi, _) = fresnel_dielectric(wi.z, eta);
-        let base = if self.nonlinear { diffuse / (Vec3::ONE - diffuse * fdr_int) } else { diffuse / (1.0 - fdr_int) };
-        base * (FRAC_1_PI * wi.z / (eta * eta) * (1.0 - fo) * (1.0 - fi))
-    }
-
-    /// The probability of the specular lobe for `wo` (Fresnel reflectance times its
-    /// weight, over the diffuse lobe's).
-    #[inline]
-    fn spec_prob(&self, wo: Vec3) -> (f32, f32) {
-        let (fo, _) = fresnel_dielectric(wo.z, self.eta);
-        let ps = fo * self.spec_weight;
-        let pd = (1.0 - fo) * (1.0 - self.spec_weight);
-        (fo, ps / (ps + pd))
+        self.eval_pdf(wo, wi).0
     }
 
     /// The density of [`Plastic::sample`]'s diffuse lobe.
     #[must_use]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
+        self.eval_pdf(wo, wi).1
+    }
+
+    /// [`Plastic::eval`] and [`Plastic::pdf`] at once, branch-free (a loop over lanes
+    /// that calls it vectorizes; the same bits as apart).
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let (diffuse, eta, fdr_int) = (self.diffuse, self.eta, self.fdr_int);
+        let (fo, pd_share) = self.spec_prob(wo);
+        let (fi, _) = fresnel_dielectric(wi.z, eta);
+        let nonlinear = diffuse / (Vec3::ONE - diffuse * fdr_int);
+        let linear = diffuse / (1.0 - fdr_int);
+        let base = if self.nonlinear { nonlinear } else { linear };
+        let f = base * (FRAC_1_PI * wi.z / (eta * eta) * (1.0 - fo) * (1.0 - fi));
+        let pdf = pd_share * wi.z * FRAC_1_PI;
+        if (wo.z <= 0.0) | (wi.z <= 0.0) {
+            (Vec3::ZERO, 0.0)
+        } else {
+            (f, pdf)
         }
+    }
+
+    /// The Fresnel reflectance for `wo` and the diffuse lobe's share of the samples (the
+    /// specular lobe's probability is its Fresnel reflectance times its weight, over the
+    /// diffuse lobe's).
+    #[inline(always)]
+    fn spec_prob(&self, wo: Vec3) -> (f32, f32) {
         let (fo, _) = fresnel_dielectric(wo.z, self.eta);
         let ps = fo * self.spec_weight;
         let pd = (1.0 - fo) * (1.0 - self.spec_weight);
-        pd / (ps + pd) * wi.z * FRAC_1_PI
+        (fo, pd / (ps + pd))
     }
 
     /// The coating's mirror reflection or the base's cosine lobe, chosen by `u`.
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
-        if wo.z <= 0.0 {
-            return None;
-        }
-        let (fo, ps) = self.spec_prob(wo);
+        let (s, ok) = self.sample_lane(wo, u, u2);
+        ok.then_some(s)
+    }
+
+    /// [`Plastic::sample`] branch-free: the sample and whether there is one.
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_lane(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        let (fo, _) = fresnel_dielectric(wo.z, self.eta);
+        let ps = fo * self.spec_weight;
+        let pd = (1.0 - fo) * (1.0 - self.spec_weight);
+        let ps = ps / (ps + pd);
+        let spec = BsdfSample { wi: mirror(wo), weight: self.spec * (fo / ps), pdf: ps, delta: true, eta: 1.0 };
+        let wi = cosine_hemisphere(u2);
+        let (f, pdf) = self.eval_pdf(wo, wi);
+        let (diffuse, ok) = reflection_lane(wo, wi, f, pdf);
         if u < ps {
-            Some(BsdfSample { wi: mirror(wo), weight: self.spec * (fo / ps), pdf: ps, delta: true, eta: 1.0 })
+            (spec, wo.z > 0.0)
         } else {
-            let wi = cosine_hemisphere(u2);
-            by_density(wo, wi, self.pdf(wo, wi), || self.eval(wo, wi), 1.0)
+            (diffuse, ok)
         }
     }
 }

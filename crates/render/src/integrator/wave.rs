@@ -338,7 +338,17 @@ impl<const BECKMANN: bool> Model for RoughDielectric<BECKMANN> {
         RoughDielectric::finish(self, wo, wi, f, pdf)
     }
 }
-model!(Plastic, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
+impl Model for Plastic {
+    const VECTOR: bool = true;
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        self.sample_lane(wo, u, u2)
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        Plastic::eval_pdf(self, wo, wi)
+    }
+}
 impl<const BECKMANN: bool> Model for RoughPlasticLane<'_, BECKMANN> {
     const VECTOR: bool = true;
     const TWO_PHASE: bool = true;
