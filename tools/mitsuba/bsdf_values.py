@@ -5,7 +5,7 @@
 
 For each BSDF (a Mitsuba dict, written out in the JSON beside its values): `eval` at 64
 pairs (wo toward the viewer, wi toward the light, local frame, both hemispheres; Mitsuba
-calls them si.wi and wo), and for delta lobes the direction, weight and probability that
+calls them si.wi and wo) and `pdf` there, and for delta lobes the direction, weight and probability that
 `sample` returns for the lobe-choice numbers 0.001 and 0.999 at 16 viewing directions.
 """
 import json
@@ -35,6 +35,15 @@ BSDFS = {
     "roughconductor_al_aniso_ggx": {"type": "roughconductor", "material": "Al", "distribution": "ggx", "alpha_u": 0.05, "alpha_v": 0.3},
     "roughconductor_cu_aniso_beckmann": {"type": "roughconductor", "material": "Cu", "distribution": "beckmann", "alpha_u": 0.4, "alpha_v": 0.1},
     "roughdielectric_aniso_ggx": {"type": "roughdielectric", "distribution": "ggx", "alpha_u": 0.1, "alpha_v": 0.35, "int_ior": 1.5, "ext_ior": 1.0},
+    "principled_default": {"type": "principled"},
+    "principled_reflective": {
+        "type": "principled", "base_color": {"type": "rgb", "value": [0.8, 0.5, 0.3]}, "roughness": 0.5, "anisotropic": 0.5,
+        "metallic": 0.3, "spec_tint": 0.4, "sheen": 0.5, "sheen_tint": 0.5, "flatness": 0.3, "clearcoat": 0.8, "clearcoat_gloss": 0.6,
+    },
+    "principled_transmissive": {
+        "type": "principled", "base_color": {"type": "rgb", "value": [0.9, 0.8, 0.6]}, "roughness": 0.3, "metallic": 0.2,
+        "spec_trans": 0.7, "eta": 1.4, "spec_tint": 0.3, "clearcoat": 0.5,
+    },
 }
 
 
@@ -75,6 +84,7 @@ def main():
         si = interaction(wo)
         v = b.eval(ctx, si, mi.Vector3f(wi[:, 0], wi[:, 1], wi[:, 2]))
         entry["eval"] = spectra(v, len(wo))
+        entry["pdf"] = np.nan_to_num(np.array(b.pdf(ctx, si, mi.Vector3f(wi[:, 0], wi[:, 1], wi[:, 2])), dtype=float)).tolist()
         # Delta lobes through sample(): lobe choices 0.001 and 0.999.
         vw = directions(rng, 16, 0.3)
         samples = []

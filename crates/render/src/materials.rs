@@ -6,7 +6,7 @@
 use crate::bsdf::microfacet::{fresnel_diffuse_reflectance, Microfacet};
 use crate::bsdf::{
     plastic_spec_weight, Blend, Bsdf, BsdfModel, Conductor, Dielectric, Diffuse, DiffuseGlossy, Mask, MetallicRoughness, Plastic,
-    RoughPlastic, RoughPlasticTables, ThinDielectric,
+    Principled, RoughPlastic, RoughPlasticTables, ThinDielectric,
 };
 use crate::texture::sample;
 use glam::{Vec2, Vec3, Vec4};
@@ -160,6 +160,37 @@ impl PreparedMaterial {
                     f0: if f0.is_finite() { f0 } else { 0.04 },
                 })
             }
+            Desc::Principled(p) => {
+                let has = p.has;
+                let on = |on: bool, f: &FloatTex| if on { float(f) } else { 0.0 };
+                let (r, an) = (float(&p.roughness), on(has.anisotropic, &p.anisotropic));
+                // (Burley's α = roughness², stretched by the anisotropy, as Mitsuba's
+                // `calc_dist_params`.)
+                let r2 = r * r;
+                let (ax, ay) = if has.anisotropic {
+                    let aspect = (1.0 - 0.9 * an).sqrt();
+                    ((r2 / aspect).max(0.001), (r2 * aspect).max(0.001))
+                } else {
+                    (r2.max(0.001), r2.max(0.001))
+                };
+                let gloss = float(&p.clearcoat_gloss);
+                Bsdf::Principled(Principled {
+                    base: color(&p.base_color),
+                    roughness: r,
+                    metallic: on(has.metallic, &p.metallic),
+                    spec_trans: on(has.spec_trans, &p.spec_trans),
+                    spec_tint: on(has.spec_tint, &p.spec_tint),
+                    sheen: on(has.sheen, &p.sheen),
+                    sheen_tint: on(has.sheen_tint, &p.sheen_tint),
+                    flatness: on(has.flatness, &p.flatness),
+                    clearcoat: on(has.clearcoat, &p.clearcoat),
+                    cc_alpha: 0.1 * (1.0 - gloss) + 0.001 * gloss,
+                    mf: Microfacet::anisotropic(lucent_scene::Distribution::Ggx, ax, ay),
+                    eta: p.eta,
+                    rates: p.rates,
+                    has,
+                })
+            }
             Desc::DiffuseGlossy { diffuse, specular, alpha } => Bsdf::DiffuseGlossy(DiffuseGlossy {
                 kd: color(diffuse),
                 ks: *specular,
@@ -187,6 +218,7 @@ impl PreparedMaterial {
             Desc::Dielectric { transmittance, .. } | Desc::ThinDielectric { transmittance, .. } => color(transmittance),
             Desc::Plastic { diffuse, .. } | Desc::DiffuseGlossy { diffuse, .. } => color(diffuse),
             Desc::MetallicRoughness { base_color, .. } => color(base_color),
+            Desc::Principled(p) => color(&p.base_color),
             Desc::Blend { weight, .. } => match &self.blend {
                 Some(parts) => {
                     let w = eval_float(weight, textures, uv).clamp(0.0, 1.0);

@@ -110,8 +110,64 @@ fn mitsuba_equivalent(name: &str) -> Desc {
             transmittance: ColorTex::grey(1.0),
             rough: aniso(Distribution::Ggx, 0.1, 0.35),
         },
+        "principled_default" => principled(|_| {}),
+        "principled_reflective" => principled(|p| {
+            p.base_color = rgb(0.8, 0.5, 0.3);
+            p.anisotropic = FloatTex::Const(0.5);
+            p.metallic = FloatTex::Const(0.3);
+            p.spec_tint = FloatTex::Const(0.4);
+            p.sheen = FloatTex::Const(0.5);
+            p.sheen_tint = FloatTex::Const(0.5);
+            p.flatness = FloatTex::Const(0.3);
+            p.clearcoat = FloatTex::Const(0.8);
+            p.clearcoat_gloss = FloatTex::Const(0.6);
+        }),
+        "principled_transmissive" => principled(|p| {
+            p.base_color = rgb(0.9, 0.8, 0.6);
+            p.roughness = FloatTex::Const(0.3);
+            p.metallic = FloatTex::Const(0.2);
+            p.spec_trans = FloatTex::Const(0.7);
+            p.eta = 1.4;
+            p.spec_tint = FloatTex::Const(0.3);
+            p.clearcoat = FloatTex::Const(0.5);
+        }),
         other => panic!("no lucent equivalent for {other}"),
     }
+}
+
+/// Mitsuba's principled BSDF with its defaults, changed by `set`; a lobe is on where its
+/// parameter is not 0 (as Mitsuba's flags).
+fn principled(set: impl FnOnce(&mut lucent_scene::Principled)) -> Desc {
+    let zero = FloatTex::Const(0.0);
+    let mut p = lucent_scene::Principled {
+        base_color: ColorTex::grey(0.5),
+        roughness: FloatTex::Const(0.5),
+        anisotropic: zero.clone(),
+        metallic: zero.clone(),
+        spec_trans: zero.clone(),
+        spec_tint: zero.clone(),
+        sheen: zero.clone(),
+        sheen_tint: zero.clone(),
+        flatness: zero.clone(),
+        clearcoat: zero.clone(),
+        clearcoat_gloss: zero,
+        eta: 1.5,
+        rates: [1.0, 1.0, 1.0],
+        has: lucent_scene::PrincipledLobes::default(),
+    };
+    set(&mut p);
+    let on = |f: &FloatTex| *f != FloatTex::Const(0.0);
+    p.has = lucent_scene::PrincipledLobes {
+        anisotropic: on(&p.anisotropic),
+        metallic: on(&p.metallic),
+        spec_trans: on(&p.spec_trans),
+        spec_tint: on(&p.spec_tint),
+        sheen: on(&p.sheen),
+        sheen_tint: on(&p.sheen_tint),
+        flatness: on(&p.flatness),
+        clearcoat: on(&p.clearcoat),
+    };
+    Desc::Principled(Box::new(p))
 }
 
 fn v3(v: &Value) -> Vec3 {
@@ -140,6 +196,17 @@ fn bsdfs_match_mitsuba() {
             // Rough plastic's coating tables are integrals Mitsuba and lucent compute by
             // their own quadratures: 0.3% apart at most.
             assert!(close(got, want, 3e-3, 1e-5), "{name} pair {k}: wo {wo} wi {wi}: lucent {got}, Mitsuba {want}");
+            // (The densities of the principled BSDF, written after Mitsuba's: the others
+            // differ from Mitsuba's where the value is zero, e.g. Mitsuba's rough plastic
+            // gives a density below the surface.)
+            if let Some(want) = entry["pdf"].get(k).and_then(Value::as_f64).filter(|_| name.starts_with("principled")) {
+                let got = bsdf.pdf(wo.normalize(), wi.normalize());
+                let want = want as f32;
+                assert!(
+                    (got - want).abs() <= 3e-3 * want.abs() + 1e-5,
+                    "{name} pair {k}: wo {wo} wi {wi}: density {got}, Mitsuba's {want}"
+                );
+            }
             checked += 1;
         }
         // Delta lobes: the same direction, weight × probability (the lobe's value) and
@@ -260,6 +327,37 @@ fn all_bsdfs() -> Vec<(&'static str, Desc)> {
             },
         ),
         ("diffuse glossy", Desc::DiffuseGlossy { diffuse: rgb(0.4, 0.3, 0.2), specular: Vec3::splat(0.4), alpha: 0.2 }),
+        // (Every lobe but transmission: with it, Mitsuba's lobe choice depends on the Fresnel
+        // term of the sampled facet while its density takes the half vector's, so sampling
+        // does not follow the density, in Mitsuba as here.)
+        (
+            "principled without transmission",
+            Desc::Principled(Box::new(lucent_scene::Principled {
+                base_color: rgb(0.8, 0.5, 0.3),
+                roughness: FloatTex::Const(0.5),
+                anisotropic: FloatTex::Const(0.5),
+                metallic: FloatTex::Const(0.3),
+                spec_trans: FloatTex::Const(0.0),
+                spec_tint: FloatTex::Const(0.4),
+                sheen: FloatTex::Const(0.5),
+                sheen_tint: FloatTex::Const(0.5),
+                flatness: FloatTex::Const(0.3),
+                clearcoat: FloatTex::Const(0.8),
+                clearcoat_gloss: FloatTex::Const(0.6),
+                eta: 1.5,
+                rates: [1.0, 1.0, 1.0],
+                has: lucent_scene::PrincipledLobes {
+                    anisotropic: true,
+                    metallic: true,
+                    spec_trans: false,
+                    spec_tint: true,
+                    sheen: true,
+                    sheen_tint: true,
+                    flatness: true,
+                    clearcoat: true,
+                },
+            })),
+        ),
         (
             "blend of diffuse and rough conductor",
             Desc::Blend {

@@ -165,6 +165,13 @@ fn anisotropic_roughness() {
     converges_to_mitsuba("anisotropic");
 }
 
+/// Mitsuba's principled BSDF: sheen and fake subsurface, anisotropic metal, clearcoat with
+/// a tinted specular, rough transmission, half metal and half glass, on a principled floor.
+#[test]
+fn principled_bsdf() {
+    converges_to_mitsuba("principled");
+}
+
 /// The crop window with Mitsuba's Gaussian filter: samples inside the window only.
 #[test]
 fn crop_window_with_a_wide_filter() {

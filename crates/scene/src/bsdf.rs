@@ -245,6 +245,9 @@ pub enum Bsdf {
         /// The surface's BSDF.
         inner: Box<Bsdf>,
     },
+    /// Mitsuba 3's `principled` BSDF (Burley's Disney BSDF, 2012 and 2015, as Mitsuba
+    /// writes it: its parameters in [`Principled`]).
+    Principled(Box<Principled>),
     /// MTL's diffuse + specular terms read physically: Lambertian `diffuse` plus a
     /// Beckmann microfacet lobe of reflectance `specular` (no Fresnel: MTL's `Ks` is the
     /// reflectance) and roughness `alpha`.
@@ -256,6 +259,64 @@ pub enum Bsdf {
         /// Beckmann α.
         alpha: f32,
     },
+}
+
+/// The parameters of Mitsuba 3's `principled` BSDF (all in [0, 1] but the index and the
+/// sampling rates), with Mitsuba's defaults; a lobe whose parameter the file does not set
+/// (or sets to the number 0) is off, as in Mitsuba.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Principled {
+    /// Base colour (default 0.5).
+    pub base_color: ColorTex,
+    /// Roughness of the main specular lobes (default 0.5; α = roughness²).
+    pub roughness: FloatTex,
+    /// Anisotropy of the main specular lobes.
+    pub anisotropic: FloatTex,
+    /// Metallic weight.
+    pub metallic: FloatTex,
+    /// Specular transmission weight (the rough dielectric lobe).
+    pub spec_trans: FloatTex,
+    /// Tint of the dielectric reflection toward the base colour.
+    pub spec_tint: FloatTex,
+    /// Sheen weight.
+    pub sheen: FloatTex,
+    /// Tint of the sheen toward the base colour.
+    pub sheen_tint: FloatTex,
+    /// Blend of the diffuse lobe toward Hanrahan-Krueger's fake subsurface.
+    pub flatness: FloatTex,
+    /// Clearcoat weight.
+    pub clearcoat: FloatTex,
+    /// Clearcoat glossiness (its GTR1 α from 0.1 to 0.001).
+    pub clearcoat_gloss: FloatTex,
+    /// Relative index (from `eta`, or from `specular` s as 2 / (1 − √(0.08 s)) − 1).
+    pub eta: f32,
+    /// Sampling rates: diffuse, main specular, clearcoat.
+    pub rates: [f32; 3],
+    /// Which lobes are on: anisotropy, metallic, transmission, specular tint, sheen,
+    /// sheen tint, flatness, clearcoat.
+    pub has: PrincipledLobes,
+}
+
+/// Which optional parts of a [`Principled`] BSDF are on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[allow(clippy::struct_excessive_bools)]
+pub struct PrincipledLobes {
+    /// Anisotropic roughness.
+    pub anisotropic: bool,
+    /// Metallic Fresnel.
+    pub metallic: bool,
+    /// The transmission lobe.
+    pub spec_trans: bool,
+    /// Tinted dielectric reflection.
+    pub spec_tint: bool,
+    /// Sheen.
+    pub sheen: bool,
+    /// Tinted sheen.
+    pub sheen_tint: bool,
+    /// Fake subsurface.
+    pub flatness: bool,
+    /// Clearcoat.
+    pub clearcoat: bool,
 }
 
 /// How the back of a surface scatters.
@@ -465,6 +526,23 @@ impl Bsdf {
                 c(base_color) || f(metallic) || f(roughness) || f(transmission)
             }
             Self::DiffuseGlossy { diffuse, .. } => c(diffuse),
+            Self::Principled(p) => {
+                c(&p.base_color)
+                    || [
+                        &p.roughness,
+                        &p.anisotropic,
+                        &p.metallic,
+                        &p.spec_trans,
+                        &p.spec_tint,
+                        &p.sheen,
+                        &p.sheen_tint,
+                        &p.flatness,
+                        &p.clearcoat,
+                        &p.clearcoat_gloss,
+                    ]
+                    .into_iter()
+                    .any(f)
+            }
             Self::Blend { weight, first, second } => f(weight) || first.uses_uv() || second.uses_uv(),
             Self::Mask { opacity, inner } => f(opacity) || inner.uses_uv(),
         }
@@ -477,6 +555,7 @@ impl Bsdf {
         let r = |t: &Option<Rough>| t.as_ref().is_some_and(|r| r.alpha_v.is_some());
         match self {
             Self::Conductor { rough, .. } | Self::Dielectric { rough, .. } => r(rough),
+            Self::Principled(p) => p.has.anisotropic,
             Self::Blend { first, second, .. } => first.anisotropic() || second.anisotropic(),
             Self::Mask { inner, .. } => inner.anisotropic(),
             _ => false,
@@ -539,6 +618,20 @@ impl Bsdf {
             }
             Self::DiffuseGlossy { diffuse, specular, alpha } => {
                 WhittedTerms { diffuse: mean(diffuse), diffuse_tex: tex(diffuse), specular: *specular, shininess: alpha_exp(*alpha), ..w }
+            }
+            Self::Principled(p) => {
+                let (b, m, r) = (mean(&p.base_color), p.metallic.factor().clamp(0.0, 1.0), p.roughness.factor().clamp(0.02, 1.0));
+                let t = p.spec_trans.factor().clamp(0.0, 1.0) * (1.0 - m);
+                WhittedTerms {
+                    diffuse: b * (1.0 - m) * (1.0 - t),
+                    diffuse_tex: tex(&p.base_color),
+                    specular: Vec3::splat(0.04 * (1.0 - m)) + b * m,
+                    shininess: (2.0 / (r * r * r * r) - 2.0).clamp(1.0, 4096.0),
+                    reflect: b * m,
+                    transmit: Vec3::splat(t),
+                    fresnel: t > 0.0,
+                    ior: p.eta,
+                }
             }
             Self::Mask { opacity, inner } => {
                 let t = inner.whitted_terms();

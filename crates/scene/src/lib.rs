@@ -22,7 +22,7 @@ pub mod spectrum;
 mod sunflowers;
 mod texture;
 
-pub use bsdf::{Alpha, Bsdf, ColorTex, Distribution, FloatTex, NormalMap, Rough, Sides};
+pub use bsdf::{Alpha, Bsdf, ColorTex, Distribution, FloatTex, NormalMap, Principled, PrincipledLobes, Rough, Sides};
 pub use camera::CameraDesc;
 pub use demo::{demo_scene, studio_scene, torus};
 pub use error::ImportError;

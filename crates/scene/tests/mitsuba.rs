@@ -489,3 +489,30 @@ fn anisotropic_roughness() {
     let e = err(&scene("<bsdf type=\"roughconductor\">\n<float name=\"alpha_u\" value=\"0.05\"/></bsdf>"));
     assert!(e.starts_with("t.xml:2:") && e.contains("alpha_u and alpha_v"), "{e}");
 }
+
+/// Mitsuba's principled BSDF: its parameters and defaults, the lobes a file turns on (a
+/// parameter set to the number 0 leaves its lobe off, as Mitsuba's flags), the index from
+/// `specular`, and the error for both `eta` and `specular`.
+#[test]
+fn principled_bsdf() {
+    let shape = |bsdf: &str| format!(r#"<scene version="3.0.0"><shape type="sphere">{bsdf}</shape></scene>"#);
+    let s = parse(&shape(
+        r#"<bsdf type="principled"><rgb name="base_color" value="0.2, 0.4, 0.6"/><float name="metallic" value="0.7"/>
+           <float name="sheen" value="0"/><float name="spec_trans" value="0.3"/><float name="specular" value="0.6"/></bsdf>"#,
+    ))
+    .expect("principled");
+    let Some(Bsdf::Principled(p)) = &s.materials.last().expect("a material").bsdf else { panic!("{:?}", s.materials) };
+    assert_eq!(p.base_color, ColorTex::Const(Vec3::new(0.2, 0.4, 0.6)));
+    assert_eq!((p.metallic.factor(), p.roughness.factor(), p.spec_trans.factor()), (0.7, 0.5, 0.3));
+    assert!(p.has.metallic && p.has.spec_trans && !p.has.sheen && !p.has.clearcoat && !p.has.anisotropic);
+    let want = 2.0 / (1.0 - (0.08f32 * 0.6).sqrt()) - 1.0;
+    assert!((p.eta - want).abs() < 1e-6, "{} against {want}", p.eta);
+    assert_eq!(p.rates, [1.0, 1.0, 1.0]);
+    // Mitsuba's defaults: base colour 0.5, specular 0.5 (η = 1.5).
+    let d = parse(&shape(r#"<bsdf type="principled"/>"#)).expect("defaults");
+    let Some(Bsdf::Principled(p)) = &d.materials.last().expect("a material").bsdf else { panic!() };
+    assert_eq!(p.base_color, ColorTex::Const(Vec3::splat(0.5)));
+    assert!((p.eta - 1.5).abs() < 1e-6 && p.has == lucent_scene::PrincipledLobes::default());
+    let e = err(&shape(r#"<bsdf type="principled"><float name="eta" value="1.4"/><float name="specular" value="0.5"/></bsdf>"#));
+    assert!(e.contains("1:") && e.contains("'eta' or 'specular'"), "{e}");
+}

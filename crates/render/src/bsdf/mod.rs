@@ -33,6 +33,7 @@ pub mod diffuse_glossy;
 pub mod metallic_roughness;
 pub mod microfacet;
 pub mod plastic;
+pub mod principled;
 pub mod rough_plastic;
 pub(crate) mod sample;
 pub mod thin_dielectric;
@@ -44,6 +45,7 @@ pub use diffuse_glossy::DiffuseGlossy;
 pub use metallic_roughness::MetallicRoughness;
 pub use microfacet::{fresnel_conductor, fresnel_dielectric, Microfacet};
 pub use plastic::{plastic_spec_weight, Plastic};
+pub use principled::Principled;
 pub use rough_plastic::{RoughPlastic, RoughPlasticLane, RoughPlasticTables};
 pub use sample::BsdfSample;
 pub use thin_dielectric::ThinDielectric;
@@ -91,6 +93,8 @@ pub enum Bsdf<'a> {
     MetallicRoughness(MetallicRoughness),
     /// MTL's Kd + Ks/Ns.
     DiffuseGlossy(DiffuseGlossy),
+    /// Mitsuba's principled BSDF.
+    Principled(Principled),
     /// A mix of two (Mitsuba's `blendbsdf`).
     Blend(Blend<'a>),
     /// A surface with holes (Mitsuba's `mask`).
@@ -130,6 +134,7 @@ impl Bsdf<'_> {
             Self::Dielectric(_) | Self::Thin(_) | Self::Mask(_) | Self::Custom(..) => true,
             Self::Blend(b) => b.transmits(),
             Self::MetallicRoughness(b) => b.transmission > 0.0 && b.metallic < 1.0,
+            Self::Principled(b) => b.transmits(),
             _ => false,
         }
     }
@@ -145,6 +150,7 @@ impl Bsdf<'_> {
             Self::Plastic(b) => b.eval(wo, wi),
             Self::RoughPlastic(b) => b.eval(wo, wi),
             Self::MetallicRoughness(b) => b.eval(wo, wi),
+            Self::Principled(b) => b.eval(wo, wi),
             Self::DiffuseGlossy(b) => b.eval(wo, wi),
             Self::Blend(b) => b.eval(wo, wi),
             Self::Mask(b) => b.eval(wo, wi),
@@ -180,6 +186,7 @@ impl Bsdf<'_> {
             Self::Plastic(b) => b.pdf(wo, wi),
             Self::RoughPlastic(b) => b.pdf(wo, wi),
             Self::MetallicRoughness(b) => b.pdf(wo, wi),
+            Self::Principled(b) => b.pdf(wo, wi),
             Self::DiffuseGlossy(b) => b.pdf(wo, wi),
             Self::Blend(b) => b.pdf(wo, wi),
             Self::Mask(b) => b.pdf(wo, wi),
@@ -198,6 +205,7 @@ impl Bsdf<'_> {
             Self::Plastic(b) => b.sample(wo, u, u2),
             Self::RoughPlastic(b) => b.sample(wo, u, u2),
             Self::MetallicRoughness(b) => b.sample(wo, u, u2),
+            Self::Principled(b) => b.sample(wo, u, u2),
             Self::DiffuseGlossy(b) => b.sample(wo, u, u2),
             Self::Blend(b) => b.sample(wo, u, u2),
             Self::Mask(b) => b.sample(wo, u, u2),

@@ -714,7 +714,7 @@ impl<'w> Models<'w> {
             },
             Bsdf::MetallicRoughness(b) => self.metallic_roughness.push(i, b, wo, wi, u, u2),
             Bsdf::DiffuseGlossy(b) => self.diffuse_glossy.push(i, b, wo, wi, u, u2),
-            Bsdf::Thin(_) | Bsdf::Blend(_) | Bsdf::Mask(_) | Bsdf::Custom(..) => return false,
+            Bsdf::Thin(_) | Bsdf::Principled(_) | Bsdf::Blend(_) | Bsdf::Mask(_) | Bsdf::Custom(..) => return false,
         }
         true
     }

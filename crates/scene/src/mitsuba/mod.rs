@@ -31,7 +31,9 @@
 mod files;
 pub mod serialized;
 
-use crate::bsdf::{named_conductor, named_ior, Alpha, Bsdf, ColorTex, Distribution, FloatTex, NormalMap, Rough, Sides};
+use crate::bsdf::{
+    named_conductor, named_ior, Alpha, Bsdf, ColorTex, Distribution, FloatTex, NormalMap, Principled, PrincipledLobes, Rough, Sides,
+};
 use crate::camera::CameraDesc;
 use crate::error::ImportError;
 use crate::model::{Environment, Geom, HdrImage, Instance, Light, LightKind, Material, Mesh, PixelFilter, RenderHints, Scene, ShapeKind};
@@ -614,6 +616,74 @@ impl<'a, 'd> Cx<'a, 'd> {
         }
     }
 
+    /// Mitsuba's `principled` BSDF: its parameters (numbers or textures), which lobes
+    /// are on (a parameter set to anything but the number 0, as Mitsuba's `get_flag`), and
+    /// the index from `eta` or `specular` (not both).
+    fn principled(&mut self, b: Node<'a, 'd>) -> R<Principled> {
+        let on = |s: &Self, name: &str| match s.prop(b, name) {
+            None => Ok(false),
+            Some(p) if p.tag_name().name() == "float" => Ok(s.number(p, &s.attr(p, "value")?)? != 0.0),
+            Some(_) => Ok(true),
+        };
+        let has = PrincipledLobes {
+            anisotropic: on(self, "anisotropic")?,
+            metallic: on(self, "metallic")?,
+            spec_trans: on(self, "spec_trans")?,
+            spec_tint: on(self, "spec_tint")?,
+            sheen: on(self, "sheen")?,
+            sheen_tint: on(self, "sheen_tint")?,
+            flatness: on(self, "flatness")?,
+            clearcoat: on(self, "clearcoat")?,
+        };
+        let eta = match (self.prop(b, "eta"), self.prop(b, "specular")) {
+            (Some(_), Some(p)) => return Err(self.err(p, "principled takes 'eta' or 'specular', not both")),
+            (Some(p), None) => {
+                let eta = self.float(b, "eta", 1.5)?;
+                if !(eta > 0.0 && eta.is_finite()) {
+                    return Err(self.err(p, "'eta' must be positive"));
+                }
+                // (As Mitsuba: an index of 1 cannot refract.)
+                if has.spec_trans && eta == 1.0 {
+                    1.001
+                } else {
+                    eta
+                }
+            }
+            (None, _) => {
+                let mut specular = self.float(b, "specular", 0.5)?;
+                if has.spec_trans && specular == 0.0 {
+                    specular = 1e-3;
+                }
+                let eta = 2.0 / (1.0 - (0.08 * specular).sqrt()) - 1.0;
+                if !(eta > 0.0 && eta.is_finite()) {
+                    let at = self.prop(b, "specular").unwrap_or(b);
+                    return Err(self.err(at, "'specular' must lie in [0, 1]"));
+                }
+                eta
+            }
+        };
+        Ok(Principled {
+            base_color: self.color_tex(b, "base_color", Vec3::splat(0.5))?,
+            roughness: self.float_tex(b, "roughness", 0.5)?,
+            anisotropic: self.float_tex(b, "anisotropic", 0.0)?,
+            metallic: self.float_tex(b, "metallic", 0.0)?,
+            spec_trans: self.float_tex(b, "spec_trans", 0.0)?,
+            spec_tint: self.float_tex(b, "spec_tint", 0.0)?,
+            sheen: self.float_tex(b, "sheen", 0.0)?,
+            sheen_tint: self.float_tex(b, "sheen_tint", 0.0)?,
+            flatness: self.float_tex(b, "flatness", 0.0)?,
+            clearcoat: self.float_tex(b, "clearcoat", 0.0)?,
+            clearcoat_gloss: self.float_tex(b, "clearcoat_gloss", 0.0)?,
+            eta,
+            rates: [
+                self.float(b, "diffuse_reflectance_sampling_rate", 1.0)?,
+                self.float(b, "main_specular_sampling_rate", 1.0)?,
+                self.float(b, "clearcoat_sampling_rate", 1.0)?,
+            ],
+            has,
+        })
+    }
+
     fn bsdf(&mut self, n: Node<'a, 'd>, depth: u32) -> R<ReadBsdf> {
         let b = self.deref(n, depth)?;
         if b.tag_name().name() != "bsdf" {
@@ -726,6 +796,7 @@ impl<'a, 'd> Cx<'a, 'd> {
                 self.normal_map = Some(nm);
                 read
             }
+            "principled" => (Bsdf::Principled(Box::new(self.principled(b)?)), Sides::Front),
             "mask" => {
                 let opacity = self.float_tex(b, "opacity", 0.5)?;
                 let inner = self.inner_bsdfs(b, depth).into_iter().next().ok_or_else(|| self.err(b, "a mask needs one BSDF inside"))?;
