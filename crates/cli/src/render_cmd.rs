@@ -4,8 +4,8 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_accel::{MeshOptions, TriangleTest};
 use lucent_render::progressive::{Passes, Progressive};
-use lucent_render::{render, render_region, Camera, Integrator, PathSettings, Region, RenderSettings, VplSettings, World};
-use lucent_scene::{CameraDesc, Scene};
+use lucent_render::{render, render_region, Camera, Film, Integrator, PathSettings, Region, RenderSettings, VplSettings, World};
+use lucent_scene::{AovKind, CameraDesc, Scene};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -419,9 +419,57 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
         _ => film,
     };
+    let exr = a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    let outputs = world.scene().outputs.clone().filter(|_| exr && !a.aovs && !denoise);
     if let (true, Some(aovs)) = (a.aovs, &aovs) {
         film.save_exr_with_aovs(&a.output, aovs)?;
+    } else if let Some(outputs) = outputs.clone().filter(|_| cluster.is_none() && a.time.is_none()) {
+        // The scene's film writes more channels (Mitsuba's `aov` integrator, an alpha):
+        // each layer is one more pass of the same samples.
+        let t = Instant::now();
+        let layer = |kind: AovKind| -> Result<Film> {
+            let st = RenderSettings { integrator: Integrator::Aov(kind), ..settings };
+            Ok(match crop {
+                Some([x, y, cw, ch]) => {
+                    let region = Region { x0: x, y0: y, x1: x + cw, y1: y + ch, s0: 0, s1: st.spp.max(1) };
+                    let mut acc = lucent_render::FilmAccumulator::new(w, h);
+                    acc.merge(render_region(&world, &cam, &st, region, &|_| {}).0)?;
+                    acc.resolve(glam::Vec3::ZERO).crop([x, y, cw, ch])
+                }
+                None => render(&world, &cam, &st, &|_| {}).0,
+            })
+        };
+        let mut channels = Vec::new();
+        let comp = |f: &Film, k: usize| f.pixels.iter().map(|p| p[k]).collect::<Vec<f32>>();
+        let alpha = (outputs.alpha || outputs.inner.is_some()).then(|| layer(AovKind::Alpha)).transpose()?;
+        let rgb = |prefix: &str, channels: &mut Vec<(String, Vec<f32>)>, with_alpha: bool| {
+            for (k, c) in ["R", "G", "B"].iter().enumerate() {
+                channels.push((format!("{prefix}{c}"), comp(&film, k)));
+            }
+            if let (true, Some(a)) = (with_alpha, &alpha) {
+                channels.push((format!("{prefix}A"), comp(a, 0)));
+            }
+        };
+        rgb("", &mut channels, outputs.alpha);
+        if let Some(inner) = &outputs.inner {
+            rgb(&format!("{inner}."), &mut channels, true);
+        }
+        for (name, kind) in &outputs.aovs {
+            let f = layer(*kind)?;
+            for (k, c) in kind.channels().iter().enumerate() {
+                channels.push((format!("{name}.{c}"), comp(&f, k)));
+            }
+        }
+        Film::save_exr_channels(&a.output, film.width, film.height, channels)?;
+        println!(
+            "the film's other channels ({} layers) in {:.1} ms",
+            outputs.aovs.len() + usize::from(alpha.is_some()),
+            t.elapsed().as_secs_f64() * 1e3
+        );
     } else {
+        if outputs.is_some() {
+            tracing::warn!("the scene's film has more channels (aov, alpha); they are written for a single-process render of a whole sample count only");
+        }
         film.save(&a.output)?;
     }
     if let Some([x, y, cw, ch]) = crop {

@@ -661,3 +661,32 @@ fn a_crop_window_renders_that_part_of_the_film() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("crop window 80x36 at (30, 20)") && e.contains("bad.xml:"), "{e}");
 }
+
+/// A Mitsuba scene with the `aov` integrator and an RGBA film: the EXR has Mitsuba's
+/// channels (the film's R, G, B, A, the wrapped integrator's image under its name, each
+/// layer with its suffixes), the alpha 0 on the background and 1 on the objects.
+#[test]
+fn mitsuba_aov_layers_and_alpha_are_written() {
+    use exr::prelude::*;
+    let d = tempfile::tempdir().expect("tmp");
+    let out = d.path().join("aov.exr");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../render/tests/data/mitsuba/aov/scene.xml");
+    let o = lucent().args(["render", "--spp", "4", "--threads", "2", "-o"]).arg(&out).arg(&scene).output().expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img =
+        read().no_deep_data().largest_resolution_level().all_channels().first_valid_layer().all_attributes().from_file(&out).expect("EXR");
+    let mut names: Vec<String> = img.layer_data.channel_data.list.iter().map(|c| c.name.to_string()).collect();
+    names.sort();
+    let mut want: Vec<String> =
+        ["R", "G", "B", "A", "my_image.R", "my_image.G", "my_image.B", "my_image.A", "dd.T", "pos.X", "pos.Y", "pos.Z", "tex.U", "tex.V"]
+            .iter()
+            .chain(&["ng.X", "ng.Y", "ng.Z", "nn.X", "nn.Y", "nn.Z", "alb.R", "alb.G", "alb.B", "prim.I"])
+            .map(|s| (*s).to_string())
+            .collect();
+    want.sort();
+    assert_eq!(names, want);
+    let alpha: Vec<f32> =
+        img.layer_data.channel_data.list.iter().find(|c| c.name.to_string() == "A").expect("A").sample_data.values_as_f32().collect();
+    assert!(alpha.iter().all(|a| (0.0..=1.0).contains(a)));
+    assert!(alpha.contains(&0.0) && alpha.contains(&1.0), "no background or no object in the alpha");
+}

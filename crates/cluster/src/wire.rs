@@ -224,6 +224,10 @@ fn put_settings(o: &mut Out, s: &RenderSettings) {
         }
         Integrator::EyeLight => o.u8(3),
         Integrator::Normals => o.u8(4),
+        Integrator::Aov(kind) => {
+            o.u8(5);
+            o.u8(lucent_scene::AovKind::ALL.iter().position(|&k| k == kind).unwrap_or(0) as u8);
+        }
     }
     match s.filter {
         PixelFilter::Box => o.u8(0),
@@ -301,6 +305,14 @@ fn get_settings(i: &mut In) -> Result<RenderSettings, DecodeError> {
         }
         3 => Integrator::EyeLight,
         4 => Integrator::Normals,
+        5 => {
+            let at = i.at;
+            let k = i.u8("the AOV kind")?;
+            match lucent_scene::AovKind::ALL.get(usize::from(k)) {
+                Some(&kind) => Integrator::Aov(kind),
+                None => return Err(invalid(at, format!("AOV kind {k} does not exist"))),
+            }
+        }
         v => return Err(invalid(at, format!("integrator {v} does not exist"))),
     };
     let at = i.at;

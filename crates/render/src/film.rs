@@ -174,6 +174,20 @@ impl Film {
         image.write().to_file(path).map_err(|e| OutputError::Exr { path: path.display().to_string(), msg: e.to_string() })
     }
 
+    /// Writes an `.exr` of named channels of `width` × `height` values each (linear f32,
+    /// one part; readers sort them by name, as EXR stores them).
+    pub fn save_exr_channels(path: &Path, width: u32, height: u32, channels: Vec<(String, Vec<f32>)>) -> Result<(), OutputError> {
+        use exr::prelude::*;
+        let n = width as usize * height as usize;
+        if let Some((name, _)) = channels.iter().find(|(_, v)| v.len() != n) {
+            return Err(OutputError::Format(format!("{}: channel {name} is not the image's size", path.display())));
+        }
+        let list: Vec<AnyChannel<FlatSamples>> =
+            channels.into_iter().map(|(name, v)| AnyChannel::new(name.as_str(), FlatSamples::F32(v))).collect();
+        let image = Image::from_channels((width as usize, height as usize), AnyChannels::sort(list.into()));
+        image.write().to_file(path).map_err(|e| OutputError::Exr { path: path.display().to_string(), msg: e.to_string() })
+    }
+
     /// Writes `.png` (8-bit sRGB) or `.exr` (linear f32).
     pub fn save(&self, path: &Path) -> Result<(), OutputError> {
         let name = path.display().to_string();

@@ -207,6 +207,26 @@ impl PreparedMaterial {
         }
     }
 
+    /// The diffuse reflectance of a model that has one (its diffuse, base or blended
+    /// colour: what Mitsuba's `eval_diffuse_reflectance` returns for those); `None` for
+    /// conductors and dielectrics, the user's BSDFs and Phong materials read as them.
+    #[must_use]
+    pub fn diffuse_reflectance(&self, textures: &[Texture], uv: Vec2) -> Option<Vec3> {
+        let diffuse_like = |d: &Desc| {
+            matches!(
+                d,
+                Desc::Diffuse { .. }
+                    | Desc::Plastic { .. }
+                    | Desc::Principled(_)
+                    | Desc::MetallicRoughness { .. }
+                    | Desc::DiffuseGlossy { .. }
+                    | Desc::Blend { .. }
+                    | Desc::Mask { .. }
+            )
+        };
+        (self.custom.is_none() && diffuse_like(&self.desc)).then(|| self.albedo(textures, uv))
+    }
+
     /// The albedo a denoiser's AOV shows: the diffuse or base colour where there is one,
     /// else the specular factor.
     #[must_use]

@@ -259,6 +259,100 @@ pub struct Scene {
     /// How the file says to render it (Mitsuba's film, sampler, sensor and integrator),
     /// unless the command line says otherwise.
     pub hints: Option<RenderHints>,
+    /// The channels the file's film writes beyond R, G, B (Mitsuba's `aov` integrator and
+    /// `pixel_format`), for an EXR output; `None`: the image alone.
+    pub outputs: Option<Outputs>,
+}
+
+/// The channels of a Mitsuba film's EXR beyond R, G, B: the film's alpha, the image of the
+/// integrator an `aov` integrator wraps (again, under its name, with alpha) and the `aov`
+/// integrator's layers, in Mitsuba's order and names.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Outputs {
+    /// The film's `pixel_format` has alpha: `A` after `R`, `G`, `B`.
+    pub alpha: bool,
+    /// The name of the integrator an `aov` integrator wraps: its image as `name.R`,
+    /// `.G`, `.B`, `.A`.
+    pub inner: Option<String>,
+    /// The layers: name and kind, in the file's order.
+    pub aovs: Vec<(String, AovKind)>,
+}
+
+/// A layer of Mitsuba's `aov` integrator: a value of the first surface each camera ray
+/// meets (zero where it meets none), averaged over a pixel's samples as the image is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum AovKind {
+    /// The diffuse reflectance (`.R`, `.G`, `.B`).
+    Albedo,
+    /// Distance along the ray (`.T`).
+    Depth,
+    /// World position (`.X`, `.Y`, `.Z`).
+    Position,
+    /// Texture coordinates (`.U`, `.V`).
+    Uv,
+    /// Geometric normal, as the surface is wound (`.X`, `.Y`, `.Z`).
+    GeoNormal,
+    /// Shading normal (`.X`, `.Y`, `.Z`).
+    ShNormal,
+    /// ∂p/∂u (`.X`, `.Y`, `.Z`).
+    DpDu,
+    /// ∂p/∂v (`.X`, `.Y`, `.Z`).
+    DpDv,
+    /// The primitive's index in its shape (`.I`).
+    PrimIndex,
+    /// The shape's index in the file's order, from 1 (`.I`; 0 where nothing is met).
+    ShapeIndex,
+    /// The fraction of the pixel's samples that meet a surface (or the environment):
+    /// Mitsuba's alpha.
+    Alpha,
+}
+
+impl AovKind {
+    /// Every kind, in a fixed order (their numbers on the wire).
+    pub const ALL: [AovKind; 11] = [
+        Self::Albedo,
+        Self::Depth,
+        Self::Position,
+        Self::Uv,
+        Self::GeoNormal,
+        Self::ShNormal,
+        Self::DpDu,
+        Self::DpDv,
+        Self::PrimIndex,
+        Self::ShapeIndex,
+        Self::Alpha,
+    ];
+
+    /// The suffixes of its channels (Mitsuba's).
+    #[must_use]
+    pub fn channels(self) -> &'static [&'static str] {
+        match self {
+            Self::Albedo => &["R", "G", "B"],
+            Self::Depth => &["T"],
+            Self::Uv => &["U", "V"],
+            Self::Position | Self::GeoNormal | Self::ShNormal | Self::DpDu | Self::DpDv => &["X", "Y", "Z"],
+            Self::PrimIndex | Self::ShapeIndex => &["I"],
+            Self::Alpha => &["A"],
+        }
+    }
+
+    /// The kind Mitsuba names `name` (`None`: not one lucent writes).
+    #[must_use]
+    pub fn named(name: &str) -> Option<Self> {
+        Some(match name {
+            "albedo" => Self::Albedo,
+            "depth" => Self::Depth,
+            "position" => Self::Position,
+            "uv" => Self::Uv,
+            "geo_normal" => Self::GeoNormal,
+            "sh_normal" => Self::ShNormal,
+            "dp_du" => Self::DpDu,
+            "dp_dv" => Self::DpDv,
+            "prim_index" => Self::PrimIndex,
+            "shape_index" => Self::ShapeIndex,
+            _ => return None,
+        })
+    }
 }
 
 /// How a scene file says it should be rendered.

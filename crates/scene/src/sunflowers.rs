@@ -212,6 +212,7 @@ pub fn sunflower_scene() -> Scene {
         textures: Vec::new(),
         environment: None,
         hints: None,
+        outputs: None,
     }
 }
 

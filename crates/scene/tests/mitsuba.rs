@@ -1,7 +1,7 @@
 //! The Mitsuba XML reader: what it reads, and errors at line:column for what it cannot.
 
 use glam::Vec3;
-use lucent_scene::{parse_mitsuba, parse_mitsuba_with, Bsdf, ColorTex, Geom, ImportError, LightKind, Scene, ShapeKind, Sides};
+use lucent_scene::{parse_mitsuba, parse_mitsuba_with, AovKind, Bsdf, ColorTex, Geom, ImportError, LightKind, Scene, ShapeKind, Sides};
 use std::path::Path;
 
 fn parse(xml: &str) -> Result<Scene, ImportError> {
@@ -515,4 +515,31 @@ fn principled_bsdf() {
     assert!((p.eta - 1.5).abs() < 1e-6 && p.has == lucent_scene::PrincipledLobes::default());
     let e = err(&shape(r#"<bsdf type="principled"><float name="eta" value="1.4"/><float name="specular" value="0.5"/></bsdf>"#));
     assert!(e.contains("1:") && e.contains("'eta' or 'specular'"), "{e}");
+}
+
+/// The `aov` integrator's layers and the film's alpha: read in order with the wrapped
+/// integrator's name; a type Mitsuba does not know is an error at its line; a film
+/// `pixel_format` with alpha asks for an `A` channel.
+#[test]
+fn aov_integrator_and_pixel_format() {
+    let s = parse(
+        r#"<scene version="3.0.0"><integrator type="aov"><string name="aovs" value="d:depth, n:sh_normal,u:uv"/>
+           <integrator type="path" name="img"><integer name="max_depth" value="3"/></integrator></integrator></scene>"#,
+    )
+    .expect("aov");
+    let o = s.outputs.expect("outputs");
+    assert_eq!(o.inner.as_deref(), Some("img"));
+    assert!(!o.alpha);
+    assert_eq!(o.aovs, [("d".into(), AovKind::Depth), ("n".into(), AovKind::ShNormal), ("u".into(), AovKind::Uv)]);
+    assert_eq!(s.hints.expect("hints").max_depth, Some(3));
+    let e = err(r#"<scene version="3.0.0">
+        <integrator type="aov"><string name="aovs" value="d:deepness"/></integrator></scene>"#);
+    assert!(e.contains("2:") && e.contains("deepness"), "{e}");
+    let f = parse(&format!(
+        r#"<scene version="3.0.0">{}</scene>"#,
+        SENSOR.replace(r#"<rfilter type="box"/>"#, r#"<string name="pixel_format" value="rgba"/>"#)
+    ))
+    .expect("rgba");
+    assert_eq!(f.outputs, Some(lucent_scene::Outputs { alpha: true, ..Default::default() }));
+    assert!(parse(&format!(r#"<scene version="3.0.0">{SENSOR}</scene>"#)).expect("rgb").outputs.is_none());
 }

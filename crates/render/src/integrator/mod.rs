@@ -12,7 +12,8 @@
 //! - [`vpl`]: instant global illumination (virtual point lights, interleaved sampling,
 //!   the discontinuity buffer);
 //! - the debug views, [`Integrator::EyeLight`] and [`Integrator::Normals`];
-//! - [`guides`]: a denoiser's guides (albedo, normal, depth, emission per pixel).
+//! - [`guides`]: a denoiser's guides (albedo, normal, depth, emission per pixel);
+//! - [`layers`]: the layers of Mitsuba's `aov` integrator and its alpha.
 //!
 //! Adding an integrator: a file here with its settings and its `li` (or its own frame
 //! loop, as [`vpl`]), a variant of [`Integrator`], and an arm in [`Integrator::render`],
@@ -20,6 +21,7 @@
 
 pub mod guides;
 pub(crate) mod hit;
+pub mod layers;
 pub mod path;
 pub mod vpl;
 pub mod wave;
@@ -55,6 +57,9 @@ pub enum Integrator {
     EyeLight,
     /// Shading normals as colours (0.5 + 0.5 n), for inspecting geometry.
     Normals,
+    /// A layer of Mitsuba's `aov` integrator (or its alpha): a value of the first surface
+    /// each camera ray meets ([`layers`]), zero where it meets none.
+    Aov(lucent_scene::AovKind),
 }
 
 impl Default for Integrator {
@@ -73,6 +78,7 @@ impl Integrator {
             Self::Vpl(_) => "vpl",
             Self::EyeLight => "eye light",
             Self::Normals => "normals",
+            Self::Aov(_) => "aov",
         }
     }
 
@@ -111,6 +117,7 @@ impl Integrator {
             Self::Path(s) => path::li(w, ray, s, pixel.0, pixel.1, sample, None),
             Self::Vpl(s) => vpl::li_layers(w, ray, &vpl::VplSet::generate(w, s, sample), pixel).radiance(),
             Self::EyeLight | Self::Normals => self.debug_view(w, ray),
+            Self::Aov(kind) => layers::value(w, ray, *kind),
         }
     }
 
@@ -165,6 +172,7 @@ impl BlockShader for Integrator {
         match self {
             Self::Path(s) => w.scene.environment.is_none() && !s.hide_emitters,
             Self::Vpl(_) => w.scene.environment.is_none(),
+            Self::Aov(_) => false,
             _ => true,
         }
     }

@@ -80,6 +80,17 @@ impl World {
         }
     }
 
+    /// The texture coordinates of an analytic shape's hit, computed whether or not its
+    /// material reads them (`None` for meshes: [`World::surface`] has theirs).
+    #[must_use]
+    pub fn shape_uv(&self, r: &Ray, h: &Hit) -> Option<Vec2> {
+        let inst = self.info.get(h.inst as usize)?;
+        let Geom::Shape { kind, .. } = inst.geom else { return None };
+        let p_obj = self.accel.instances().get(h.inst as usize)?.object_from_world.transform_point3(r.at(h.t));
+        let (u, v) = shape_of(kind).uv_local(p_obj, h.prim);
+        Some(Vec2::new(u, v))
+    }
+
     /// Rebuilds the surface point of a hit.
     #[must_use]
     pub fn surface(&self, r: &Ray, h: &Hit) -> Surface {

@@ -36,7 +36,9 @@ use crate::bsdf::{
 };
 use crate::camera::CameraDesc;
 use crate::error::ImportError;
-use crate::model::{Environment, Geom, HdrImage, Instance, Light, LightKind, Material, Mesh, PixelFilter, RenderHints, Scene, ShapeKind};
+use crate::model::{
+    AovKind, Environment, Geom, HdrImage, Instance, Light, LightKind, Material, Mesh, Outputs, PixelFilter, RenderHints, Scene, ShapeKind,
+};
 use crate::spectrum::SpectrumUse;
 use crate::texture::{TextureCache, Wrap};
 use glam::{Affine2, Affine3A, Mat3, Mat4, Vec2, Vec3};
@@ -117,6 +119,8 @@ pub fn parse_mitsuba_with(path: &Path, base: &Path, text: &str, defines: &[(Stri
         },
         shapes: 0,
         normal_map: None,
+        film_alpha: false,
+        aov: None,
     };
     cx.defaults.extend(defines.iter().cloned());
     for doc in &docs {
@@ -146,6 +150,10 @@ pub fn parse_mitsuba_with(path: &Path, base: &Path, text: &str, defines: &[(Stri
     let mut scene = cx.scene;
     scene.textures = cx.textures.into_textures();
     scene.hints = Some(cx.hints);
+    scene.outputs = match cx.aov {
+        Some((inner, aovs)) => Some(Outputs { alpha: cx.film_alpha, inner, aovs }),
+        None => cx.film_alpha.then(|| Outputs { alpha: true, ..Outputs::default() }),
+    };
     scene.ambient = Vec3::ZERO;
     scene.background = Vec3::ZERO;
     Ok(scene)
@@ -174,7 +182,14 @@ struct Cx<'a, 'd> {
     shapes: usize,
     /// The normal map of the BSDF read last (a `normalmap` adapter), for its material.
     normal_map: Option<NormalMap>,
+    /// The film's `pixel_format` has an alpha channel.
+    film_alpha: bool,
+    /// An `aov` integrator: the name of the integrator it wraps, and its layers.
+    aov: Option<AovSpec>,
 }
+
+/// An `aov` integrator as read: the name of the integrator it wraps, and its layers.
+type AovSpec = (Option<String>, Vec<(String, AovKind)>);
 
 /// A BSDF as read: the model, and how its back scatters.
 type ReadBsdf = (Bsdf, Sides);
@@ -930,8 +945,39 @@ impl<'a, 'd> Cx<'a, 'd> {
                     }
                 }
             }
+            "aov" => {
+                let spec = self.string(n, "aovs")?.unwrap_or_default();
+                let mut aovs = Vec::new();
+                for item in spec.split(',').map(str::trim).filter(|t| !t.is_empty()) {
+                    let Some((name, kind)) = item.split_once(':').filter(|(a, b)| !a.is_empty() && !b.is_empty()) else {
+                        return Err(self.err(n, format!("AOV '{item}': expected <name>:<type>")));
+                    };
+                    match (AovKind::named(kind), kind) {
+                        (Some(k), _) => aovs.push((name.to_string(), k)),
+                        (None, "duv_dx" | "duv_dy" | "boundary_test") => self.warn(
+                            n,
+                            &format!("aov {kind}"),
+                            &format!("the AOV type '{kind}' is not supported: its layer '{name}' is left out"),
+                        ),
+                        (None, _) => {
+                            return Err(self.err(
+                                n,
+                                format!(
+                                    "AOV type '{kind}': expected albedo, depth, position, uv, geo_normal, sh_normal, dp_du, dp_dv, prim_index or shape_index"
+                                ),
+                            ))
+                        }
+                    }
+                }
+                let inner = n.children().find(|c| c.tag_name().name() == "integrator");
+                let name = inner.map(|c| c.attribute("name").unwrap_or("image").to_string());
+                self.aov = Some((name, aovs));
+                if let Some(inner) = inner {
+                    return self.integrator(inner);
+                }
+            }
             other => {
-                // A wrapper (aov, moment, ...) around a path tracer: read the inner one.
+                // A wrapper (moment, ...) around a path tracer: read the inner one.
                 if let Some(inner) = n.children().find(|c| c.tag_name().name() == "integrator") {
                     return self.integrator(inner);
                 }
@@ -957,6 +1003,22 @@ impl<'a, 'd> Cx<'a, 'd> {
                 return Err(self.err(film, format!("crop window {cw}x{ch} at ({cx}, {cy}): expected inside the {w}x{h} film")));
             }
             self.hints.crop = ((cx, cy, cw, ch) != (0, 0, w, h)).then_some([cx as u32, cy as u32, cw as u32, ch as u32]);
+            // Its channels: an alpha channel after R, G, B when the format has one.
+            self.film_alpha = match self.string(film, "pixel_format")?.as_deref() {
+                None | Some("rgb") => false,
+                Some("rgba") => true,
+                Some(f @ ("luminance" | "xyz")) => {
+                    self.warn(film, &format!("pixel_format {f}"), &format!("pixel_format '{f}' is not supported: R, G, B instead"));
+                    false
+                }
+                Some(f @ ("luminance_alpha" | "xyza")) => {
+                    self.warn(film, &format!("pixel_format {f}"), &format!("pixel_format '{f}' is not supported: R, G, B, A instead"));
+                    true
+                }
+                Some(f) => {
+                    return Err(self.err(film, format!("pixel_format '{f}': expected rgb, rgba, luminance, luminance_alpha, xyz or xyza")))
+                }
+            };
             // The film's reconstruction filter, Mitsuba's Gaussian when it names none.
             self.hints.filter = match film.children().find(|c| c.tag_name().name() == "rfilter") {
                 Some(f) => {
@@ -1439,25 +1501,30 @@ fn rectangle(mat: u32) -> Mesh {
     }
 }
 
-/// Mitsuba's `cube`: [-1, 1]³, faces wound outward, each with texture coordinates 0..1.
+/// Mitsuba's `cube`: [-1, 1]³, faces wound outward, each with texture coordinates 0..1,
+/// laid out as Mitsuba's `cube` plugin lays them (its corner order, so that texture
+/// coordinates, ∂p/∂u and triangle indices are Mitsuba's): the faces −y, +y, +x, +z, −x,
+/// −z, each two triangles (0, 1, 2) and (3, 0, 2) of corners with coordinates (0, 1),
+/// (1, 1), (1, 0), (0, 0).
 fn cube(mat: u32) -> Mesh {
+    // (Per face, its corners: x, y, z signs.)
+    const FACES: [[[f32; 3]; 4]; 6] = [
+        [[1.0, -1.0, -1.0], [1.0, -1.0, 1.0], [-1.0, -1.0, 1.0], [-1.0, -1.0, -1.0]],
+        [[1.0, 1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, 1.0, 1.0], [1.0, 1.0, 1.0]],
+        [[1.0, -1.0, -1.0], [1.0, 1.0, -1.0], [1.0, 1.0, 1.0], [1.0, -1.0, 1.0]],
+        [[1.0, -1.0, 1.0], [1.0, 1.0, 1.0], [-1.0, 1.0, 1.0], [-1.0, -1.0, 1.0]],
+        [[-1.0, -1.0, 1.0], [-1.0, 1.0, 1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, -1.0]],
+        [[1.0, 1.0, -1.0], [1.0, -1.0, -1.0], [-1.0, -1.0, -1.0], [-1.0, 1.0, -1.0]],
+    ];
     let mut m = Mesh { name: "cube".into(), ..Mesh::default() };
-    for axis in 0..3 {
-        for sign in [-1.0f32, 1.0] {
-            let n = Vec3::from_array(std::array::from_fn(|k| if k == axis { sign } else { 0.0 }));
-            let (u, v) = (
-                Vec3::from_array(std::array::from_fn(|k| if k == (axis + 1) % 3 { 1.0 } else { 0.0 })),
-                Vec3::from_array(std::array::from_fn(|k| if k == (axis + 2) % 3 { 1.0 } else { 0.0 })),
-            );
-            let (u, v) = if sign > 0.0 { (u, v) } else { (v, u) };
-            let base = m.positions.len() as u32;
-            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                m.positions.push(n + u * a + v * b);
-                m.uvs.values.push(Vec2::new((a + 1.0) * 0.5, (b + 1.0) * 0.5));
-            }
-            m.indices.push([base, base + 1, base + 2]);
-            m.indices.push([base + 2, base + 3, base]);
+    for face in FACES {
+        let base = m.positions.len() as u32;
+        for (corner, uv) in face.iter().zip([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]]) {
+            m.positions.push(Vec3::from_array(*corner));
+            m.uvs.values.push(Vec2::from_array(uv));
         }
+        m.indices.push([base, base + 1, base + 2]);
+        m.indices.push([base + 3, base, base + 2]);
     }
     m.material = vec![mat; m.indices.len()];
     m
