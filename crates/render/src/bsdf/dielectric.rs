@@ -163,7 +163,7 @@ impl<const BECKMANN: bool> RoughDielectric<BECKMANN> {
 
     /// The direction of the sample for `u` and `u2`: a visible facet (facing up: those
     /// seen from below are the ones seen from the mirrored direction), then reflection or
-    /// refraction through it chosen against its Fresnel term; [`RoughDielectric::valid`]
+    /// refraction through it chosen against its Fresnel term; its `valid` field
     /// says whether there is one (a facet can turn a direction to the wrong side).
     #[inline(always)]
     #[must_use]
