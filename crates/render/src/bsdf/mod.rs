@@ -171,6 +171,7 @@ impl Bsdf<'_> {
             Self::DiffuseGlossy(b) => b.eval_pdf(wo, wi),
             Self::Blend(b) => b.eval_pdf(wo, wi),
             Self::Mask(b) => b.eval_pdf(wo, wi),
+            Self::Principled(b) => b.eval_pdf(wo, wi),
             _ => (self.eval(wo, wi), self.pdf(wo, wi)),
         }
     }

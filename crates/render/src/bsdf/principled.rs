@@ -25,6 +25,20 @@ use glam::Vec3;
 use lucent_scene::PrincipledLobes;
 use std::f32::consts::{FRAC_1_PI, PI};
 
+/// What a principled BSDF's value and density at a pair of directions share: the half
+/// vector, the relative index along the path, whether it is a reflection, the cosines of
+/// both directions with the half vector, its dielectric Fresnel term and D.
+#[derive(Clone, Copy)]
+struct At {
+    wh: Vec3,
+    eta_path: f32,
+    reflect: bool,
+    oh: f32,
+    ih: f32,
+    f: f32,
+    d: f32,
+}
+
 /// The principled BSDF at one surface point (its textures looked up).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Principled {
@@ -185,17 +199,37 @@ impl Principled {
     /// f(wo, wi)·|cos θi|.
     #[must_use]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        let (ci, co) = (wo.z, wi.z);
-        if ci == 0.0 {
-            return Vec3::ZERO;
+        self.eval_pdf(wo, wi).0
+    }
+
+    /// The density of [`Principled::sample`] as Mitsuba states it.
+    #[must_use]
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.eval_pdf(wo, wi).1
+    }
+
+    /// [`Principled::eval`] and [`Principled::pdf`] at once: the half vector, its Fresnel
+    /// term and D once (the same bits as apart).
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if wo.z == 0.0 {
+            return (Vec3::ZERO, 0.0);
         }
-        let (brdf, bsdf) = self.weights();
-        let front = ci > 0.0;
         let (wh, eta_path, reflect) = self.half(wo, wi);
-        let refract = ci * co < 0.0;
         let (oh, ih) = (wo.dot(wh), wi.dot(wh));
         let (f, _) = fresnel_dielectric(oh, self.eta);
         let d = self.mf.d_of::<false>(wh);
+        let at = At { wh, eta_path, reflect, oh, ih, f, d };
+        (self.value(wo, wi, &at), self.density(wo, wi, &at))
+    }
+
+    /// The value at `wi` given what it shares with the density.
+    fn value(&self, wo: Vec3, wi: Vec3, at: &At) -> Vec3 {
+        let (ci, co) = (wo.z, wi.z);
+        let (brdf, bsdf) = self.weights();
+        let front = ci > 0.0;
+        let At { wh, eta_path, reflect, oh, ih, f, d } = *at;
+        let refract = ci * co < 0.0;
         let g = self.mf.g_of::<false>(wo, wi, wh);
         let mut value = Vec3::ZERO;
         if reflect && f > 0.0 && facet_agrees(wh, wo, wi, ci, true) {
@@ -244,18 +278,12 @@ impl Principled {
         value
     }
 
-    /// The density of [`Principled::sample`] as Mitsuba states it.
-    #[must_use]
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    /// The density at `wi` given what it shares with the value.
+    fn density(&self, wo: Vec3, wi: Vec3, at: &At) -> f32 {
         let (ci, co) = (wo.z, wi.z);
-        if ci == 0.0 {
-            return 0.0;
-        }
         let front = ci > 0.0;
-        let (wh, eta_path, reflect) = self.half(wo, wi);
+        let At { wh, eta_path, reflect, oh, ih, f, d } = *at;
         let refract = ci * co < 0.0;
-        let (oh, ih) = (wo.dot(wh), wi.dot(wh));
-        let (f, _) = fresnel_dielectric(oh, self.eta);
         let [p_reflect, p_trans, p_cc, p_diffuse] = self.probabilities(front, f);
         // |∂ωh/∂ωi| of a reflection or a refraction.
         let jacobian = if self.has.spec_trans && !reflect {
@@ -264,7 +292,7 @@ impl Principled {
             (1.0 / (4.0 * ih)).abs()
         };
         let v = if ci < 0.0 { -wo } else { wo };
-        let spec = |s: &Self| s.mf.pdf_with_d_of::<false>(v, wh, s.mf.d_of::<false>(wh)) * jacobian;
+        let spec = |s: &Self| s.mf.pdf_with_d_of::<false>(v, wh, d) * jacobian;
         let mut pdf = 0.0;
         let reflect_ok = reflect && facet_agrees(wh, wo, wi, ci, true);
         if reflect_ok {
@@ -316,11 +344,11 @@ impl Principled {
         if !ok {
             return None;
         }
-        let pdf = self.pdf(wo, wi);
+        let (value, pdf) = self.eval_pdf(wo, wi);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
-        Some(BsdfSample { wi, weight: self.eval(wo, wi) / pdf, pdf, delta: false, eta })
+        Some(BsdfSample { wi, weight: value / pdf, pdf, delta: false, eta })
     }
 
     /// Whether light may pass through (the transmission lobe is on and weighs something).
