@@ -26,43 +26,60 @@ pub struct MetallicRoughness {
 }
 
 impl MetallicRoughness {
-    /// GGX D times the height-correlated visibility G2 / (4 |cos o| |cos i|), for a
-    /// reflection pair with half vector `h`.
-    fn specular(mf: &Microfacet, wo: Vec3, wi: Vec3, h: Vec3) -> f32 {
+    /// The height-correlated visibility G2 / (4 |cos o| |cos i|) of GGX, for a
+    /// reflection pair.
+    #[inline(always)]
+    fn visibility(mf: &Microfacet, wo: Vec3, wi: Vec3) -> f32 {
         let a2 = mf.alpha * mf.alpha;
         let (no, ni) = (wo.z.abs(), wi.z.abs());
         let lo = ni * (no * no * (1.0 - a2) + a2).sqrt();
         let li = no * (ni * ni * (1.0 - a2) + a2).sqrt();
-        let v = if lo + li > 0.0 { 0.5 / (lo + li) } else { 0.0 };
-        mf.d(h) * v
+        let v = 0.5 / (lo + li);
+        if lo + li > 0.0 {
+            v
+        } else {
+            0.0
+        }
     }
 
     /// f(wo, wi)·|cos θi|.
     #[must_use]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.eval_pdf(wo, wi).0
+    }
+
+    /// [`MetallicRoughness::eval`] and [`MetallicRoughness::pdf`] at once, branch-free (a
+    /// loop over lanes that calls it vectorizes; the same bits as apart).
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let (base, metallic, mf, transmission, f0) = (self.base, self.metallic, self.mf, self.transmission, self.f0);
-        if wo.z <= 0.0 || wi.z == 0.0 {
-            return Vec3::ZERO;
-        }
         let reflect = wi.z > 0.0;
         // Thin-walled transmission: the mirrored direction's reflection terms.
         let wl = if reflect { wi } else { Vec3::new(wi.x, wi.y, -wi.z) };
         let h = (wo + wl).normalize();
         let voh = wo.dot(h);
-        let spec = Self::specular(&mf, wo, wl, h);
+        let d = mf.d_of::<false>(h);
+        let spec = d * Self::visibility(&mf, wo, wl);
         let fd = schlick(Vec3::splat(f0), voh).x;
         let cos = wl.z;
-        if reflect {
-            let diffuse = base * FRAC_1_PI;
-            let dielectric = diffuse * ((1.0 - fd) * (1.0 - transmission)) + Vec3::splat(fd * spec);
-            let metal = schlick(base, voh) * spec;
-            (dielectric * (1.0 - metallic) + metal * metallic) * cos
+        let diffuse = base * FRAC_1_PI;
+        let dielectric = diffuse * ((1.0 - fd) * (1.0 - transmission)) + Vec3::splat(fd * spec);
+        let metal = schlick(base, voh) * spec;
+        let f_reflect = (dielectric * (1.0 - metallic) + metal * metallic) * cos;
+        let f_through = base * ((1.0 - metallic) * transmission * (1.0 - fd) * spec * cos);
+        let [ps, pd, pt] = self.probs(wo);
+        let spec_pdf = mf.pdf_with_d_of::<false>(wo, h, d) / (4.0 * wo.dot(h).abs().max(1e-12));
+        let (f, pdf) = if reflect { (f_reflect, ps * spec_pdf + pd * wi.z * FRAC_1_PI) } else { (f_through, pt * spec_pdf) };
+        if (wo.z <= 0.0) | (wi.z == 0.0) {
+            (Vec3::ZERO, 0.0)
         } else {
-            base * ((1.0 - metallic) * transmission * (1.0 - fd) * spec * cos)
+            (f, pdf)
         }
     }
 
     /// Lobe probabilities for `wo`: specular reflection, diffuse, transmission.
+    #[inline(always)]
     fn probs(&self, wo: Vec3) -> [f32; 3] {
         let (base, metallic, transmission, f0) = (self.base, self.metallic, self.transmission, self.f0);
         let fd = schlick(Vec3::splat(f0), wo.z).x;
@@ -76,29 +93,20 @@ impl MetallicRoughness {
     /// The density of [`MetallicRoughness::sample`].
     #[must_use]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z == 0.0 {
-            return 0.0;
-        }
-        let [ps, pd, pt] = self.probs(wo);
-        let wl = if wi.z > 0.0 { wi } else { Vec3::new(wi.x, wi.y, -wi.z) };
-        let h = (wo + wl).normalize();
-        let spec = self.mf.pdf(wo, h) / (4.0 * wo.dot(h).abs().max(1e-12));
-        if wi.z > 0.0 {
-            ps * spec + pd * wi.z * FRAC_1_PI
-        } else {
-            pt * spec
-        }
+        self.eval_pdf(wo, wi).1
     }
 
     /// A direction of one lobe, chosen by `u`.
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
         let wi = self.direction(wo, u, u2)?;
-        by_density(wo, wi, self.pdf(wo, wi), || self.eval(wo, wi), 1.0)
+        let (f, pdf) = self.eval_pdf(wo, wi);
+        by_density(wo, wi, pdf, || f, 1.0)
     }
 
-    /// The direction [`MetallicRoughness::sample`] takes.
-    fn direction(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<Vec3> {
+    /// The direction [`MetallicRoughness::sample`] takes (`None`: no sample).
+    #[must_use]
+    pub fn direction(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<Vec3> {
         if wo.z <= 0.0 {
             return None;
         }

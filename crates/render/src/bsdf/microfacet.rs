@@ -455,6 +455,7 @@ pub fn fresnel_conductor(cos_i: f32, eta: Vec3, k: Vec3) -> Vec3 {
 
 /// Schlick's approximation of the Fresnel reflectance with reflectance `f0` at normal
 /// incidence (glTF's BRDF uses it).
+#[inline]
 #[must_use]
 pub fn schlick(f0: Vec3, cos: f32) -> Vec3 {
     let m = (1.0 - cos.abs()).clamp(0.0, 1.0);

@@ -18,25 +18,36 @@ pub struct ThinDielectric {
 
 impl ThinDielectric {
     /// The sheet's reflectance for `wo`: R + T² R / (1 − R²) (light bouncing inside).
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn reflectance(&self, wo: Vec3) -> f32 {
-        let (mut r, _) = fresnel_dielectric(wo.z.abs(), self.eta);
+        let (r, _) = fresnel_dielectric(wo.z.abs(), self.eta);
+        let t = 1.0 - r;
+        let summed = r + t * t * r / (1.0 - r * r);
         if r < 1.0 {
-            let t = 1.0 - r;
-            r += t * t * r / (1.0 - r * r);
+            summed
+        } else {
+            r
         }
-        r
     }
 
     /// Reflection or straight transmission, chosen by `u` against the reflectance.
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: f32) -> Option<BsdfSample> {
+        Some(self.sample_lane(wo, u))
+    }
+
+    /// [`ThinDielectric::sample`] branch-free (there always is one).
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_lane(&self, wo: Vec3, u: f32) -> BsdfSample {
         let r = self.reflectance(wo);
+        let reflected = BsdfSample { wi: mirror(wo), weight: self.refl, pdf: r, delta: true, eta: 1.0 };
+        let through = BsdfSample { wi: -wo, weight: self.trans, pdf: 1.0 - r, delta: true, eta: 1.0 };
         if u < r {
-            Some(BsdfSample { wi: mirror(wo), weight: self.refl, pdf: r, delta: true, eta: 1.0 })
+            reflected
         } else {
-            Some(BsdfSample { wi: -wo, weight: self.trans, pdf: 1.0 - r, delta: true, eta: 1.0 })
+            through
         }
     }
 }

@@ -35,7 +35,7 @@ use super::wave_profile::{now, Part, Watch};
 use crate::bsdf::sample::reflection_lane;
 use crate::bsdf::{
     Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughConductor, RoughDielectric,
-    RoughPlasticLane,
+    RoughPlasticLane, ThinDielectric,
 };
 use crate::lanes::on_lanes;
 use crate::lights::area::EmissiveTri;
@@ -365,7 +365,47 @@ impl<const BECKMANN: bool> Model for RoughPlasticLane<'_, BECKMANN> {
         RoughPlasticLane::prepare(self, wo, u, u2)
     }
 }
-model!(MetallicRoughness, |b, wo, u, u2| some(b.sample(wo, u, u2)), |b, wo, wi| (b.eval(wo, wi), b.pdf(wo, wi)));
+/// glTF's metallic-roughness BRDF on lanes: its direction lane by lane (kept valid or not),
+/// value and density branch-free.
+#[derive(Clone, Copy)]
+struct MetallicRoughnessLane {
+    b: MetallicRoughness,
+    valid: bool,
+}
+impl Model for MetallicRoughnessLane {
+    const VECTOR: bool = true;
+    const TWO_PHASE: bool = true;
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        some(self.b.sample(wo, u, u2))
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        self.b.eval_pdf(wo, wi)
+    }
+    #[inline(always)]
+    fn prepare(&mut self, wo: Vec3, u: f32, u2: (f32, f32)) -> Vec3 {
+        let wi = self.b.direction(wo, u, u2);
+        self.valid = wi.is_some();
+        wi.unwrap_or(Vec3::Z)
+    }
+    #[inline(always)]
+    fn finish(&self, _wo: Vec3, wi: Vec3, f: Vec3, pdf: f32) -> (BsdfSample, bool) {
+        // (Thin-walled: no index is crossed either way.)
+        (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta: 1.0 }, self.valid & (pdf > 0.0) & pdf.is_finite())
+    }
+}
+impl Model for ThinDielectric {
+    const VECTOR: bool = true;
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, u: f32, _u2: (f32, f32)) -> (BsdfSample, bool) {
+        (self.sample_lane(wo, u), true)
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, _wo: Vec3, _wi: Vec3) -> (Vec3, f32) {
+        (Vec3::ZERO, 0.0)
+    }
+}
 impl Model for DiffuseGlossy {
     const VECTOR: bool = true;
     const TWO_PHASE: bool = true;
@@ -579,7 +619,10 @@ macro_rules! run_models {
             on_lanes!(|p: &mut Packed<RoughPlasticLane<'_, false>>| p.$method())(&mut m.ggx_plastic);
         }
         if !m.metallic_roughness.bsdf.is_empty() {
-            on_lanes!(|p: &mut Packed<MetallicRoughness>| p.$method())(&mut m.metallic_roughness);
+            on_lanes!(|p: &mut Packed<MetallicRoughnessLane>| p.$method())(&mut m.metallic_roughness);
+        }
+        if !m.thin.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<ThinDielectric>| p.$method())(&mut m.thin);
         }
         if !m.diffuse_glossy.bsdf.is_empty() {
             on_lanes!(|p: &mut Packed<DiffuseGlossy>| p.$method())(&mut m.diffuse_glossy);
@@ -636,6 +679,10 @@ macro_rules! each_model {
             $body
         }
         {
+            let $p = &mut m.thin;
+            $body
+        }
+        {
             let $p = &mut m.diffuse_glossy;
             $body
         }
@@ -654,7 +701,8 @@ struct Models<'w> {
     plastic: Box<Packed<Plastic>>,
     beckmann_plastic: Box<Packed<RoughPlasticLane<'w, true>>>,
     ggx_plastic: Box<Packed<RoughPlasticLane<'w, false>>>,
-    metallic_roughness: Box<Packed<MetallicRoughness>>,
+    metallic_roughness: Box<Packed<MetallicRoughnessLane>>,
+    thin: Box<Packed<ThinDielectric>>,
     diffuse_glossy: Box<Packed<DiffuseGlossy>>,
 }
 
@@ -672,6 +720,7 @@ impl<'w> Models<'w> {
             beckmann_plastic: Packed::new(),
             ggx_plastic: Packed::new(),
             metallic_roughness: Packed::new(),
+            thin: Packed::new(),
             diffuse_glossy: Packed::new(),
         }
     }
@@ -712,9 +761,10 @@ impl<'w> Models<'w> {
                 Distribution::Beckmann => self.beckmann_plastic.push(i, RoughPlasticLane::new(&b, wo, wi), wo, wi, u, u2),
                 Distribution::Ggx => self.ggx_plastic.push(i, RoughPlasticLane::new(&b, wo, wi), wo, wi, u, u2),
             },
-            Bsdf::MetallicRoughness(b) => self.metallic_roughness.push(i, b, wo, wi, u, u2),
+            Bsdf::MetallicRoughness(b) => self.metallic_roughness.push(i, MetallicRoughnessLane { b, valid: false }, wo, wi, u, u2),
+            Bsdf::Thin(b) => self.thin.push(i, b, wo, wi, u, u2),
             Bsdf::DiffuseGlossy(b) => self.diffuse_glossy.push(i, b, wo, wi, u, u2),
-            Bsdf::Thin(_) | Bsdf::Principled(_) | Bsdf::Blend(_) | Bsdf::Mask(_) | Bsdf::Custom(..) => return false,
+            Bsdf::Principled(_) | Bsdf::Blend(_) | Bsdf::Mask(_) | Bsdf::Custom(..) => return false,
         }
         true
     }
