@@ -152,12 +152,11 @@ impl Film {
     /// Writes an `.exr` of the image (`R`, `G`, `B`) with the denoiser's layers beside it:
     /// `albedo.R/G/B`, `N.X/Y/Z` and `Z` (linear f32, one part).
     pub fn save_exr_with_aovs(&self, path: &Path, aovs: &Aovs) -> Result<(), OutputError> {
-        use exr::prelude::*;
         let n = self.pixels.len();
         if aovs.albedo.pixels.len() != n || aovs.normal.pixels.len() != n || aovs.depth.len() != n {
             return Err(OutputError::Format(format!("{}: the layers are not the image's size", path.display())));
         }
-        let ch = |name: &str, f: &dyn Fn(usize) -> f32| AnyChannel::new(name, FlatSamples::F32((0..n).map(f).collect()));
+        let ch = |name: &str, f: &dyn Fn(usize) -> f32| (name.to_string(), (0..n).map(f).collect());
         let channels = vec![
             ch("R", &|i| self.pixels[i].x),
             ch("G", &|i| self.pixels[i].y),
@@ -170,8 +169,7 @@ impl Film {
             ch("N.Z", &|i| aovs.normal.pixels[i].z),
             ch("Z", &|i| aovs.depth[i]),
         ];
-        let image = Image::from_channels((self.width as usize, self.height as usize), AnyChannels::sort(channels.into()));
-        image.write().to_file(path).map_err(|e| OutputError::Exr { path: path.display().to_string(), msg: e.to_string() })
+        Self::save_exr_channels(path, self.width, self.height, channels)
     }
 
     /// Writes an `.exr` of named channels of `width` × `height` values each (linear f32,

@@ -7,6 +7,17 @@ use super::sample::{mirror, same_side, BsdfSample};
 use glam::Vec3;
 use lucent_scene::Distribution;
 
+/// The relative index `eta` (inside over outside) as a direction leaving `wo`'s side
+/// crosses it: η from outside, 1/η from inside.
+#[inline(always)]
+fn eta_across(eta: f32, wo: Vec3) -> f32 {
+    if wo.z > 0.0 {
+        eta
+    } else {
+        1.0 / eta
+    }
+}
+
 /// A smooth or rough dielectric interface.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Dielectric {
@@ -25,11 +36,7 @@ impl Dielectric {
     #[inline]
     #[must_use]
     pub fn eta_across(&self, wo: Vec3) -> f32 {
-        if wo.z > 0.0 {
-            self.eta
-        } else {
-            1.0 / self.eta
-        }
+        eta_across(self.eta, wo)
     }
 
     /// f(wo, wi)·|cos θi| (zero for the smooth interface).
@@ -77,7 +84,7 @@ impl Dielectric {
         let refracted = refract(wo, Vec3::Z, cos_t, eta);
         // η on the viewer's side over the far side, squared: radiance crossing into a
         // denser medium is compressed.
-        let eta_t = if wo.z > 0.0 { eta } else { 1.0 / eta };
+        let eta_t = eta_across(eta, wo);
         let trans = self.trans / (eta_t * eta_t);
         let s = if u < f {
             BsdfSample { wi: mirror(wo), weight: self.refl, pdf: f, delta: true, eta: 1.0 }
@@ -112,16 +119,6 @@ impl<const BECKMANN: bool> RoughDielectric<BECKMANN> {
         Self { eta: d.eta, refl: d.refl, trans: d.trans, mf, valid: false }
     }
 
-    /// The relative index a transmitted direction crosses from `wo`'s side.
-    #[inline(always)]
-    fn eta_across(&self, wo: Vec3) -> f32 {
-        if wo.z > 0.0 {
-            self.eta
-        } else {
-            1.0 / self.eta
-        }
-    }
-
     /// f(wo, wi)·|cos θi| and the density of the sample, branch-free: the half vector
     /// (turned up) of a reflection or of a refraction with the relative index across from
     /// `wo`'s side, D, the facet's Fresnel term and the masking once; zero where either
@@ -132,7 +129,7 @@ impl<const BECKMANN: bool> RoughDielectric<BECKMANN> {
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let mf = self.mf;
         let reflect = same_side(wo, wi);
-        let eta_o = self.eta_across(wo);
+        let eta_o = eta_across(self.eta, wo);
         let h = if reflect { wo + wi } else { wo + wi * eta_o };
         // (`normalize_or_zero`, its test kept for the end.)
         let rcp = h.length_recip();
@@ -182,7 +179,7 @@ impl<const BECKMANN: bool> RoughDielectric<BECKMANN> {
     #[must_use]
     pub fn finish(&self, wo: Vec3, wi: Vec3, f: Vec3, pdf: f32) -> (BsdfSample, bool) {
         let ok = self.valid & (pdf > 0.0) & pdf.is_finite();
-        let eta = if same_side(wo, wi) { 1.0 } else { self.eta_across(wo) };
+        let eta = if same_side(wo, wi) { 1.0 } else { eta_across(self.eta, wo) };
         (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta }, ok)
     }
 

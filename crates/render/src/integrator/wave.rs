@@ -259,22 +259,6 @@ fn some(s: Option<BsdfSample>) -> (BsdfSample, bool) {
     (s.unwrap_or(BsdfSample { wi: Vec3::Z, weight: Vec3::ZERO, pdf: 0.0, delta: false, eta: 1.0 }), s.is_some())
 }
 
-macro_rules! model {
-    ($ty:ty, |$b:ident, $wo:ident, $u:ident, $u2:ident| $sample:expr, |$c:ident, $wo2:ident, $wi:ident| $eval_pdf:expr) => {
-        impl Model for $ty {
-            #[inline(always)]
-            fn sample(&self, $wo: Vec3, $u: f32, $u2: (f32, f32)) -> (BsdfSample, bool) {
-                let $b = self;
-                $sample
-            }
-            #[inline(always)]
-            fn eval_pdf(&self, $wo2: Vec3, $wi: Vec3) -> (Vec3, f32) {
-                let $c = self;
-                $eval_pdf
-            }
-        }
-    };
-}
 impl Model for Diffuse {
     const VECTOR: bool = true;
     const PAD_ALL: bool = true;
@@ -287,7 +271,17 @@ impl Model for Diffuse {
         (self.eval(wo, wi), self.pdf(wo, wi))
     }
 }
-model!(Conductor, |b, wo, _u, u2| some(b.sample(wo, u2)), |b, wo, wi| b.eval_pdf(wo, wi));
+/// Smooth conductors only (the rough ones are packed as [`RoughConductor`]), lane by lane.
+impl Model for Conductor {
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, _u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        some(Conductor::sample(self, wo, u2))
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        Conductor::eval_pdf(self, wo, wi)
+    }
+}
 impl<const BECKMANN: bool> Model for RoughConductor<BECKMANN> {
     const VECTOR: bool = true;
     // (PERF: for GGX, one loop of sample, value, density and weight did not vectorize; in
