@@ -4,7 +4,7 @@ use crate::render_cmd::{choose_camera, load_scene, DemoArg};
 use anyhow::{bail, Context, Result};
 use lucent_accel::MeshOptions;
 use lucent_render::{Camera, World};
-use saarcor::dynrtp::{model_frame, Machine, Traced};
+use saarcor::dynrtp::{simulate, FrameModel, FrameTrace, Machine, Traced};
 use saarcor::precision::{precision_study, Format};
 use saarcor::report::{Rend3rReport, SaarcorReport, Tables};
 use std::path::{Path, PathBuf};
@@ -39,6 +39,37 @@ pub struct ReportArgs {
     /// Items per cache (one number for all three).
     #[arg(long, default_value_t = 512)]
     pub cache_items: u64,
+    /// Threads of the modelled pipeline (packets in flight; the prototype has 64).
+    #[arg(long, default_value_t = 64)]
+    pub pipeline_threads: u32,
+    /// Cycles from a unit finishing a step to the thread having its result (not printed
+    /// in the paper; the default reproduces its thread scaling, see the report).
+    #[arg(long, default_value_t = saarcor::dynrtp::UNIT_LATENCY)]
+    pub unit_latency: u32,
+    /// Cycles from a cache miss's bytes leaving memory to their arrival (not printed in
+    /// the paper).
+    #[arg(long, default_value_t = saarcor::dynrtp::MEMORY_LATENCY)]
+    pub memory_latency: u32,
+    /// The kd-trees' surface area heuristic: the cost of a traversal step and of a
+    /// triangle test (Wald and Havran's 15,20 by default; only the ratio matters: a
+    /// cheaper step makes deeper trees with shorter leaves).
+    #[arg(long, value_delimiter = ',', default_value = "15,20")]
+    pub kd_cost: Vec<f32>,
+    /// The kd-trees' depth limit (0: Havran's 8 + 1.3 log2 N, 32 levels for Conference;
+    /// at most 60).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=60))]
+    pub kd_max_depth: u32,
+    /// For a scene of the paper's (Conference, the sunflowers) at the paper's 1024x768:
+    /// measure the kd frame under other modelling choices, each changed alone, to explain
+    /// where the model and the paper differ (a few more frames of work).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub gaps: bool,
+    /// Split the scene's mesh into at most this many objects first (SaarCOR's Conference
+    /// is 54 objects: pieces that touch are one object, the room's walls another, the
+    /// nearest merged until this many remain; equal objects become instances of one
+    /// geometry). 0: the scene as read.
+    #[arg(long, default_value_t = 0)]
+    pub objects: usize,
     /// Print one JSON line per table row instead of the tables.
     #[arg(long)]
     pub json: bool,
@@ -96,14 +127,50 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
         (Some(q), None) => choose_camera(&scene, Some(&q.cam), false)?,
         (_, cam) => choose_camera(&scene, cam, false)?,
     };
-    let triangles = scene.meshes.iter().map(|m| m.indices.len()).sum();
+    let scene = if a.objects > 0 {
+        let (split, st) = saarcor::objects::split_objects(&scene, a.objects);
+        eprintln!("split into {} objects ({} distinct geometries) from {} connected pieces", st.objects, st.geometries, st.pieces);
+        split
+    } else {
+        scene
+    };
+    let triangles = scene
+        .instances
+        .iter()
+        .filter_map(|i| match i.geom {
+            lucent_scene::Geom::Mesh(m) => scene.meshes.get(m as usize).map(|m| m.indices.len()),
+            _ => None,
+        })
+        .sum();
     let world = World::new(scene, MeshOptions::default())?;
     let t = Instant::now();
-    let kd = saarcor::kd_of_world(&world)?;
+    let [ct, ci] = a.kd_cost[..] else { bail!("--kd-cost needs two costs: a traversal step's and a triangle test's") };
+    if !(ct > 0.0 && ci > 0.0 && ct.is_finite() && ci.is_finite()) {
+        bail!("--kd-cost: both costs must be positive numbers");
+    }
+    let kd_opts =
+        saarcor::kd::KdOptions { cost_traverse: ct, cost_intersect: ci, max_depth: a.kd_max_depth, ..saarcor::kd::KdOptions::default() };
+    let kd = saarcor::kd::kd_of_world_with(&world, kd_opts)?;
     tracing::info!("kd index built in {:.2} s", t.elapsed().as_secs_f64());
+    for (i, g) in kd.geometries().iter().enumerate() {
+        if let saarcor::kd::KdGeometry::Mesh(m) = g {
+            let st = m.tree().stats();
+            tracing::info!(
+                "kd mesh {i}: {} triangles, {} leaves ({} empty), {:.2} entries a full leaf, depth {}",
+                m.triangles(),
+                st.leaves,
+                st.empty_leaves,
+                st.list_entries as f64 / (st.leaves - st.empty_leaves).max(1) as f64,
+                st.depth
+            );
+        }
+    }
     let machine = Machine {
         cache_bytes: [a.cache_bytes[0], a.cache_bytes[1], a.cache_bytes[2]],
         cache_items: [a.cache_items; 3],
+        threads: a.pipeline_threads.max(1),
+        unit_latency: a.unit_latency,
+        memory_latency: a.memory_latency,
         ..Machine::default()
     };
     let indices: Vec<Traced<'_>> = match a.index.as_str() {
@@ -124,8 +191,17 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
         ..SaarcorReport::default()
     };
     for ix in &indices {
-        rep.table4.push(model_frame(ix, &cam4, &machine));
-        rep.table3.push(if size4 == (512, 384) { rep.table4[rep.table4.len() - 1].clone() } else { model_frame(ix, &cam3, &machine) });
+        let trace4 = FrameTrace::new(ix, &cam4);
+        rep.table4.push(simulate(&trace4, &machine, machine.threads));
+        if matches!(ix, Traced::Kd(_)) && saarcor::paper::table4_of(&rep.scene).is_some() && a.gaps && size4 == (1024, 768) {
+            rep.variants = variants(&world, &trace4, &cam4, &machine)?;
+        }
+        let trace3 = FrameTrace::new(ix, &cam3);
+        rep.table3.push(simulate(&trace3, &machine, machine.threads));
+        // The paper's scaling statement: fps and usage against threads, at 512x384.
+        for t in saarcor::dynrtp::THREAD_SWEEP {
+            rep.threads.push(simulate(&trace3, &machine, t));
+        }
     }
     // lucent's own time for the same rays (the fast single-ray kernels, this machine).
     let t = Instant::now();
@@ -146,6 +222,48 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
         eprintln!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// The kd frame at the Table 4 size under other modelling choices, each changed alone:
+/// the gaps table's measurements.
+fn variants(world: &World, trace: &FrameTrace, cam: &Camera, m: &Machine) -> Result<Vec<(String, FrameModel)>> {
+    let mut out = Vec::new();
+    let mut run = |what: &str, machine: Machine| out.push((what.to_string(), simulate(trace, &machine, machine.threads)));
+    run("the caches see each packet's reads in turn (one thread; fps and usage of one thread)", Machine { threads: 1, ..*m });
+    run("primary rays not made on the transformation unit", Machine { generate_rays: false, ..*m });
+    run("no shading steps on the transformation unit (2 a hit ray)", Machine { shade_steps: 0, ..*m });
+    run("each intersection's result back through the traversal unit (path f)", Machine { results_via_traversal: true, ..*m });
+    run(
+        "shading reads 60 B a hit ray (three vertices' normals and texture coordinates), not the paper's 28",
+        Machine { shade_bytes: 60, ..*m },
+    );
+    out.push((
+        "packets handed out in scanline order (rows of 2x2 quads), not 8x8 tiles".into(),
+        saarcor::dynrtp::simulate_in_rows(trace, m, m.threads),
+    ));
+    let mut run = |what: &str, machine: Machine| out.push((what.to_string(), simulate(trace, &machine, machine.threads)));
+    run(
+        "memory and unit latencies 4x (64 threads no longer hide them)",
+        Machine { unit_latency: 4 * m.unit_latency, memory_latency: 4 * m.memory_latency, ..*m },
+    );
+    let deep = saarcor::kd::KdOptions { cost_traverse: 5.0, max_depth: 40, ..saarcor::kd::KdOptions::default() };
+    let kd = saarcor::kd::kd_of_world_with(world, deep)?;
+    let t = FrameTrace::new(&Traced::Kd(&kd), cam);
+    out.push(("kd-trees with a 3x cheaper traversal step and 40 levels (smaller leaves)".into(), simulate(&t, m, m.threads)));
+    drop(t);
+    let split = saarcor::kd::KdOptions { max_depth: 40, max_leaf: 2, ..saarcor::kd::KdOptions::default() };
+    let kd = saarcor::kd::kd_of_world_with(world, split)?;
+    let t = FrameTrace::new(&Traced::Kd(&kd), cam);
+    out.push(("kd-trees split down to 2 triangles a leaf where a split divides them (40 levels)".into(), simulate(&t, m, m.threads)));
+    drop(t);
+    let boxes = saarcor::kd::KdOptions { perfect_splits: false, ..saarcor::kd::KdOptions::default() };
+    let kd = saarcor::kd::kd_of_world_with(world, boxes)?;
+    let t = FrameTrace::new(&Traced::Kd(&kd), cam);
+    out.push((
+        "kd-trees split by the triangles' boxes cut at the nodes' faces, not by the clipped triangles".into(),
+        simulate(&t, m, m.threads),
+    ));
+    Ok(out)
 }
 
 /// The tables on standard output: JSON lines with `--json`, else Markdown.

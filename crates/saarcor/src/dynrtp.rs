@@ -18,11 +18,12 @@ use std::collections::HashMap;
 
 /// What the model assumes, in the report's words.
 pub const ASSUMPTIONS: &[&str] = &[
-    "Rays: one primary ray through each pixel centre; packets are the 2x2 pixel quads, traced in 8x8-pixel tiles in row order; the 64 threads hide every latency, so a frame takes as many cycles as its busiest unit or its memory traffic (whichever is larger).",
+    "Rays: one primary ray through each pixel centre; packets are the 2x2 pixel quads, traced in 8x8-pixel tiles in row order.",
+    "Threads: 64 (the prototype's), each holding one packet; a discrete-event simulation: a thread issues its packet's steps one after the other, each step reads its item through its cache (a miss waits for the memory: misses are served one after another at 1 GB/s, then 40 cycles of latency), waits for its unit (first come, first served; busy for the step's cycles) and has its result 20 cycles after the unit finishes. Neither latency is printed in the paper: these two reproduce its scaling statement on the 54-object Conference (`--objects 54`: 32 threads 25.5x one, 64 threads +9% over 32). The caches see the reads in the order the threads make them.",
     "Traversal unit: one cycle per node a packet visits (both indices walk the 4 rays as one packet: kd as SaarCOR does, the bvh with its interval test of a node's 8 children; packets whose rays disagree on direction signs go ray by ray, and each ray's nodes count). List unit: one cycle per object-list entry a packet reads.",
-    "Transformation unit: n+1 steps (cycles) to carry n rays of a packet, which share an origin, into an instance's space or a triangle's unit-triangle space (bvh: each of a leaf's 4-triangle groups costs its 4 triangles), and 2 steps per shaded ray (normal and texture-coordinate interpolation). Intersection unit: one cycle per ray-triangle (or ray-shape) test.",
-    "Caches: direct mapped; traversal items 8 B (a kd node), list items 4 B, transformation items 12 B (a 4-value matrix row of 24-bit floats); an access looks up every item of the bytes it reads, once per packet. Addresses are those of lucent's own data: kd nodes 8 B, list entries 4 B, unit-triangle maps 40 B (SaarCOR: 36 B), instance matrices 48 B (SaarCOR: 36 B); the bvh's 8-wide nodes are a few hundred bytes each (every child's box), its leaves 4-triangle groups of 160 B.",
-    "Memory: misses cost their items' bytes from external memory at 1 GB/s to the core. Shading bandwidth (not cached): per hit ray three vertex normals and texture coordinates (3 x 20 B) and per pixel a 4-byte frame-buffer write.",
+    "Transformation unit: n+1 steps (cycles) to carry n rays of a packet, which share an origin, into an instance's space or a triangle's unit-triangle space (bvh: each of a leaf's 4-triangle groups costs its 4 triangles); n+1 steps to make a packet's n primary rays from the camera's transformation (the paper's Section 2.2.2); 2 steps per shaded ray (normal and texture-coordinate interpolation). Intersection unit: one cycle per ray-triangle (or ray-shape) test.",
+    "Caches: direct mapped; traversal items 8 B (a kd node), list items 4 B, transformation items 12 B (a 4-value matrix row of 24-bit floats); an access looks up every item of the bytes it reads, once per packet. Addresses: kd, a memory image of the scene as uploaded (the top tree's nodes and list, then each object's nodes, list and unit-triangle maps, then the instances' matrices, each array 64-byte aligned): kd nodes 8 B, list entries 4 B, unit-triangle maps 40 B (SaarCOR: 36 B), instance matrices 48 B (SaarCOR: 36 B); bvh, lucent's own arrays (8-wide nodes of a few hundred bytes each, 4-triangle groups of 160 B) moved to a layout that does not change from run to run.",
+    "Memory: misses cost their items' bytes from external memory at 1 GB/s to the core. Shading bandwidth (not cached): 28 B per hit ray (the paper's figure with bilinear filtering) and per pixel a 4-byte frame-buffer write.",
 ];
 
 /// The machine's parameters.
@@ -38,9 +39,29 @@ pub struct Machine {
     pub cache_items: [u64; 3],
     /// Transformation steps per shaded ray.
     pub shade_steps: u64,
-    /// Uncached shading bytes per hit ray.
+    /// Uncached shading bytes per hit ray (the paper: 28 bytes a ray with bilinear
+    /// texture filtering).
     pub shade_bytes: u64,
+    /// Each intersection's result goes back through the traversal unit (the paper's
+    /// path f), a cycle there per test step.
+    pub results_via_traversal: bool,
+    /// Primary rays are made by the transformation unit (the paper's Section 2.2.2: the
+    /// camera's transformation maps each pixel's initial ray), n+1 steps for a packet's
+    /// n rays, which share the camera's origin.
+    pub generate_rays: bool,
+    /// Threads of the pipeline: packets in flight (the prototype: 64).
+    pub threads: u32,
+    /// Cycles from a unit finishing a step to its result reaching the thread (the
+    /// pipeline's depth after the first stage).
+    pub unit_latency: u32,
+    /// Cycles from a miss's bytes leaving memory to their arrival.
+    pub memory_latency: u32,
 }
+
+/// [`Machine::unit_latency`] by default (not in the paper: see [`ASSUMPTIONS`]).
+pub const UNIT_LATENCY: u32 = 20;
+/// [`Machine::memory_latency`] by default (not in the paper: see [`ASSUMPTIONS`]).
+pub const MEMORY_LATENCY: u32 = 40;
 
 impl Default for Machine {
     fn default() -> Self {
@@ -50,7 +71,12 @@ impl Default for Machine {
             cache_bytes: [4096, 2048, 6144],
             cache_items: [512; 3],
             shade_steps: 2,
-            shade_bytes: 60,
+            shade_bytes: 28,
+            generate_rays: true,
+            results_via_traversal: false,
+            threads: 64,
+            unit_latency: UNIT_LATENCY,
+            memory_latency: MEMORY_LATENCY,
         }
     }
 }
@@ -120,59 +146,6 @@ impl Counters for Recorder {
     }
 }
 
-/// The work of one packet, ready for the units and caches.
-#[derive(Default)]
-struct PacketWork {
-    trav: u64,
-    list: u64,
-    transf: u64,
-    int: u64,
-    hits: u64,
-    /// (cache 0..3, address, bytes) in the order read, each item once.
-    reads: Vec<(usize, u64, u64)>,
-}
-
-/// Turns a packet's recorded reads into unit work: repeated reads (the same item under
-/// the same instance) are one read of the packet; the rays that made a triangle or
-/// transform read are the rays it serves.
-fn packet_work(reads: &[(Kind, usize, u32, usize)], hits: u64, m: &Machine) -> PacketWork {
-    let mut w = PacketWork { hits, ..PacketWork::default() };
-    let mut seen: HashMap<(Kind, usize, usize), u64> = HashMap::new();
-    let mut order = Vec::new();
-    for &(k, addr, bytes, ctx) in reads {
-        let e = seen.entry((k, addr, ctx)).or_insert(0);
-        if *e == 0 {
-            order.push((k, addr, bytes));
-        }
-        *e += 1;
-    }
-    for (&(k, _, _), &rays) in &seen {
-        match k {
-            Kind::Node => w.trav += 1,
-            Kind::List => w.list += 1,
-            Kind::Transform => w.transf += rays + 1,
-            Kind::Tris(n) => {
-                w.transf += u64::from(n) * (rays + 1);
-                w.int += u64::from(n) * rays;
-            }
-            Kind::Shape => {
-                w.transf += rays + 1;
-                w.int += rays;
-            }
-        }
-    }
-    w.transf += hits * m.shade_steps;
-    for (k, addr, bytes) in order {
-        let cache = match k {
-            Kind::Node => 0,
-            Kind::List => 1,
-            _ => 2,
-        };
-        w.reads.push((cache, addr as u64, u64::from(bytes)));
-    }
-    w
-}
-
 /// What the model says of one frame.
 #[derive(Clone, Debug, Default)]
 pub struct FrameModel {
@@ -180,6 +153,8 @@ pub struct FrameModel {
     pub size: (u32, u32),
     /// Index traversed.
     pub index: &'static str,
+    /// Threads (packets in flight).
+    pub threads: u32,
     /// Frames per second.
     pub fps: f64,
     /// Cycles of the frame.
@@ -200,9 +175,13 @@ pub struct FrameModel {
     pub heat_misses: Vec<f32>,
     /// Primary rays that hit.
     pub hit_rays: u64,
-    /// Packets traced as packets (kd: coherent direction signs).
+    /// Packets of the frame.
     pub packets: u64,
 }
+
+/// Thread counts of the scaling table (the paper: "almost linear up to 32 threads",
+/// "about 10%" more at 64).
+pub const THREAD_SWEEP: [u32; 9] = [1, 2, 4, 8, 16, 24, 32, 48, 64];
 
 /// Cache sizes of the hit-rate sweep, KB.
 pub const SWEEP_KB: [u64; 7] = [1, 2, 4, 8, 16, 32, 64];
@@ -215,10 +194,208 @@ pub enum Traced<'a> {
     Kd(&'a KdTwoLevel),
 }
 
-/// Models one frame of primary rays through `cam` at its size.
+/// One step of a packet: `cycles` on `unit` (0 traversal, 1 list, 2 transformation,
+/// 3 intersection), after `bytes` at `addr` are read through cache `cache` (or no read:
+/// [`NO_READ`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Op {
+    addr: u64,
+    bytes: u16,
+    cycles: u16,
+    unit: u8,
+    cache: u8,
+}
+
+/// [`Op::cache`] of a step that reads nothing.
+const NO_READ: u8 = 3;
+
+/// Turns a packet's recorded reads into its steps in the order the packet made them:
+/// repeated reads (the same item under the same instance) are one read of the packet, at
+/// its first place; the rays that made a triangle or transform read are the rays it
+/// serves.
+fn packet_ops(reads: &[(Kind, usize, u32, usize)], out: &mut Vec<Op>) {
+    let mut rays: HashMap<(Kind, usize, usize), u64> = HashMap::new();
+    let mut order = Vec::new();
+    for &(k, addr, bytes, ctx) in reads {
+        let e = rays.entry((k, addr, ctx)).or_insert(0);
+        if *e == 0 {
+            order.push((k, addr, bytes, ctx));
+        }
+        *e += 1;
+    }
+    let cyc = |x: u64| u16::try_from(x).unwrap_or(u16::MAX);
+    for (k, addr, bytes, ctx) in order {
+        let n = rays[&(k, addr, ctx)];
+        let read = |unit: u8, cache: u8, cycles: u64| Op {
+            addr: addr as u64,
+            bytes: u16::try_from(bytes).unwrap_or(u16::MAX),
+            cycles: cyc(cycles),
+            unit,
+            cache,
+        };
+        match k {
+            Kind::Node => out.push(read(0, 0, 1)),
+            Kind::List => out.push(read(1, 1, 1)),
+            Kind::Transform => out.push(read(2, 2, n + 1)),
+            Kind::Tris(t) => {
+                out.push(read(2, 2, u64::from(t) * (n + 1)));
+                out.push(Op { addr: 0, bytes: 0, cycles: cyc(u64::from(t) * n), unit: 3, cache: NO_READ });
+            }
+            Kind::Shape => {
+                out.push(read(2, 2, n + 1));
+                out.push(Op { addr: 0, bytes: 0, cycles: cyc(n), unit: 3, cache: NO_READ });
+            }
+        }
+    }
+}
+
+/// A packet's steps on machine `m`: its camera rays made (when the machine makes them on
+/// the transformation unit), its traversal's steps (each intersection's result handed
+/// back through the traversal unit when the machine says so), its hit rays' shading.
+fn machine_ops(ops: &[Op], live: u64, hits: u64, m: &Machine, out: &mut Vec<Op>) {
+    out.clear();
+    let cyc = |x: u64| u16::try_from(x).unwrap_or(u16::MAX);
+    if m.generate_rays && live > 0 {
+        out.push(Op { addr: 0, bytes: 0, cycles: cyc(live + 1), unit: 2, cache: NO_READ });
+    }
+    for &o in ops {
+        out.push(o);
+        if m.results_via_traversal && o.unit == 3 {
+            out.push(Op { addr: 0, bytes: 0, cycles: 1, unit: 0, cache: NO_READ });
+        }
+    }
+    if hits > 0 && m.shade_steps > 0 {
+        out.push(Op { addr: 0, bytes: 0, cycles: cyc(hits * m.shade_steps), unit: 2, cache: NO_READ });
+    }
+}
+
+/// Moves the addresses read into a layout that does not depend on where this run's
+/// allocator put the index: the touched pages fall into regions (runs with gaps under
+/// 1 MB, an array or a few arrays allocated together), and region k starts at k x 4 GB,
+/// keeping every address's offset from its region's first page. So a direct-mapped
+/// cache sees the same conflicts run after run (the raw addresses moved with address
+/// space layout randomisation: hit rates of the 6 KB cache, whose size is no multiple of
+/// a page, changed by several points between two runs).
+fn canonical_addresses(ops: &mut [Op]) {
+    let mut pages: Vec<u64> = ops.iter().filter(|o| o.cache != NO_READ).map(|o| o.addr >> 12).collect();
+    pages.sort_unstable();
+    pages.dedup();
+    let mut starts: Vec<u64> = Vec::new();
+    for (i, &p) in pages.iter().enumerate() {
+        if i == 0 || p - pages[i - 1] > 256 {
+            starts.push(p);
+        }
+    }
+    for o in ops.iter_mut().filter(|o| o.cache != NO_READ) {
+        let r = starts.partition_point(|&s| s <= o.addr >> 12).saturating_sub(1);
+        if let Some(&s) = starts.get(r) {
+            o.addr = ((r as u64) << 32) + (o.addr - (s << 12));
+        }
+    }
+}
+
+/// A packet of a trace: its first step, its top-left pixel, its rays and its hit rays.
+type PacketRecord = (usize, (u32, u32), u64, u64);
+
+/// The packets of one frame of primary rays, each as its steps in order: what the model's
+/// units and caches are fed with, at any number of threads.
+pub struct FrameTrace {
+    size: (u32, u32),
+    index: &'static str,
+    ops: Vec<Op>,
+    packets: Vec<PacketRecord>,
+}
+
+impl FrameTrace {
+    /// Traces one frame of primary rays through `cam` at its size: packets are the 2x2
+    /// pixel quads, in 8x8-pixel tiles in row order.
+    #[must_use]
+    pub fn new(index: &Traced<'_>, cam: &Camera) -> Self {
+        let (w, h) = cam.size();
+        let tiles: Vec<(u32, u32)> = (0..h.div_ceil(8)).flat_map(|ty| (0..w.div_ceil(8)).map(move |tx| (tx, ty))).collect();
+        let per_tile: Vec<(Vec<Op>, Vec<PacketRecord>)> = tiles
+            .par_iter()
+            .map(|&(tx, ty)| {
+                let (mut ops, mut packets) = (Vec::new(), Vec::new());
+                for py in (ty * 8..(ty * 8 + 8).min(h)).step_by(2) {
+                    for px in (tx * 8..(tx * 8 + 8).min(w)).step_by(2) {
+                        let pix = [(px, py), (px + 1, py), (px, py + 1), (px + 1, py + 1)];
+                        let rays: [Ray; 4] = pix.map(|(x, y)| cam.ray(x as f32 + 0.5, y as f32 + 0.5));
+                        let live = pix.map(|(x, y)| x < w && y < h);
+                        let mut rec = Recorder::default();
+                        let found: [bool; 4] = match index {
+                            Traced::Kd(k) => k.intersect4_with::<Exact, _>(&rays, &mut rec).map(|h| h.is_some()),
+                            Traced::Bvh(b) => {
+                                let mut r = [None; 4];
+                                b.intersect_packet_counted(&rays, &mut r, &mut rec);
+                                r.map(|h| h.is_some())
+                            }
+                        };
+                        let hits = found.iter().zip(&live).filter(|(h, l)| **h && **l).count() as u64;
+                        packets.push((ops.len(), (px, py), live.iter().filter(|l| **l).count() as u64, hits));
+                        packet_ops(&rec.reads, &mut ops);
+                    }
+                }
+                (ops, packets)
+            })
+            .collect();
+        let mut t = Self {
+            size: (w, h),
+            index: match index {
+                Traced::Bvh(_) => "bvh",
+                Traced::Kd(_) => "kd",
+            },
+            ops: Vec::with_capacity(per_tile.iter().map(|p| p.0.len()).sum()),
+            packets: Vec::new(),
+        };
+        for (ops, packets) in per_tile {
+            let base = t.ops.len();
+            t.packets.extend(packets.into_iter().map(|(s, p, live, hits)| (base + s, p, live, hits)));
+            t.ops.extend(ops);
+        }
+        canonical_addresses(&mut t.ops);
+        t
+    }
+
+    fn packet_ops(&self, p: usize) -> &[Op] {
+        let end = self.packets.get(p + 1).map_or(self.ops.len(), |q| q.0);
+        &self.ops[self.packets[p].0..end]
+    }
+}
+
+/// Models one frame of primary rays through `cam` at its size, on `m.threads` threads.
 #[must_use]
 pub fn model_frame(index: &Traced<'_>, cam: &Camera, m: &Machine) -> FrameModel {
-    let (w, h) = cam.size();
+    simulate(&FrameTrace::new(index, cam), m, m.threads)
+}
+
+/// Runs a traced frame through the machine with `threads` packets in flight: a
+/// discrete-event simulation. Each thread holds one packet and issues its steps one after
+/// the other; a step first reads its item through its cache (a miss waits for the memory,
+/// which serves misses one after another at the machine's bandwidth, plus
+/// `memory_latency`), then waits for its unit (first come, first served; a unit starts
+/// one step a cycle and is busy for the step's cycles), and its result is there
+/// `unit_latency` cycles after the unit finishes. A thread whose packet is done takes the
+/// next packet in tile order. The caches see the reads in the order the threads make them.
+#[must_use]
+pub fn simulate(t: &FrameTrace, m: &Machine, threads: u32) -> FrameModel {
+    let order: Vec<usize> = (0..t.packets.len()).collect();
+    simulate_in(t, m, threads, &order)
+}
+
+/// [`simulate`] with the packets handed to the threads in scanline order (rows of 2x2
+/// quads across the whole image) instead of 8x8-pixel tiles.
+#[must_use]
+pub fn simulate_in_rows(t: &FrameTrace, m: &Machine, threads: u32) -> FrameModel {
+    let mut order: Vec<usize> = (0..t.packets.len()).collect();
+    order.sort_by_key(|&p| (t.packets[p].1 .1, t.packets[p].1 .0));
+    simulate_in(t, m, threads, &order)
+}
+
+fn simulate_in(t: &FrameTrace, m: &Machine, threads: u32, order: &[usize]) -> FrameModel {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    let (w, h) = t.size;
     let mut caches: Vec<DirectMapped> = (0..3).map(|i| DirectMapped::new(m.cache_bytes[i], m.cache_items[i])).collect();
     let item = [8u64, 4, 12];
     let mut sweep: Vec<[DirectMapped; 3]> =
@@ -227,70 +404,85 @@ pub fn model_frame(index: &Traced<'_>, cam: &Camera, m: &Machine) -> FrameModel 
     let mut hit_rays = 0u64;
     let mut heat_steps = vec![0f32; (w * h) as usize];
     let mut heat_misses = vec![0f32; (w * h) as usize];
-    let tiles_x = w.div_ceil(8);
-    let tiles_y = h.div_ceil(8);
-    // Tile rows are traced in parallel and fed to the caches in order.
-    for ty in 0..tiles_y {
-        let works: Vec<Vec<((u32, u32), PacketWork)>> = (0..tiles_x)
-            .into_par_iter()
-            .map(|tx| {
-                let mut out = Vec::new();
-                for py in (ty * 8..(ty * 8 + 8).min(h)).step_by(2) {
-                    for px in (tx * 8..(tx * 8 + 8).min(w)).step_by(2) {
-                        let pix = [(px, py), (px + 1, py), (px, py + 1), (px + 1, py + 1)];
-                        let rays: [Ray; 4] = pix.map(|(x, y)| cam.ray(x as f32 + 0.5, y as f32 + 0.5));
-                        let live: Vec<bool> = pix.iter().map(|&(x, y)| x < w && y < h).collect();
-                        let mut rec = Recorder::default();
-                        let hits: u64 = match index {
-                            Traced::Kd(k) => {
-                                let r = k.intersect4_with::<Exact, _>(&rays, &mut rec);
-                                r.iter().zip(&live).filter(|(h, &l)| l && h.is_some()).count() as u64
-                            }
-                            Traced::Bvh(b) => {
-                                let mut r = [None; 4];
-                                b.intersect_packet_counted(&rays, &mut r, &mut rec);
-                                r.iter().zip(&live).filter(|(h, &l)| l && h.is_some()).count() as u64
-                            }
-                        };
-                        out.push(((px, py), packet_work(&rec.reads, hits, m)));
+    let bytes_per_cycle = m.memory_bytes_s / m.clock_hz;
+    // Per thread: (packet, next step, its misses so far).
+    let threads = threads.max(1) as usize;
+    let mut state: Vec<(usize, usize, u64)> = vec![(usize::MAX, 0, 0); threads];
+    let mut bufs: Vec<Vec<Op>> = vec![Vec::new(); threads];
+    let mut next_packet = 0usize;
+    let mut unit_free = [0u64; 4];
+    let mut mem_free = 0f64;
+    let mut end = 0u64;
+    let mut mem_bytes = 0u64;
+    // Events: (time, thread, data ready).
+    let mut heap: BinaryHeap<Reverse<(u64, u32, bool)>> = (0..threads as u32).map(|i| Reverse((0, i, false))).collect();
+    while let Some(Reverse((now, th, ready))) = heap.pop() {
+        let s = &mut state[th as usize];
+        let buf = &mut bufs[th as usize];
+        if s.0 == usize::MAX || s.1 >= buf.len() {
+            // The packet is done (or none yet): record it, take the next one.
+            if s.0 != usize::MAX {
+                let (_, (px, py), _, hits) = t.packets[s.0];
+                hit_rays += hits;
+                let steps = t.packet_ops(s.0).iter().filter(|o| o.unit == 0).count() as f32;
+                for (x, y) in [(px, py), (px + 1, py), (px, py + 1), (px + 1, py + 1)] {
+                    if x < w && y < h {
+                        heat_steps[(y * w + x) as usize] = steps;
+                        heat_misses[(y * w + x) as usize] = s.2 as f32;
                     }
                 }
-                out
-            })
-            .collect();
-        for ((px, py), pw) in works.into_iter().flatten() {
-            busy[0] += pw.trav;
-            busy[1] += pw.list;
-            busy[2] += pw.transf;
-            busy[3] += pw.int;
-            hit_rays += pw.hits;
-            let mut misses = 0;
-            for &(c, addr, bytes) in &pw.reads {
-                misses += caches[c].access(addr, bytes);
-                for s in &mut sweep {
-                    s[c].access(addr, bytes);
-                }
+                end = end.max(now);
             }
-            for (x, y) in [(px, py), (px + 1, py), (px, py + 1), (px + 1, py + 1)] {
-                if x < w && y < h {
-                    heat_steps[(y * w + x) as usize] = pw.trav as f32;
-                    heat_misses[(y * w + x) as usize] = misses as f32;
-                }
+            let Some(&next) = order.get(next_packet) else {
+                s.0 = usize::MAX;
+                continue;
+            };
+            *s = (next, 0, 0);
+            next_packet += 1;
+            let (_, _, live, hits) = t.packets[s.0];
+            machine_ops(t.packet_ops(s.0), live, hits, m, buf);
+            if buf.is_empty() {
+                heap.push(Reverse((now, th, false)));
+                continue;
             }
         }
+        let op = buf[s.1];
+        let mut at = now;
+        if !ready && op.cache != NO_READ {
+            let c = usize::from(op.cache);
+            let missed = caches[c].access(op.addr, u64::from(op.bytes));
+            for sw in &mut sweep {
+                sw[c].access(op.addr, u64::from(op.bytes));
+            }
+            if missed > 0 {
+                s.2 += missed;
+                let bytes = missed * caches[c].item_bytes();
+                mem_bytes += bytes;
+                let start = mem_free.max(now as f64);
+                mem_free = start + bytes as f64 / bytes_per_cycle;
+                let arrive = (mem_free + f64::from(m.memory_latency)).ceil() as u64;
+                heap.push(Reverse((arrive, th, true)));
+                continue;
+            }
+        }
+        let u = usize::from(op.unit);
+        let start = unit_free[u].max(at);
+        unit_free[u] = start + u64::from(op.cycles);
+        busy[u] += u64::from(op.cycles);
+        at = start + u64::from(op.cycles) + u64::from(m.unit_latency);
+        s.1 += 1;
+        heap.push(Reverse((at, th, false)));
     }
-    let core_bytes: u64 = caches.iter().map(DirectMapped::miss_bytes).sum();
-    let mem_cycles = (core_bytes as f64 / m.memory_bytes_s * m.clock_hz).ceil() as u64;
-    let cycles = busy.iter().copied().chain([mem_cycles]).max().unwrap_or(0).max(1);
+    let cycles = end.max(mem_free.ceil() as u64).max(1);
+    let mem_cycles = (mem_bytes as f64 / bytes_per_cycle).ceil() as u64;
     let fps = m.clock_hz / cycles as f64;
     let shading_bytes = hit_rays * m.shade_bytes + u64::from(w) * u64::from(h) * 4;
+    let core_bytes: u64 = caches.iter().map(DirectMapped::miss_bytes).sum();
     let (core, shading) = (core_bytes as f64 * fps / 1e6, shading_bytes as f64 * fps / 1e6);
     FrameModel {
         size: (w, h),
-        index: match index {
-            Traced::Bvh(_) => "bvh",
-            Traced::Kd(_) => "kd",
-        },
+        index: t.index,
+        threads: threads as u32,
         fps,
         cycles,
         usage: busy.map(|b| 100.0 * b as f64 / cycles as f64),
@@ -301,7 +493,7 @@ pub fn model_frame(index: &Traced<'_>, cam: &Camera, m: &Machine) -> FrameModel 
         heat_steps,
         heat_misses,
         hit_rays,
-        packets: u64::from(w.div_ceil(2)) * u64::from(h.div_ceil(2)),
+        packets: t.packets.len() as u64,
     }
 }
 
@@ -321,10 +513,11 @@ mod tests {
 
     /// A packet whose four rays read the same triangle costs 4+1 transformation steps and
     /// 4 intersections; two reads of one node under the same instance are one visit; a
-    /// node under two instances is two.
+    /// node under two instances is two; the steps keep the order of the first reads.
     #[test]
-    fn packet_work_by_hand() {
-        let m = Machine { shade_steps: 2, ..Machine::default() };
+    fn packet_ops_by_hand() {
+        let m = Machine { shade_steps: 2, generate_rays: false, ..Machine::default() };
+        let mut ops = Vec::new();
         let reads = vec![
             (Kind::Node, 100, 8, 0),
             (Kind::Node, 100, 8, 0),
@@ -336,9 +529,40 @@ mod tests {
             (Kind::Transform, 400, 48, 0),
             (Kind::Node, 100, 8, 400),
         ];
-        let w = packet_work(&reads, 3, &m);
-        assert_eq!((w.trav, w.list, w.int), (2, 1, 4));
-        assert_eq!(w.transf, 5 + 2 + 3 * 2);
-        assert_eq!(w.reads.len(), 5);
+        let mut recorded = Vec::new();
+        packet_ops(&reads, &mut recorded);
+        machine_ops(&recorded, 4, 3, &m, &mut ops);
+        let steps: Vec<(u8, u16, u8)> = ops.iter().map(|o| (o.unit, o.cycles, o.cache)).collect();
+        assert_eq!(steps, [(0, 1, 0), (1, 1, 1), (2, 5, 2), (3, 4, NO_READ), (2, 2, 2), (0, 1, 0), (2, 6, NO_READ)]);
+        // Ray generation: a packet's 4 rays made in 4 + 1 steps of the transformation unit.
+        machine_ops(&recorded, 4, 3, &Machine { generate_rays: true, ..m }, &mut ops);
+        assert_eq!((ops[0].unit, ops[0].cycles, ops[0].cache), (2, 5, NO_READ));
+        assert_eq!(ops.len(), 8);
+        // Results through the traversal unit: a traversal cycle after the intersection.
+        machine_ops(&recorded, 4, 3, &Machine { results_via_traversal: true, ..m }, &mut ops);
+        assert_eq!((ops[4].unit, ops[4].cycles), (0, 1));
+    }
+
+    /// The simulation by hand: one thread, one packet of three steps that miss, on an
+    /// otherwise idle machine, takes each step's memory time, latency, cycles and unit
+    /// latency one after another; a second read of the same item hits.
+    #[test]
+    fn one_thread_by_hand() {
+        let m = Machine { unit_latency: 3, memory_latency: 10, memory_bytes_s: 8.0 * 90e6, ..Machine::default() };
+        let ops = vec![
+            Op { addr: 0, bytes: 8, cycles: 1, unit: 0, cache: 0 },
+            Op { addr: 0, bytes: 8, cycles: 1, unit: 0, cache: 0 },
+            Op { addr: 64, bytes: 4, cycles: 1, unit: 1, cache: 1 },
+            Op { addr: 0, bytes: 0, cycles: 4, unit: 3, cache: NO_READ },
+        ];
+        let t = FrameTrace { size: (2, 2), index: "kd", ops, packets: vec![(0, (0, 0), 0, 0)] };
+        let f = simulate(&t, &m, 1);
+        // Node: 1 cycle of memory (8 B at 8 B/cycle) + 10, 1 + 3; the same node again:
+        // hit, 1 + 3; list entry: its 4-byte item, 0.5 cycle of memory from cycle 19 + 10
+        // (arriving at 29.5, rounded up to 30), 1 + 3; intersection 4 + 3.
+        assert_eq!(f.cycles, 11 + 4 + 4 + 11 + 4 + 7);
+        assert_eq!(f.busy[..4], [2, 1, 0, 4]);
+        assert_eq!(f.hit[0], 50.0);
+        assert_eq!(f.threads, 1);
     }
 }

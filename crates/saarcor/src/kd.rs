@@ -104,12 +104,20 @@ pub struct KdOptions {
     pub empty_bonus: f32,
     /// Depth limit; 0 means Havran's `8 + 1.3 log2 N`.
     pub max_depth: u32,
+    /// Leaves of more items than this split on (at the cheapest plane) even where the
+    /// heuristic would stop, while a split leaves both sides smaller; 0: the heuristic
+    /// alone decides.
+    pub max_leaf: usize,
+    /// Split planes and costs from each triangle clipped to the node (Havran's perfect
+    /// splits) instead of the triangle's box cut at the node's faces.
+    pub perfect_splits: bool,
 }
 
 impl Default for KdOptions {
     fn default() -> Self {
-        // Wald & Havran's K_T = 15, K_I = 20 (only their ratio matters), λ = 0.8.
-        Self { cost_traverse: 15.0, cost_intersect: 20.0, empty_bonus: 0.8, max_depth: 0 }
+        // Wald & Havran's K_T = 15, K_I = 20 (only their ratio matters), λ = 0.8, and
+        // their perfect splits.
+        Self { cost_traverse: 15.0, cost_intersect: 20.0, empty_bonus: 0.8, max_depth: 0, max_leaf: 0, perfect_splits: true }
     }
 }
 
@@ -119,6 +127,9 @@ pub struct KdTree {
     nodes: Vec<KdNode>,
     list: Vec<u32>,
     bounds: Aabb,
+    /// Where its nodes are in the modelled machine's memory (its list follows them): the
+    /// addresses its walks report, the same in every run (see [`KdTwoLevel::new`]).
+    at: u64,
 }
 
 /// Statistics of a kd-tree.
@@ -157,12 +168,23 @@ impl KdTree {
     /// # Errors
     /// [`BuildError::TooLarge`] when the lists would not fit 30-bit offsets.
     pub fn build(boxes: &[Aabb], opts: KdOptions) -> Result<Self, BuildError> {
+        Self::build_clipped(boxes, None, opts)
+    }
+
+    /// [`Self::build`] over triangles `tris` (their boxes `boxes`), whose splits clip
+    /// the triangles to the nodes when `clip` is given.
+    fn build_clipped(boxes: &[Aabb], clip: Clip<'_>, opts: KdOptions) -> Result<Self, BuildError> {
         let ids: Vec<u32> = (0..boxes.len() as u32).filter(|&i| !boxes[i as usize].is_empty() && boxes[i as usize].is_finite()).collect();
         let bounds = ids.iter().fold(Aabb::EMPTY, |b, &i| b.union(boxes[i as usize]));
         let n = ids.len().max(1) as f32;
         let depth = if opts.max_depth == 0 { (8.0 + 1.3 * n.log2()).round() as u32 } else { opts.max_depth }.min(MAX_DEPTH);
-        let tree = if ids.is_empty() { Tree::Leaf(Vec::new()) } else { build_node(boxes, ids, bounds, depth, &opts) };
-        let mut out = Self { nodes: Vec::new(), list: Vec::new(), bounds };
+        let tree = if ids.is_empty() {
+            Tree::Leaf(Vec::new())
+        } else {
+            let local = ids.iter().map(|&i| boxes[i as usize]).collect();
+            build_node(ids, local, bounds, depth, &opts, clip)
+        };
+        let mut out = Self { nodes: Vec::new(), list: Vec::new(), bounds, at: 0 };
         out.flatten(&tree)?;
         Ok(out)
     }
@@ -189,6 +211,24 @@ impl KdTree {
             }
         }
         Ok(())
+    }
+
+    /// The modelled address of node `i`.
+    #[inline(always)]
+    fn node_addr(&self, i: u32) -> usize {
+        (self.at + u64::from(i) * std::mem::size_of::<KdNode>() as u64) as usize
+    }
+
+    /// The modelled address of list entry `e`.
+    #[inline(always)]
+    fn list_addr(&self, e: u32) -> usize {
+        (align(self.at + (self.nodes.len() * std::mem::size_of::<KdNode>()) as u64) + u64::from(e) * 4) as usize
+    }
+
+    /// Places the tree at `at`; returns the first address after its nodes and list.
+    fn place(&mut self, at: u64) -> u64 {
+        self.at = at;
+        align(align(at + (self.nodes.len() * std::mem::size_of::<KdNode>()) as u64) + self.list.len() as u64 * 4)
     }
 
     /// The box of every item in the tree.
@@ -264,12 +304,12 @@ fn split_box(b: Aabb, axis: usize, p: f32) -> (Aabb, Aabb) {
 
 /// The cheapest split of `ids` in `node` by SAH over sorted events: (cost, axis, plane,
 /// planar items to the left).
-fn find_split(boxes: &[Aabb], ids: &[u32], node: Aabb, o: &KdOptions) -> Option<(f32, usize, f32, bool)> {
+fn find_split(local: &[Aabb], node: Aabb, o: &KdOptions) -> Option<(f32, usize, f32, bool)> {
     let sa = area(&node);
     if sa <= 0.0 || !sa.is_finite() {
         return None;
     }
-    let n = ids.len();
+    let n = local.len();
     let mut best: Option<(f32, usize, f32, bool)> = None;
     let mut ev: Vec<Event> = Vec::with_capacity(2 * n);
     for axis in 0..3 {
@@ -277,8 +317,7 @@ fn find_split(boxes: &[Aabb], ids: &[u32], node: Aabb, o: &KdOptions) -> Option<
             continue;
         }
         ev.clear();
-        for &i in ids {
-            let b = boxes[i as usize];
+        for b in local {
             let (lo, hi) = (b.min[axis].max(node.min[axis]), b.max[axis].min(node.max[axis]));
             if lo == hi {
                 ev.push(Event { pos: lo, kind: 1 });
@@ -325,41 +364,97 @@ fn find_split(boxes: &[Aabb], ids: &[u32], node: Aabb, o: &KdOptions) -> Option<
     best
 }
 
-fn build_node(boxes: &[Aabb], ids: Vec<u32>, node: Aabb, depth: u32, o: &KdOptions) -> Tree {
+/// The triangles a tree is built over, when its splits clip them (Havran's perfect
+/// splits: an item's extent in a node is its triangle clipped to the node, not its box).
+type Clip<'a> = Option<&'a [[Vec3; 3]]>;
+
+/// `t` clipped to `b` (Sutherland and Hodgman against the box's six planes): the box of
+/// what is left, empty when nothing is.
+fn clipped_box(t: &[Vec3; 3], b: &Aabb) -> Aabb {
+    let mut poly: Vec<Vec3> = t.to_vec();
+    let mut next = Vec::with_capacity(9);
+    for axis in 0..3 {
+        for (plane, keep_above) in [(b.min[axis], true), (b.max[axis], false)] {
+            next.clear();
+            let inside = |p: &Vec3| if keep_above { p[axis] >= plane } else { p[axis] <= plane };
+            for k in 0..poly.len() {
+                let (a, c) = (poly[k], poly[(k + 1) % poly.len()]);
+                if inside(&a) {
+                    next.push(a);
+                }
+                if inside(&a) != inside(&c) {
+                    let s = (plane - a[axis]) / (c[axis] - a[axis]);
+                    let mut q = a + (c - a) * s;
+                    q[axis] = plane;
+                    next.push(q);
+                }
+            }
+            std::mem::swap(&mut poly, &mut next);
+            if poly.is_empty() {
+                return Aabb::EMPTY;
+            }
+        }
+    }
+    let mut out = Aabb::from_points(&poly);
+    // Rounding may step outside the node by an ulp: the node bounds it.
+    for a in 0..3 {
+        out.min[a] = out.min[a].max(b.min[a]);
+        out.max[a] = out.max[a].min(b.max[a]);
+    }
+    out
+}
+
+fn build_node(ids: Vec<u32>, local: Vec<Aabb>, node: Aabb, depth: u32, o: &KdOptions, clip: Clip<'_>) -> Tree {
     let leaf_cost = o.cost_intersect * ids.len() as f32;
     if ids.len() <= 1 || depth == 0 {
         return Tree::Leaf(ids);
     }
-    let Some((cost, axis, p, planar_left)) = find_split(boxes, &ids, node, o) else { return Tree::Leaf(ids) };
-    if cost >= leaf_cost {
+    let Some((cost, axis, p, planar_left)) = find_split(&local, node, o) else { return Tree::Leaf(ids) };
+    let forced = o.max_leaf > 0 && ids.len() > o.max_leaf;
+    if cost >= leaf_cost && !forced {
         return Tree::Leaf(ids);
     }
     let (mut l, mut r) = (Vec::new(), Vec::new());
-    for &i in &ids {
-        let b = boxes[i as usize];
+    let (mut lbx, mut rbx) = (Vec::new(), Vec::new());
+    for (&i, &b) in ids.iter().zip(&local) {
         let (lo, hi) = (b.min[axis].max(node.min[axis]), b.max[axis].min(node.max[axis]));
-        if lo == p && hi == p {
-            if planar_left {
-                l.push(i);
-            } else {
-                r.push(i);
-            }
-        } else {
-            if lo < p {
-                l.push(i);
-            }
-            if hi > p {
-                r.push(i);
-            }
+        let (go_l, go_r) = if lo == p && hi == p { (planar_left, !planar_left) } else { (lo < p, hi > p) };
+        if go_l {
+            l.push(i);
+            lbx.push(b);
         }
+        if go_r {
+            r.push(i);
+            rbx.push(b);
+        }
+    }
+    if forced && cost >= leaf_cost && (l.len() >= ids.len() || r.len() >= ids.len()) {
+        return Tree::Leaf(ids);
     }
     drop(ids);
     let (lb, rb) = split_box(node, axis, p);
+    // With perfect splits, each side's items are their triangles clipped to its box
+    // (an item whose clipped triangle is empty there leaves that side).
+    let reclip = |ids: Vec<u32>, bx: Vec<Aabb>, side: Aabb| -> (Vec<u32>, Vec<Aabb>) {
+        let Some(tris) = clip else { return (ids, bx) };
+        // Clipped to the side grown by a millionth of its size, so a triangle that only
+        // touches it within rounding stays (a ray there must still find it).
+        let pad = (side.max - side.min).max_element().max(f32::MIN_POSITIVE) * 1e-6;
+        let grown = Aabb { min: side.min - Vec3::splat(pad), max: side.max + Vec3::splat(pad) };
+        ids.into_iter()
+            .filter_map(|i| {
+                let c = clipped_box(&tris[i as usize], &grown);
+                (!c.is_empty()).then_some((i, c))
+            })
+            .unzip()
+    };
+    let (l, lbx) = reclip(l, lbx, lb);
+    let (r, rbx) = reclip(r, rbx, rb);
     let big = l.len() + r.len() > 4096;
     let (left, right) = if big {
-        rayon::join(|| build_node(boxes, l, lb, depth - 1, o), || build_node(boxes, r, rb, depth - 1, o))
+        rayon::join(|| build_node(l, lbx, lb, depth - 1, o, clip), || build_node(r, rbx, rb, depth - 1, o, clip))
     } else {
-        (build_node(boxes, l, lb, depth - 1, o), build_node(boxes, r, rb, depth - 1, o))
+        (build_node(l, lbx, lb, depth - 1, o, clip), build_node(r, rbx, rb, depth - 1, o, clip))
     };
     Tree::Inner { axis, split: p, left: Box::new(left), right: Box::new(right) }
 }
@@ -435,6 +530,11 @@ fn unit_hit<P: Precision>(tri: &UnitTriangle, o: &[f32; 3], d: &[f32; 3], tmin: 
 
 /// Deepest tree the build makes: a walk's stack holds at most one entry per level.
 const MAX_DEPTH: u32 = 60;
+
+/// `at` rounded up to a 64-byte boundary.
+fn align(at: u64) -> u64 {
+    at.div_ceil(64) * 64
+}
 /// Entries of a walk's stack (PERF: a fixed array; a `Vec` per ray cost an allocation).
 const KD_STACK: usize = MAX_DEPTH as usize + 4;
 
@@ -504,7 +604,7 @@ fn walk<P: Precision, C: Counters, I: KdItems, const ANY: bool>(tree: &KdTree, i
     loop {
         let node = tree.nodes[cur as usize];
         c.node();
-        c.node_read(std::ptr::from_ref(&tree.nodes[cur as usize]) as usize, std::mem::size_of::<KdNode>());
+        c.node_read(tree.node_addr(cur), std::mem::size_of::<KdNode>());
         if !node.is_leaf() {
             let (t, left_near) = kr.plane::<P>(node.axis(), node.split());
             let (near, far) = if left_near { (cur + 1, node.right()) } else { (node.right(), cur + 1) };
@@ -525,7 +625,7 @@ fn walk<P: Precision, C: Counters, I: KdItems, const ANY: bool>(tree: &KdTree, i
         let (first, count) = node.list();
         c.items(count);
         for e in first..first + count {
-            c.list_read(std::ptr::from_ref(&tree.list[e as usize]) as usize, 4);
+            c.list_read(tree.list_addr(e), 4);
             let id = tree.list[e as usize];
             if mb.seen(id) {
                 c.mailbox_hit();
@@ -602,7 +702,7 @@ fn walk4<P: Precision, C: Counters, I: KdItems, const ANY: bool>(
     loop {
         let node = tree.nodes[cur as usize];
         c.node();
-        c.node_read(std::ptr::from_ref(&tree.nodes[cur as usize]) as usize, std::mem::size_of::<KdNode>());
+        c.node_read(tree.node_addr(cur), std::mem::size_of::<KdNode>());
         if !node.is_leaf() {
             let (mut go_near, mut go_far) = (0u8, 0u8);
             let mut tsplit = [0f32; 4];
@@ -646,7 +746,7 @@ fn walk4<P: Precision, C: Counters, I: KdItems, const ANY: bool>(
         let (first, count) = node.list();
         c.items(count);
         for e in first..first + count {
-            c.list_read(std::ptr::from_ref(&tree.list[e as usize]) as usize, 4);
+            c.list_read(tree.list_addr(e), 4);
             let id = tree.list[e as usize];
             let mut lanes = 0u8;
             for (l, m) in mb.iter_mut().enumerate() {
@@ -735,6 +835,8 @@ fn coherent(rays: &[Ray; 4], live: u8) -> bool {
 pub struct KdMesh {
     tree: KdTree,
     tris: Vec<UnitTriangle>,
+    /// The modelled address of its triangles' maps.
+    tris_at: u64,
 }
 
 impl KdMesh {
@@ -761,7 +863,16 @@ impl KdMesh {
                 }
             }
         }
-        Ok(Self { tree: KdTree::build(&boxes, opts)?, tris })
+        let clip: Vec<[Vec3; 3]> = if opts.perfect_splits {
+            indices.iter().map(|t| t.map(|k| positions.get(k as usize).copied().unwrap_or(Vec3::ZERO))).collect()
+        } else {
+            Vec::new()
+        };
+        let tree = KdTree::build_clipped(&boxes, opts.perfect_splits.then_some(clip.as_slice()), opts)?;
+        let mut m = Self { tree, tris, tris_at: 0 };
+        let end = m.tree.place(0);
+        m.tris_at = end;
+        Ok(m)
     }
 
     /// The tree.
@@ -826,7 +937,11 @@ impl KdItems for KdMesh {
     #[inline(always)]
     fn test<P: Precision, C: Counters, const ANY: bool>(&self, id: u32, r: &Ray, kr: &KdRay, hit: &mut Hit, c: &mut C) {
         let tri = &self.tris[id as usize];
-        c.triangles(std::ptr::from_ref(tri) as usize, std::mem::size_of::<UnitTriangle>(), 1);
+        c.triangles(
+            (self.tris_at + u64::from(id) * std::mem::size_of::<UnitTriangle>() as u64) as usize,
+            std::mem::size_of::<UnitTriangle>(),
+            1,
+        );
         let h =
             if P::EXACT { unit_triangle_hit(tri, r.org, r.dir, r.tmin, hit.t) } else { unit_hit::<P>(tri, &kr.o, &kr.d, r.tmin, hit.t) };
         if let Some((t, u, v)) = h {
@@ -850,6 +965,9 @@ pub enum KdGeometry {
 pub struct KdTwoLevel {
     top: KdTree,
     geometries: Vec<KdGeometry>,
+    /// The modelled addresses of the shapes (by geometry) and of the instances' matrices.
+    shape_at: Vec<u64>,
+    inst_at: u64,
     instances: Vec<Instance>,
     /// Instances whose box is unbounded (planes): tested by every ray.
     unbounded: Vec<u32>,
@@ -878,7 +996,26 @@ impl KdTwoLevel {
             };
             boxes.push(if local.is_empty() { local } else { local.transformed(&inst.world_from_object) });
         }
-        Ok(Self { top: KdTree::build(&boxes, opts)?, geometries, instances, unbounded })
+        let mut top = KdTree::build(&boxes, opts)?;
+        // The modelled memory image, as the scene would be uploaded: the top tree, then
+        // each geometry's tree, list and triangle maps (or its shape), then the instances'
+        // matrices, each array at a 64-byte boundary.
+        let mut geometries = geometries;
+        let mut at = top.place(0);
+        let mut shape_at = vec![0; geometries.len()];
+        for (g, geom) in geometries.iter_mut().enumerate() {
+            match geom {
+                KdGeometry::Mesh(m) => {
+                    m.tris_at = m.tree.place(at);
+                    at = align(m.tris_at + std::mem::size_of_val(m.tris.as_slice()) as u64);
+                }
+                KdGeometry::Shape(_) => {
+                    shape_at[g] = at;
+                    at = align(at + std::mem::size_of::<Shape>() as u64);
+                }
+            }
+        }
+        Ok(Self { top, geometries, shape_at, inst_at: at, instances, unbounded })
     }
 
     /// The top-level tree.
@@ -969,11 +1106,13 @@ impl KdTwoLevel {
     /// `r` in instance `inst`'s object space (each component rounded by `P`), counted as
     /// a transformation when it is one.
     #[inline(always)]
-    fn local<P: Precision, C: Counters>(inst: &Instance, r: &Ray, c: &mut C) -> Ray {
+    fn local<P: Precision, C: Counters>(&self, id: u32, r: &Ray, c: &mut C) -> Ray {
+        let inst = &self.instances[id as usize];
         if inst.is_identity() {
             return *r;
         }
-        c.transform(std::ptr::from_ref(&inst.object_from_world) as usize, std::mem::size_of::<Affine3A>());
+        let size = std::mem::size_of::<Affine3A>();
+        c.transform((self.inst_at + u64::from(id) * size as u64) as usize, size);
         let m = &inst.object_from_world;
         let round = |v: Vec3| Vec3::new(P::r(v.x), P::r(v.y), P::r(v.z));
         Ray { org: round(m.transform_point3(r.org)), dir: round(m.transform_vector3(r.dir)), tmin: r.tmin, tmax: r.tmax }
@@ -984,7 +1123,7 @@ impl KdItems for KdTwoLevel {
     #[inline(always)]
     fn test<P: Precision, C: Counters, const ANY: bool>(&self, id: u32, r: &Ray, _kr: &KdRay, hit: &mut Hit, c: &mut C) {
         let inst = &self.instances[id as usize];
-        let local = Self::local::<P, C>(inst, r, c);
+        let local = self.local::<P, C>(id, r, c);
         match &self.geometries[inst.geometry as usize] {
             KdGeometry::Mesh(m) => {
                 c.enter(Level::Bottom);
@@ -995,7 +1134,7 @@ impl KdItems for KdTwoLevel {
                 c.enter(Level::Top);
             }
             KdGeometry::Shape(s) => {
-                c.shape(std::ptr::from_ref(s) as usize, std::mem::size_of::<Shape>());
+                c.shape(self.shape_at[inst.geometry as usize] as usize, std::mem::size_of::<Shape>());
                 if let Some(h) = s.intersect_local(local.org, local.dir, local.tmin, hit.t) {
                     *hit = Hit { t: h.t, u: 0.0, v: 0.0, prim: h.part, inst: id };
                 }
@@ -1037,7 +1176,7 @@ impl KdItems for Top4<'_> {
         };
         let mut local = *rays;
         for l in (0..4).filter(|l| lanes & (1 << l) != 0) {
-            local[l] = Ray { tmax: hits[l].t, ..KdTwoLevel::local::<P, C>(inst, &rays[l], c) };
+            local[l] = Ray { tmax: hits[l].t, ..tl.local::<P, C>(id, &rays[l], c) };
         }
         c.enter(Level::Bottom);
         if coherent(&local, lanes) {
@@ -1065,6 +1204,14 @@ impl KdItems for Top4<'_> {
 /// # Errors
 /// When a tree cannot be built.
 pub fn kd_of_world(world: &World) -> Result<KdTwoLevel, BuildError> {
+    kd_of_world_with(world, KdOptions::default())
+}
+
+/// [`kd_of_world`] with the trees built by `opts`.
+///
+/// # Errors
+/// When a tree cannot be built.
+pub fn kd_of_world_with(world: &World, opts: KdOptions) -> Result<KdTwoLevel, BuildError> {
     let meshes = &world.scene().meshes;
     let geoms = world
         .accel()
@@ -1074,12 +1221,12 @@ pub fn kd_of_world(world: &World) -> Result<KdTwoLevel, BuildError> {
         .map(|(i, g)| match g {
             Geometry::Mesh(_) => {
                 let m = meshes.get(i).ok_or(BuildError::TooLarge(i))?;
-                KdMesh::build(&m.positions, &m.indices, KdOptions::default()).map(KdGeometry::Mesh)
+                KdMesh::build(&m.positions, &m.indices, opts).map(KdGeometry::Mesh)
             }
             Geometry::Shape(s) => Ok(KdGeometry::Shape(*s)),
         })
         .collect::<Result<Vec<_>, _>>()?;
-    KdTwoLevel::new(geoms, world.accel().instances().to_vec(), KdOptions::default())
+    KdTwoLevel::new(geoms, world.accel().instances().to_vec(), opts)
 }
 
 #[cfg(test)]

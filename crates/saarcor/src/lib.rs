@@ -10,6 +10,10 @@
 //! - [`dynrtp`]: SaarCOR's DynRTP prototype (units, caches, bandwidth) fed with primary
 //!   rays through lucent's BVH or the [`kd`] index: its Table 3 (fps
 //!   at 512×384) and Table 4 (fps, unit usage, hit rates, MB/s at 1024×768).
+//! - [`objects`]: a one-mesh scene split into movable objects (Conference's 54), equal
+//!   ones instances of one geometry.
+//! - [`paper`]: what SaarCOR's paper prints (Tables 1-4, its text's figures, its
+//!   scenes), and its designs' floating-point units counted to derive Table 1.
 //! - [`precision`]: traversal and intersection in SaarCOR's 24-bit floats, IEEE half and
 //!   fixed point: changed hits and PSNR against f32.
 //! - [`report`]: the tables as terminal text, Markdown, JSON lines and an HTML page with
@@ -19,7 +23,9 @@
 pub mod cache;
 pub mod dynrtp;
 pub mod kd;
+pub mod objects;
+pub mod paper;
 pub mod precision;
 pub mod report;
 
-pub use kd::kd_of_world;
+pub use kd::{kd_of_world, kd_of_world_with};

@@ -147,7 +147,10 @@ fn model_tables_on_every_shared_scene() {
             assert_eq!(f.hit_rays, hits, "{name} {}: hit rays", f.index);
             assert!((f.fps - 90e6 / f.cycles as f64).abs() < 1e-6 * f.fps, "{name}");
             let top = f.busy.iter().copied().max().unwrap_or(0);
-            assert_eq!(top, f.cycles.max(1).min(top.max(1)), "{name}: the frame is its busiest unit");
+            assert!(top <= f.cycles, "{name}: no unit is busier than the frame is long");
+            // 64 threads keep the busiest unit (or the memory) busy most of the frame on
+            // scenes of more than a handful of packets' work.
+            assert!(top == 0 || f.cycles < 50 * top, "{name}: {} cycles for {top} of the busiest unit", f.cycles);
             assert!(f.usage.iter().all(|u| (0.0..=100.0 + 1e-9).contains(u)), "{name}: usage {:?}", f.usage);
             assert!(f.hit.iter().all(|h| (0.0..=100.0).contains(h)), "{name}: hit {:?}", f.hit);
             assert!(f.busy[0] > 0 || hits == 0, "{name}: no traversal counted");
@@ -183,8 +186,13 @@ fn model_of_one_triangle() {
     let cam = Camera::new(&desc, 2, 2);
     let f = model_frame(&Traced::Kd(&kd), &cam, &Machine::default());
     // A leaf of the top level and one of the mesh's tree, a list entry in each (the
-    // instance is the identity: no transformation); 4 rays through one triangle: 4 + 1
-    // transformation steps, 4 intersections, 2 shading steps per hit ray.
-    assert_eq!(f.busy[..4], [2, 2, 5 + 8, 4]);
+    // instance is the identity: no transformation); the packet's 4 rays made in 4 + 1
+    // transformation steps; 4 rays through one triangle: 4 + 1 transformation steps, 4
+    // intersections, 2 shading steps per hit ray.
+    assert_eq!(f.busy[..4], [2, 2, 5 + 5 + 8, 4]);
+    // One packet on an idle machine: every step waits for the one before; its reads all
+    // miss (5 items: 2 nodes, 2 list entries, the triangle's map of 40 B in four 12-byte
+    // items).
+    assert!(f.cycles > f.busy[..4].iter().sum::<u64>() + 5 * u64::from(Machine::default().memory_latency));
     assert_eq!(f.hit_rays, 4);
 }
