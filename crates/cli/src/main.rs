@@ -422,8 +422,9 @@ enum BenchCmd {
     ///
     /// Each frame is timed whole: a new processor runs the program to its `nf`, then the
     /// scene, its acceleration structure and the picture are made. Each row is compared
-    /// with REND3R's estimate for its sphere count: the straight line through Table IV's
-    /// 0.405 s for one sphere and 16.9 s for 4,096.
+    /// with its own row of REND3R's Table IV (0.435 / 0.906 / 8.456 s for 16 / 256 /
+    /// 4,096 spheres without a light, twice that with one; other counts: the paper's
+    /// cycle formula), as "x faster".
     Rend3r {
         /// Timed frames per scene (median reported).
         #[arg(long, default_value_t = 5)]
