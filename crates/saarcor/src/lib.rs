@@ -16,11 +16,13 @@
 //!   scenes), and its designs' floating-point units counted to derive Table 1.
 //! - [`precision`]: traversal and intersection in SaarCOR's 24-bit floats, IEEE half and
 //!   fixed point: changed hits and PSNR against f32.
+//! - [`charts`]: the report page's charts (plotters, SVG).
 //! - [`report`]: the tables as terminal text, Markdown, JSON lines and an HTML page with
 //!   plots; REND3R's cycle model is `rend3r_machine::cycles`.
 #![deny(missing_docs)]
 
 pub mod cache;
+pub mod charts;
 pub mod dynrtp;
 pub mod kd;
 pub mod objects;

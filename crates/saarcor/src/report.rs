@@ -3,7 +3,7 @@
 //! plots (hit rate against cache size, unit usage bars, per-pixel heat maps, precision
 //! images and their differences).
 
-use crate::dynrtp::{FrameModel, ASSUMPTIONS, FP_UNITS, SWEEP_KB};
+use crate::dynrtp::{FrameModel, ASSUMPTIONS, FP_UNITS};
 use crate::paper;
 use crate::precision::PrecisionRow;
 use std::fmt::Write as _;
@@ -409,18 +409,34 @@ impl SaarcorReport {
     pub fn html(&self, dir: &std::path::Path, stem: &str) -> Result<String, lucent_render::OutputError> {
         let mut h = page_head(&format!("lucent report: {}", self.scene));
         h += &md_to_html_tables(&self.markdown());
-        if let Some(r) = self.table4.first() {
+        if let Some(r) = self.table4.iter().find(|r| r.index == "kd").or_else(|| self.table4.first()) {
             let mut series = Vec::new();
             for (i, name) in ["traversal", "list", "transformation"].iter().enumerate() {
                 series.push((*name, r.sweep.iter().map(|&(kb, v)| (kb as f64, v[i])).collect::<Vec<_>>()));
             }
-            h += "<h3>Hit rate against cache size (direct mapped)</h3>";
-            h += &line_chart(&series, "cache size, KB (log)", "hit rate %");
+            let _ = write!(h, "<h3>Hit rate against cache size ({} index, direct mapped)</h3>", r.index);
+            h += &crate::charts::hit_rate_chart(&series);
         }
         h += "<h3>Unit usage</h3>";
-        let bars: Vec<(String, [f64; 4])> =
+        let mut bars: Vec<(String, [f64; 4])> =
             self.table4.iter().map(|r| (format!("{} {}x{}", r.index, r.size.0, r.size.1), r.usage)).collect();
-        h += &usage_bars(&bars);
+        if let Some(p) = paper::table4_of(&self.scene) {
+            bars.push((format!("the paper ({})", p.scene), p.usage));
+        }
+        h += &crate::charts::usage_chart(&bars);
+        let mut lines = Vec::new();
+        for ix in ["bvh", "kd"] {
+            let one = self.threads.iter().find(|q| q.index == ix && q.threads == 1).map(|q| q.fps);
+            let pts: Vec<(f64, f64)> =
+                self.threads.iter().filter(|q| q.index == ix).filter_map(|q| one.map(|o| (f64::from(q.threads), q.fps / o))).collect();
+            if !pts.is_empty() {
+                lines.push((ix, pts));
+            }
+        }
+        if !lines.is_empty() {
+            h += "<h3>Frame rate against threads (512x384)</h3>";
+            h += &crate::charts::threads_chart(&lines);
+        }
         for r in &self.table4 {
             let (w, hh) = r.size;
             let steps = format!("{stem}-{}-steps.png", r.index);
@@ -630,59 +646,6 @@ fn md_to_html_tables(md: &str) -> String {
         h += "</table>";
     }
     h
-}
-
-const COLORS: [&str; 4] = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"];
-
-/// An SVG line chart over a log2 x axis (cache sizes) and a 0..100 y axis.
-fn line_chart(series: &[(&str, Vec<(f64, f64)>)], xlabel: &str, ylabel: &str) -> String {
-    let (w, h, l, b) = (560.0, 300.0, 50.0, 40.0);
-    let xs = |kb: f64| l + (kb.log2() / (SWEEP_KB[SWEEP_KB.len() - 1] as f64).log2()) * (w - l - 20.0);
-    let ys = |v: f64| (h - b) - v / 100.0 * (h - b - 10.0);
-    let mut s = format!("<svg width=\"{w}\" height=\"{h}\" xmlns=\"http://www.w3.org/2000/svg\" font-size=\"11\">");
-    let _ = write!(s, "<line x1=\"{l}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/><line x1=\"{l}\" y1=\"10\" x2=\"{l}\" y2=\"{}\" stroke=\"black\"/>", h - b, w - 20.0, h - b, h - b);
-    for kb in SWEEP_KB {
-        let _ = write!(s, "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{kb}</text>", xs(kb as f64), h - b + 14.0);
-    }
-    for v in [0, 25, 50, 75, 100] {
-        let _ = write!(s, "<text x=\"{}\" y=\"{}\" text-anchor=\"end\">{v}</text>", l - 4.0, ys(f64::from(v)) + 4.0);
-    }
-    let _ = write!(s, "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text><text x=\"12\" y=\"{}\" transform=\"rotate(-90 12 {})\" text-anchor=\"middle\">{}</text>", (w + l) / 2.0, h - 6.0, esc(xlabel), h / 2.0, h / 2.0, esc(ylabel));
-    for (i, (name, pts)) in series.iter().enumerate() {
-        let path: Vec<String> = pts.iter().map(|&(x, y)| format!("{:.1},{:.1}", xs(x), ys(y))).collect();
-        let _ = write!(s, "<polyline fill=\"none\" stroke=\"{}\" stroke-width=\"2\" points=\"{}\"/>", COLORS[i % 4], path.join(" "));
-        let _ = write!(s, "<text x=\"{}\" y=\"{}\" fill=\"{}\">{}</text>", l + 10.0, 20.0 + 14.0 * i as f64, COLORS[i % 4], esc(name));
-    }
-    s + "</svg>"
-}
-
-/// SVG bars of unit usage per row.
-fn usage_bars(rows: &[(String, [f64; 4])]) -> String {
-    let names = ["trav", "list", "transf", "int"];
-    let (bw, gap) = (18.0, 30.0);
-    let w = 60.0 + rows.len() as f64 * (4.0 * bw + gap);
-    let h = 240.0;
-    let mut s = format!("<svg width=\"{w}\" height=\"{h}\" xmlns=\"http://www.w3.org/2000/svg\" font-size=\"11\">");
-    for (r, (label, u)) in rows.iter().enumerate() {
-        let x0 = 40.0 + r as f64 * (4.0 * bw + gap);
-        for (k, v) in u.iter().enumerate() {
-            let bh = v.clamp(0.0, 100.0) / 100.0 * 180.0;
-            let _ = write!(
-                s,
-                "<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{bh}\" fill=\"{}\"/><text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>",
-                x0 + k as f64 * bw,
-                200.0 - bh,
-                bw - 2.0,
-                COLORS[k],
-                x0 + k as f64 * bw + bw / 2.0,
-                214.0,
-                names[k]
-            );
-            let _ = write!(s, "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{:.0}</text>", x0 + k as f64 * bw + bw / 2.0, 196.0 - bh, v);
-        }
-        let _ = write!(s, "<text x=\"{x0}\" y=\"232\">{}</text>", esc(label));
-    }
-    s + "</svg>"
 }
 
 /// A heat map: 0 black to the maximum white, through blue and red.
