@@ -315,7 +315,8 @@ mod tests {
     #[test]
     fn sets_table_and_sparse_records() {
         let mut s = Sets::default();
-        assert!(s.is_empty() && s.len() == 0);
+        assert!(s.is_empty());
+        assert_eq!(s.len(), 0);
         s.set(3, 2, 7);
         s.set(3, 4, 9);
         s.set(DENSE_SETS + 5, 1, 11);
