@@ -211,6 +211,7 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
     if !formats.is_empty() {
         let camp = Camera::new(&desc, a.precision_size.0, a.precision_size.1);
         rep.precision = precision_study(&world, &kd, &camp, &formats);
+        rep.pp5 = saarcor::pp5::study();
     }
     print_tables(a.json, &rep);
     if let Some(path) = &a.html {

@@ -564,6 +564,8 @@ fn report_on_a_scene() {
         "| Traversal | 4 | 0 | 4 | 13 | 44.5 |",
         "| FLOPs |",
         "| Scene6 | 806 | 1 | not available",
+        "| integers, t with 6 fraction bits | 1280x1024 |",
+        "| integers, t with 0 fraction bits | 640x512 |",
     ] {
         assert!(s.contains(want), "missing {want}: {s}");
     }

@@ -14,6 +14,8 @@
 //!   ones instances of one geometry.
 //! - [`paper`]: what SaarCOR's paper prints (Tables 1-4, its text's figures, its
 //!   scenes), and its designs' floating-point units counted to derive Table 1.
+//! - [`pp5`]: Pixel-Planes 5's integer sphere tracer (12/24-bit values, 6 fraction bits
+//!   on t) at 640x512 and 1280x1024 against f64.
 //! - [`precision`]: traversal and intersection in SaarCOR's 24-bit floats, IEEE half and
 //!   fixed point: changed hits and PSNR against f32.
 //! - [`charts`]: the report page's charts (plotters, SVG).
@@ -27,6 +29,7 @@ pub mod dynrtp;
 pub mod kd;
 pub mod objects;
 pub mod paper;
+pub mod pp5;
 pub mod precision;
 pub mod report;
 

@@ -37,6 +37,8 @@ pub struct SaarcorReport {
     pub variants: Vec<(String, FrameModel)>,
     /// Precision rows.
     pub precision: Vec<PrecisionRow>,
+    /// Pixel-Planes 5's integer sphere tracer against f64 ([`crate::pp5::study`]).
+    pub pp5: Vec<crate::pp5::Pp5Row>,
     /// Size of the precision images.
     pub precision_size: (u32, u32),
     /// lucent's own time for the same primary rays (ms, the fast kernels, this machine).
@@ -178,6 +180,25 @@ impl Tables for SaarcorReport {
                 let _ = writeln!(s, "| {} | {:.3} | {} |", p.format.name(), p.changed_pct, f1(p.psnr));
             }
         }
+        if !self.pp5.is_empty() {
+            let _ = writeln!(
+                s,
+                "\n### Pixel-Planes 5's arithmetic (its sphere tracer, ten spheres in 1280x1024 display units)\n\nThe paper: \"the ray parametric parameters, the model description, and most intermediate values are kept as 12 or 24 bit integers\"; the discriminant \"on the order of 2^36\"; \"an additional 6 bits were added to the right of T's binary point\"; 640x512 while the joystick moves, 1280x1024 when it stops. Against the same tracer in f64:\n\n| arithmetic | size | primary hits changed % | reflections changed % | PSNR dB | discriminant bits |\n|---|---|---|---|---|---|"
+            );
+            for r in &self.pp5 {
+                let _ = writeln!(
+                    s,
+                    "| {} | {}x{} | {:.2} | {:.2} | {} | {} |",
+                    r.arith,
+                    r.size.0,
+                    r.size.1,
+                    r.primary_changed_pct,
+                    r.reflection_changed_pct,
+                    f1(r.psnr),
+                    r.disc_bits
+                );
+            }
+        }
         let _ = writeln!(s, "\n### Modelling assumptions\n");
         for a in ASSUMPTIONS {
             let _ = writeln!(s, "- {a}");
@@ -251,6 +272,18 @@ impl Tables for SaarcorReport {
                 json_str(name),
                 num(a),
                 num(b)
+            ));
+        }
+        for r in &self.pp5 {
+            out.push(format!(
+                "{{\"table\":\"pixel_planes_5\",\"arithmetic\":{},\"width\":{},\"height\":{},\"primary_changed_pct\":{},\"reflection_changed_pct\":{},\"psnr_db\":{},\"discriminant_bits\":{}}}",
+                json_str(&r.arith),
+                r.size.0,
+                r.size.1,
+                num(r.primary_changed_pct),
+                num(r.reflection_changed_pct),
+                num(r.psnr),
+                r.disc_bits
             ));
         }
         for p in &self.precision {
