@@ -242,6 +242,10 @@ fn variants(world: &World, trace: &FrameTrace, cam: &Camera, m: &Machine) -> Res
         "packets handed out in scanline order (rows of 2x2 quads), not 8x8 tiles".into(),
         saarcor::dynrtp::simulate_in_rows(trace, m, m.threads),
     ));
+    out.push((
+        "the threads' packets dealt from 64 places of the image at once, not side by side".into(),
+        saarcor::dynrtp::simulate_in_strips(trace, m, m.threads, 64),
+    ));
     let mut run = |what: &str, machine: Machine| out.push((what.to_string(), simulate(trace, &machine, machine.threads)));
     run(
         "memory and unit latencies 4x (64 threads no longer hide them)",

@@ -392,6 +392,17 @@ pub fn simulate_in_rows(t: &FrameTrace, m: &Machine, threads: u32) -> FrameModel
     simulate_in(t, m, threads, &order)
 }
 
+/// [`simulate`] with the packets dealt out from `strips` places of the image at once: the
+/// tile order cut into that many equal parts, the next packet taken from each part in
+/// turn, so the packets in flight lie far apart on the screen instead of side by side.
+#[must_use]
+pub fn simulate_in_strips(t: &FrameTrace, m: &Machine, threads: u32, strips: usize) -> FrameModel {
+    let n = t.packets.len();
+    let per = n.div_ceil(strips.max(1));
+    let order: Vec<usize> = (0..per).flat_map(|i| (0..strips.max(1)).map(move |k| k * per + i)).filter(|&p| p < n).collect();
+    simulate_in(t, m, threads, &order)
+}
+
 fn simulate_in(t: &FrameTrace, m: &Machine, threads: u32, order: &[usize]) -> FrameModel {
     use std::cmp::Reverse;
     use std::collections::BinaryHeap;
