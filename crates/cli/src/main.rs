@@ -494,6 +494,7 @@ fn main() -> std::process::ExitCode {
     // A panic inside an image decoder is contained by `lucent_scene::decode_image` (the
     // image is skipped with a warning that gives the decoder's message): not a crash report.
     lucent_scene::contain_decoder_panics();
+    keep_freed_memory();
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
@@ -501,6 +502,21 @@ fn main() -> std::process::ExitCode {
             eprintln!("error: {e:#}");
             std::process::ExitCode::FAILURE
         }
+    }
+}
+
+/// Frames are rendered over and over (the device, the viewer, the benches), each making
+/// and dropping buffers of megabytes: glibc's allocator maps such buffers fresh each time
+/// and gives freed heap back to the system, so every frame paid its pages' faults and
+/// zeroing again (8% of a REND3R Table IV frame of 4,096 spheres). Large blocks come from
+/// the heap and freed memory stays with the process instead (up to 256 MB kept).
+fn keep_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only sets allocator parameters; it is called before any other
+    // thread exists, and a refused setting (a zero return) leaves the defaults.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 64 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 256 << 20);
     }
 }
 

@@ -142,3 +142,51 @@ fn whitted_images_keep_their_bits() {
         assert_eq!((n.as_str(), *h), (*wn, *wh), "the image {n} changed; all frames now:\n{listing}");
     }
 }
+
+/// A frame without lights shows, where a ray meets an untextured material that neither
+/// reflects nor transmits, that material's own colour (its emission and its ambient term,
+/// exactly), whether every hit of its packet is such (the shader's shortcut, which
+/// rebuilds no surface point) or some reflect or transmit (the whole shader).
+#[test]
+fn a_frame_without_lights_shows_each_matte_material_s_colour() {
+    use glam::Vec3;
+    let (w, h) = (96, 72);
+    for all_matte in [true, false] {
+        let mut s = lucent_scene::demo_scene();
+        s.lights.clear();
+        s.ambient = Vec3::new(0.3, 0.4, 0.5);
+        if all_matte {
+            for m in &mut s.materials {
+                (m.reflect, m.transmit, m.diffuse_tex, m.emission_tex, m.normal_map, m.bsdf) =
+                    (Vec3::ZERO, Vec3::ZERO, None, None, None, None);
+            }
+        }
+        let world = World::new(s, MeshOptions::default()).expect("demo");
+        let (lo, hi) = world.scene().bounds().expect("geometry");
+        let camera = Camera::new(&world.scene().camera.unwrap_or_else(|| lucent_render::framing_camera(lo, hi)), w, h);
+        let (film, _) = render(&world, &camera, &RenderSettings::new(w, h), &|_| {});
+        let (mut matte, mut other) = (0, 0);
+        for y in 0..h {
+            for x in 0..w {
+                let got = film.pixels[(y * w + x) as usize];
+                let ray = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+                let Some(hit) = world.intersect(&ray) else {
+                    assert_eq!(got, world.scene().background, "({x}, {y}): background");
+                    continue;
+                };
+                let m = &world.scene().materials[world.material_of(&hit) as usize];
+                if m.uses_uv() || m.reflect.max_element() > 0.0 || m.transmit.max_element() > 0.0 {
+                    other += 1;
+                    continue;
+                }
+                let ka = if m.ambient != Vec3::ZERO { m.ambient } else { m.diffuse };
+                assert_eq!(got, m.emission.min(Vec3::ONE) + world.scene().ambient * ka, "({x}, {y}) all matte {all_matte}");
+                matte += 1;
+            }
+        }
+        // All matte: the shortcut everywhere. Else: matte pixels in packets the whole
+        // shader shades (beside the mirror, the glass and the textured floor).
+        let want = if all_matte { (matte > 1000, other == 0) } else { (matte > 100, other > 1000) };
+        assert_eq!(want, (true, true), "all matte {all_matte}: {matte} matte pixels, {other} others");
+    }
+}

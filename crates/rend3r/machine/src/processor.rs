@@ -49,7 +49,7 @@ pub const LIGHTS: usize = 64;
 /// Most shape/triangle records (the 19-bit index).
 pub const MAX_SETS: usize = 1 << 19;
 
-/// Shape or triangle records by index: the first [`DENSE_SETS`] in a table that grows to
+/// Shape or triangle records by index: the first `DENSE_SETS` (16,384) in a table that grows to
 /// the highest one written, the rest kept sparse, so a program that writes record 524,287
 /// alone costs one record, not 2^19 of them (36 MB), and one SE/SD pair from the network
 /// cannot make a session allocate the whole index range (at most 1.1 MB of table).
@@ -59,7 +59,7 @@ pub const MAX_SETS: usize = 1 << 19;
 pub struct Sets {
     /// Records `0..dense.len()`; the last one written (unwritten ones `UNWRITTEN`).
     dense: Vec<Record>,
-    /// Records from [`DENSE_SETS`] on.
+    /// Records from `DENSE_SETS` on.
     sparse: std::collections::BTreeMap<u32, Record>,
 }
 

@@ -91,6 +91,19 @@ impl World {
         Some(Vec2::new(u, v))
     }
 
+    /// The material index of a hit, the one [`World::surface`] gives, without the rest
+    /// of the surface point.
+    #[must_use]
+    pub fn material_of(&self, h: &Hit) -> u32 {
+        match self.info.get(h.inst as usize).map(|i| i.geom) {
+            Some(Geom::Mesh(m)) => {
+                self.scene.meshes.get(m as usize).and_then(|mesh| mesh.material.get(h.prim as usize)).copied().unwrap_or(0)
+            }
+            Some(Geom::Shape { material, .. }) => material,
+            None => 0,
+        }
+    }
+
     /// Rebuilds the surface point of a hit.
     #[must_use]
     pub fn surface(&self, r: &Ray, h: &Hit) -> Surface {
