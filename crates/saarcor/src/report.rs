@@ -274,6 +274,28 @@ impl Tables for SaarcorReport {
                 num(b)
             ));
         }
+        for (unit, f, kb) in paper::TABLE2 {
+            out.push(format!(
+                "{{\"table\":\"saarcor_table2\",\"unit\":{},\"add\":{},\"mul\":{},\"div\":{},\"cmp\":{},\"memory_kb\":{kb}}}",
+                json_str(unit),
+                f.add,
+                f.mul,
+                f.div,
+                f.cmp
+            ));
+        }
+        for (what, words) in paper::TEXT_FIGURES {
+            out.push(format!("{{\"table\":\"saarcor_text\",\"figure\":{},\"the_paper\":{}}}", json_str(what), json_str(words)));
+        }
+        for (r, (_, what)) in paper::TABLE3.iter().zip(paper::SCENES) {
+            out.push(format!(
+                "{{\"table\":\"saarcor_scenes\",\"scene\":{},\"triangles\":{},\"objects\":{},\"lucent\":{}}}",
+                json_str(r.scene),
+                r.triangles,
+                r.objects,
+                json_str(what)
+            ));
+        }
         for r in &self.pp5 {
             out.push(format!(
                 "{{\"table\":\"pixel_planes_5\",\"arithmetic\":{},\"width\":{},\"height\":{},\"primary_changed_pct\":{},\"reflection_changed_pct\":{},\"psnr_db\":{},\"discriminant_bits\":{}}}",
@@ -584,6 +606,10 @@ impl Tables for Rend3rReport {
                 )
             })
             .collect();
+        let (sh, l, measured, formula) = rend3r_machine::cycles::PAPER_MEASURED;
+        out.push(format!(
+            "{{\"table\":\"rend3r_measured_frame\",\"shapes\":{sh},\"lights\":{l},\"paper_cycles\":{measured},\"formula_cycles\":{formula}}}"
+        ));
         for (n, l, sec, paper) in table_iv() {
             out.push(format!(
                 "{{\"table\":\"rend3r_table_iv\",\"shapes\":{n},\"lights\":{l},\"cycles_worst\":{},\"seconds\":{},\"paper_seconds\":{}}}",
