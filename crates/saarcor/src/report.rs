@@ -111,21 +111,8 @@ impl Tables for SaarcorReport {
             );
             for r in &self.threads {
                 let one = self.threads.iter().find(|q| q.index == r.index && q.threads == 1).map_or(f64::NAN, |q| q.fps);
-                let _ = writeln!(
-                    s,
-                    "| {} | {} | {:.2} | {:.2} | {} | {} | {} | {} | {} | {} | {} |",
-                    r.index,
-                    r.threads,
-                    r.fps,
-                    r.fps / one,
-                    f1(r.usage[0]),
-                    f1(r.usage[1]),
-                    f1(r.usage[2]),
-                    f1(r.usage[3]),
-                    f1(r.hit[0]),
-                    f1(r.hit[1]),
-                    f1(r.hit[2])
-                );
+                let cells = table4_cells(&figures(r));
+                let _ = writeln!(s, "| {} | {} | {:.2} | {:.2} | {} |", r.index, r.threads, r.fps, r.fps / one, cells[1..8].join(" | "));
             }
             for ix in ["bvh", "kd"] {
                 let fps = |t: u32| self.threads.iter().find(|q| q.index == ix && q.threads == t).map(|q| q.fps);
@@ -208,34 +195,6 @@ impl Tables for SaarcorReport {
 
     fn json_lines(&self) -> Vec<String> {
         let mut out = Vec::new();
-        for (table, rows) in [("saarcor_table3", &self.table3), ("saarcor_table4", &self.table4)] {
-            for r in rows {
-                let paper = match table {
-                    "saarcor_table3" => paper::table3_of(&self.scene).filter(|_| r.size == (512, 384)).map(|p| p.saarcor_fps),
-                    _ => paper::table4_of(&self.scene).filter(|_| r.size == (1024, 768)).map(|p| p.fps),
-                };
-                out.push(format!(
-                    "{{\"table\":\"{table}\",\"paper_fps\":{},\"scene\":{},\"index\":\"{}\",\"width\":{},\"height\":{},\"fps\":{},\"cycles\":{},\"usage_trav\":{},\"usage_list\":{},\"usage_transf\":{},\"usage_int\":{},\"hit_trav\":{},\"hit_list\":{},\"hit_transf\":{},\"mb_s_core\":{},\"mb_s_shading\":{},\"mb_s_total\":{}}}",
-                    paper.map_or("null".into(), num),
-                    json_str(&self.scene),
-                    r.index,
-                    r.size.0,
-                    r.size.1,
-                    num(r.fps),
-                    r.cycles,
-                    num(r.usage[0]),
-                    num(r.usage[1]),
-                    num(r.usage[2]),
-                    num(r.usage[3]),
-                    num(r.hit[0]),
-                    num(r.hit[1]),
-                    num(r.hit[2]),
-                    num(r.mb_s[0]),
-                    num(r.mb_s[1]),
-                    num(r.mb_s[2])
-                ));
-            }
-        }
         let row = |table: &str, extra: String, f: &[f64; 11]| {
             let keys = [
                 "fps",
@@ -253,6 +212,23 @@ impl Tables for SaarcorReport {
             let body: Vec<String> = keys.iter().zip(f).map(|(k, v)| format!("\"{k}\":{}", num(*v))).collect();
             format!("{{\"table\":\"{table}\",\"scene\":{}{extra},{}}}", json_str(&self.scene), body.join(","))
         };
+        for (table, rows) in [("saarcor_table3", &self.table3), ("saarcor_table4", &self.table4)] {
+            for r in rows {
+                let paper = match table {
+                    "saarcor_table3" => paper::table3_of(&self.scene).filter(|_| r.size == (512, 384)).map(|p| p.saarcor_fps),
+                    _ => paper::table4_of(&self.scene).filter(|_| r.size == (1024, 768)).map(|p| p.fps),
+                };
+                let extra = format!(
+                    ",\"paper_fps\":{},\"index\":\"{}\",\"width\":{},\"height\":{},\"cycles\":{}",
+                    paper.map_or("null".into(), num),
+                    r.index,
+                    r.size.0,
+                    r.size.1,
+                    r.cycles
+                );
+                out.push(row(table, extra, &figures(r)));
+            }
+        }
         if let Some(p) = paper::table4_of(&self.scene) {
             out.push(row("saarcor_table4_paper", format!(",\"paper_scene\":\"{}\"", p.scene), &paper_figures(p)));
         }
