@@ -7,6 +7,7 @@ use lucent_render::{Camera, World};
 use saarcor::dynrtp::{simulate, FrameModel, FrameTrace, Machine, Traced};
 use saarcor::precision::{precision_study, Format};
 use saarcor::report::{Rend3rReport, SaarcorReport, Tables};
+use std::io::IsTerminal as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -190,12 +191,22 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
         precision_size: a.precision_size,
         ..SaarcorReport::default()
     };
+    // Progress: each index's frames (Table 4, Table 3, the threads, the gaps' choices).
+    let bar = if std::io::stderr().is_terminal() { indicatif::ProgressBar::new_spinner() } else { indicatif::ProgressBar::hidden() };
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
     for ix in &indices {
+        let name = match ix {
+            Traced::Bvh(_) => "bvh",
+            Traced::Kd(_) => "kd",
+        };
+        bar.set_message(format!("{name}: Table 4's frame at {}x{}", size4.0, size4.1));
         let trace4 = FrameTrace::new(ix, &cam4);
         rep.table4.push(simulate(&trace4, &machine, machine.threads));
         if matches!(ix, Traced::Kd(_)) && saarcor::paper::table4_of(&rep.scene).is_some() && a.gaps && size4 == (1024, 768) {
+            bar.set_message(format!("{name}: the frame under other modelling choices (the gaps table)"));
             rep.variants = variants(&world, &trace4, &cam4, &machine)?;
         }
+        bar.set_message(format!("{name}: Table 3's frame and 1 to 64 threads at 512x384"));
         let trace3 = FrameTrace::new(ix, &cam3);
         rep.table3.push(simulate(&trace3, &machine, machine.threads));
         // The paper's scaling statement: fps and usage against threads, at 512x384.
@@ -203,6 +214,7 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
             rep.threads.push(simulate(&trace3, &machine, t));
         }
     }
+    bar.finish_and_clear();
     // lucent's own time for the same rays (the fast single-ray kernels, this machine).
     let t = Instant::now();
     let hits = rend3r_machine::cycles::hit_pixels(&world, &cam4, size4.0, size4.1);
