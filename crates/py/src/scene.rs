@@ -845,7 +845,7 @@ pub fn load(
         })
     })?;
     let scene = scene.map_err(|e| match &e {
-        lucent_scene::ImportError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+        lucent_scene::ImportError::Io { cause, .. } if cause.kind() == std::io::ErrorKind::NotFound => {
             PyFileNotFoundError::new_err(e.to_string())
         }
         _ => LucentError::new_err(e.to_string()),

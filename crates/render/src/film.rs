@@ -8,12 +8,12 @@ use std::path::Path;
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
     /// Encoding or writing failed.
-    #[error("{path}: {source}")]
+    #[error("{path}: {cause}")]
     Image {
         /// File.
         path: String,
-        /// Cause.
-        source: image::ImageError,
+        /// Cause (in the message, so not also a `source()`).
+        cause: image::ImageError,
     },
     /// Unknown extension.
     #[error("{0}: unknown image type (use .png or .exr)")]
@@ -123,7 +123,7 @@ impl Film {
     /// from sRGB. For reference images.
     pub fn load(path: &Path) -> Result<Self, OutputError> {
         let name = path.display().to_string();
-        let img = image::open(path).map_err(|source| OutputError::Image { path: name, source })?;
+        let img = image::open(path).map_err(|cause| OutputError::Image { path: name, cause })?;
         let exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
         let rgb = img.to_rgb32f();
         let (width, height) = rgb.dimensions();
@@ -190,7 +190,7 @@ impl Film {
     pub fn save(&self, path: &Path) -> Result<(), OutputError> {
         let name = path.display().to_string();
         let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
-        let err = |source| OutputError::Image { path: name.clone(), source };
+        let err = |cause| OutputError::Image { path: name.clone(), cause };
         match ext.as_str() {
             "png" => image::RgbImage::from_raw(self.width, self.height, self.to_srgb8()).map_or(Ok(()), |img| img.save(path).map_err(err)),
             "exr" => {

@@ -6,12 +6,13 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum ImportError {
     /// The file could not be read.
-    #[error("{path}: {source}")]
+    #[error("{path}: {cause}")]
     Io {
         /// File.
         path: PathBuf,
-        /// Cause.
-        source: std::io::Error,
+        /// Cause (in the message, so not also a `source()`: a chain printed whole, as
+        /// `anyhow`'s `{:#}` does, said it twice).
+        cause: std::io::Error,
     },
     /// Bad content at a line.
     #[error("{path}:{line}: {msg}")]

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 /// Reads a file, gunzipping names that end in `.gz`.
 pub(crate) fn read_maybe_gz(path: &Path) -> Result<Vec<u8>, ImportError> {
-    let io = |source| ImportError::Io { path: path.to_path_buf(), source };
+    let io = |cause| ImportError::Io { path: path.to_path_buf(), cause };
     let raw = std::fs::read(path).map_err(io)?;
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz")) {
         use std::io::Read;

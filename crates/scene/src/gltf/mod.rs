@@ -50,7 +50,7 @@ pub fn load_gltf(path: &Path) -> Result<Scene, ImportError> {
 /// Loads a glTF or GLB file; with `options.strict` a file that breaks any rule of the
 /// specification is refused, with the JSON pointer of what is wrong.
 pub fn load_gltf_with(path: &Path, options: &crate::LoadOptions) -> Result<Scene, ImportError> {
-    let bytes = std::fs::read(path).map_err(|source| ImportError::Io { path: path.to_path_buf(), source })?;
+    let bytes = std::fs::read(path).map_err(|cause| ImportError::Io { path: path.to_path_buf(), cause })?;
     parse_gltf_with(path, path.parent().unwrap_or(Path::new(".")), &bytes, options)
 }
 

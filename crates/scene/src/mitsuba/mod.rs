@@ -65,7 +65,7 @@ pub fn load_mitsuba(path: &Path) -> R<Scene> {
 /// draws are merged in world space ([`Scene::merge_single_use_meshes`]), where
 /// [`parse_mitsuba_with`] keeps each shape its own mesh and instance.
 pub fn load_mitsuba_with(path: &Path, defines: &[(String, String)]) -> R<Scene> {
-    let bytes = std::fs::read(path).map_err(|source| ImportError::Io { path: path.to_path_buf(), source })?;
+    let bytes = std::fs::read(path).map_err(|cause| ImportError::Io { path: path.to_path_buf(), cause })?;
     let text = std::str::from_utf8(&bytes).map_err(|e| {
         let line = bytes[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count() + 1;
         ImportError::Parse { path: path.to_path_buf(), line, msg: "not UTF-8 text".into() }
