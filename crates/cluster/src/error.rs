@@ -8,12 +8,12 @@ use std::time::Duration;
 #[derive(Debug, thiserror::Error)]
 pub enum ClusterError {
     /// A message could not be read.
-    #[error("a message from rank {rank} is broken: {source}")]
+    #[error("a message from rank {rank} is broken: {cause}")]
     Wire {
         /// The sender.
         rank: usize,
-        /// What is wrong.
-        source: DecodeError,
+        /// What is wrong (in the message, so not also a `source()`).
+        cause: DecodeError,
     },
     /// A rank sent nothing (not even a heartbeat) for too long.
     #[error("rank {rank} stopped answering (no message for {:.1} s); it held {}", .silent.as_secs_f64(), regions_text(.regions))]

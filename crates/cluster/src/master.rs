@@ -162,7 +162,7 @@ impl Master {
 
     /// Decodes a message; a hello is checked and recorded here.
     fn decode(&mut self, rank: usize, bytes: &[u8]) -> Result<Msg, ClusterError> {
-        let msg = Msg::decode(bytes).map_err(|source| ClusterError::Wire { rank, source })?;
+        let msg = Msg::decode(bytes).map_err(|cause| ClusterError::Wire { rank, cause })?;
         if let Msg::Hello { digest, threads } = msg {
             if digest != self.digest {
                 return Err(ClusterError::Digest { rank, theirs: digest, ours: self.digest });

@@ -127,7 +127,7 @@ fn pump(
     let mut failed: Option<String> = None;
     loop {
         while let Some(bytes) = link.try_recv()? {
-            match Msg::decode(&bytes).map_err(|source| ClusterError::Wire { rank: 0, source })? {
+            match Msg::decode(&bytes).map_err(|cause| ClusterError::Wire { rank: 0, cause })? {
                 Msg::Frame(f) => frame = Some(f),
                 Msg::Job { id, region } => {
                     received += 1;

@@ -21,12 +21,12 @@ use std::sync::Arc;
 #[derive(Debug, thiserror::Error)]
 pub enum WorldError {
     /// Building an acceleration structure failed.
-    #[error("mesh '{mesh}': {source}")]
+    #[error("mesh '{mesh}': {cause}")]
     Build {
         /// Mesh name.
         mesh: String,
-        /// Cause.
-        source: lucent_accel::BuildError,
+        /// Cause (in the message, so not also a `source()`).
+        cause: lucent_accel::BuildError,
     },
     /// The top level failed.
     #[error("instances: {0}")]
@@ -168,7 +168,7 @@ impl World {
                 let opts = MeshOptions { refittable: deforming.contains(&(i as u32)), ..opts };
                 MeshBvh::build(&m.positions, &m.indices, opts)
                     .map(Geometry::Mesh)
-                    .map_err(|source| WorldError::Build { mesh: m.name.clone(), source })
+                    .map_err(|cause| WorldError::Build { mesh: m.name.clone(), cause })
             })
             .collect();
         let mut geoms = meshes?;

@@ -171,7 +171,7 @@ impl World {
             mesh.normals = lucent_scene::Attr { values: vertex_normals(&mesh.positions, &mesh.indices), indices: None };
         }
         let name = mesh.name.clone();
-        let err = |source| WorldError::Build { mesh: name.clone(), source };
+        let err = |cause| WorldError::Build { mesh: name.clone(), cause };
         // Refit; rebuild once the refitted tree costs REBUILD_RATIO times a fresh one.
         let ratio = match self.accel.geometry_mut(m) {
             Some(Geometry::Mesh(bvh)) => bvh.refit(&mesh.positions, &mesh.indices).map_err(err)?,
