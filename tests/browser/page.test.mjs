@@ -5,7 +5,7 @@
 //
 // Run: node tests/browser/page.test.mjs   (needs target/release/lucent and /usr/bin/chromium)
 
-import { chromium } from "playwright-core";
+import { launchChromium } from "./chromium.mjs";
 import { spawn } from "node:child_process";
 import { mkdirSync, existsSync } from "node:fs";
 import { dirname, join } from "node:path";
@@ -13,7 +13,6 @@ import { fileURLToPath } from "node:url";
 
 const root = join(dirname(fileURLToPath(import.meta.url)), "..", "..");
 const lucent = process.env.LUCENT_BIN || join(root, "target", "release", "lucent");
-const browserPath = process.env.CHROMIUM || "/usr/bin/chromium";
 const artifacts = join(root, "target", "browser");
 mkdirSync(artifacts, { recursive: true });
 
@@ -53,12 +52,7 @@ async function probe(page, x, y) {
 }
 
 const server = await startServer();
-const browser = await chromium.launch({
-  executablePath: browserPath,
-  headless: true,
-  args: ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync"],
-});
+const browser = await launchChromium();
 try {
   const page = await browser.newPage({ viewport: { width: 1280, height: 800 } });
   const external = [];

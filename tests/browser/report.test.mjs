@@ -6,7 +6,7 @@
 //
 // Run: node tests/browser/report.test.mjs   (needs target/release/lucent and /usr/bin/chromium)
 
-import { chromium } from "playwright-core";
+import { launchChromium } from "./chromium.mjs";
 import { spawnSync } from "node:child_process";
 import { mkdirSync } from "node:fs";
 import { dirname, join } from "node:path";
@@ -14,7 +14,6 @@ import { fileURLToPath, pathToFileURL } from "node:url";
 
 const root = join(dirname(fileURLToPath(import.meta.url)), "..", "..");
 const lucent = process.env.LUCENT_BIN || join(root, "target", "release", "lucent");
-const browserPath = process.env.CHROMIUM || "/usr/bin/chromium";
 const artifacts = join(root, "target", "browser");
 const dir = join(artifacts, "report");
 mkdirSync(dir, { recursive: true });
@@ -29,12 +28,7 @@ const html = join(dir, "report.html");
 const run = spawnSync(lucent, ["report", "--size", "256x192", "--precision-size", "96x72", "--html", html], { encoding: "utf8" });
 check(run.status === 0, `lucent report --html ran (${run.status}) ${run.status === 0 ? "" : run.stderr}`);
 
-const browser = await chromium.launch({
-  executablePath: browserPath,
-  headless: true,
-  args: ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync"],
-});
+const browser = await launchChromium();
 try {
   const page = await browser.newPage({ viewport: { width: 1280, height: 900 } });
   await page.goto(pathToFileURL(html).href);

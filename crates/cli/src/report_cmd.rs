@@ -195,23 +195,20 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
     let bar = if std::io::stderr().is_terminal() { indicatif::ProgressBar::new_spinner() } else { indicatif::ProgressBar::hidden() };
     bar.enable_steady_tick(std::time::Duration::from_millis(200));
     for ix in &indices {
-        let name = match ix {
-            Traced::Bvh(_) => "bvh",
-            Traced::Kd(_) => "kd",
-        };
+        let name = ix.name();
         bar.set_message(format!("{name}: Table 4's frame at {}x{}", size4.0, size4.1));
         let trace4 = FrameTrace::new(ix, &cam4);
-        rep.table4.push(simulate(&trace4, &machine, machine.threads));
+        rep.table4.push(simulate(&trace4, &machine));
         if matches!(ix, Traced::Kd(_)) && saarcor::paper::table4_of(&rep.scene).is_some() && a.gaps && size4 == (1024, 768) {
             bar.set_message(format!("{name}: the frame under other modelling choices (the gaps table)"));
             rep.variants = variants(&world, &trace4, &cam4, &machine)?;
         }
         bar.set_message(format!("{name}: Table 3's frame and 1 to 64 threads at 512x384"));
         let trace3 = FrameTrace::new(ix, &cam3);
-        rep.table3.push(simulate(&trace3, &machine, machine.threads));
+        rep.table3.push(simulate(&trace3, &machine));
         // The paper's scaling statement: fps and usage against threads, at 512x384.
         for t in saarcor::dynrtp::THREAD_SWEEP {
-            rep.threads.push(simulate(&trace3, &machine, t));
+            rep.threads.push(simulate(&trace3, &Machine { threads: t, ..machine }));
         }
     }
     bar.finish_and_clear();
@@ -240,46 +237,42 @@ fn saarcor(a: &ReportArgs) -> Result<()> {
 /// The kd frame at the Table 4 size under other modelling choices, each changed alone:
 /// the gaps table's measurements.
 fn variants(world: &World, trace: &FrameTrace, cam: &Camera, m: &Machine) -> Result<Vec<(String, FrameModel)>> {
-    let mut out = Vec::new();
-    let mut run = |what: &str, machine: Machine| out.push((what.to_string(), simulate(trace, &machine, machine.threads)));
-    run("the caches see each packet's reads in turn (one thread; fps and usage of one thread)", Machine { threads: 1, ..*m });
-    run("primary rays not made on the transformation unit", Machine { generate_rays: false, ..*m });
-    run("no shading steps on the transformation unit (2 a hit ray)", Machine { shade_steps: 0, ..*m });
-    run("each intersection's result back through the traversal unit (path f)", Machine { results_via_traversal: true, ..*m });
-    run(
-        "shading reads 60 B a hit ray (three vertices' normals and texture coordinates), not the paper's 28",
-        Machine { shade_bytes: 60, ..*m },
-    );
-    out.push((
-        "packets handed out in scanline order (rows of 2x2 quads), not 8x8 tiles".into(),
-        saarcor::dynrtp::simulate_in_rows(trace, m, m.threads),
-    ));
-    out.push((
-        "the threads' packets dealt from 64 places of the image at once, not side by side".into(),
-        saarcor::dynrtp::simulate_in_strips(trace, m, m.threads, 64),
-    ));
-    let mut run = |what: &str, machine: Machine| out.push((what.to_string(), simulate(trace, &machine, machine.threads)));
-    run(
-        "memory and unit latencies 4x (64 threads no longer hide them)",
-        Machine { unit_latency: 4 * m.unit_latency, memory_latency: 4 * m.memory_latency, ..*m },
-    );
-    let deep = saarcor::kd::KdOptions { cost_traverse: 5.0, max_depth: 40, ..saarcor::kd::KdOptions::default() };
-    let kd = saarcor::kd::kd_of_world_with(world, deep)?;
-    let t = FrameTrace::new(&Traced::Kd(&kd), cam);
-    out.push(("kd-trees with a 3x cheaper traversal step and 40 levels (smaller leaves)".into(), simulate(&t, m, m.threads)));
-    drop(t);
-    let split = saarcor::kd::KdOptions { max_depth: 40, max_leaf: 2, ..saarcor::kd::KdOptions::default() };
-    let kd = saarcor::kd::kd_of_world_with(world, split)?;
-    let t = FrameTrace::new(&Traced::Kd(&kd), cam);
-    out.push(("kd-trees split down to 2 triangles a leaf where a split divides them (40 levels)".into(), simulate(&t, m, m.threads)));
-    drop(t);
-    let boxes = saarcor::kd::KdOptions { perfect_splits: false, ..saarcor::kd::KdOptions::default() };
-    let kd = saarcor::kd::kd_of_world_with(world, boxes)?;
-    let t = FrameTrace::new(&Traced::Kd(&kd), cam);
-    out.push((
-        "kd-trees split by the triangles' boxes cut at the nodes' faces, not by the clipped triangles".into(),
-        simulate(&t, m, m.threads),
-    ));
+    use saarcor::dynrtp::{simulate_in_rows, simulate_in_strips};
+    use saarcor::kd::KdOptions;
+    let machines = [
+        ("the caches see each packet's reads in turn (one thread; fps and usage of one thread)", Machine { threads: 1, ..*m }),
+        ("primary rays not made on the transformation unit", Machine { generate_rays: false, ..*m }),
+        ("no shading steps on the transformation unit (2 a hit ray)", Machine { shade_steps: 0, ..*m }),
+        ("each intersection's result back through the traversal unit (path f)", Machine { results_via_traversal: true, ..*m }),
+        (
+            "shading reads 60 B a hit ray (three vertices' normals and texture coordinates), not the paper's 28",
+            Machine { shade_bytes: 60, ..*m },
+        ),
+    ];
+    let mut out: Vec<(String, FrameModel)> = machines.iter().map(|(what, mc)| ((*what).to_string(), simulate(trace, mc))).collect();
+    out.push(("packets handed out in scanline order (rows of 2x2 quads), not 8x8 tiles".into(), simulate_in_rows(trace, m)));
+    out.push(("the threads' packets dealt from 64 places of the image at once, not side by side".into(), simulate_in_strips(trace, m, 64)));
+    let slow = Machine { unit_latency: 4 * m.unit_latency, memory_latency: 4 * m.memory_latency, ..*m };
+    out.push(("memory and unit latencies 4x (64 threads no longer hide them)".into(), simulate(trace, &slow)));
+    // Other trees: each rebuilt, its frame traced and simulated (one trace held at a time).
+    let trees = [
+        (
+            "kd-trees with a 3x cheaper traversal step and 40 levels (smaller leaves)",
+            KdOptions { cost_traverse: 5.0, max_depth: 40, ..KdOptions::default() },
+        ),
+        (
+            "kd-trees split down to 2 triangles a leaf where a split divides them (40 levels)",
+            KdOptions { max_depth: 40, max_leaf: 2, ..KdOptions::default() },
+        ),
+        (
+            "kd-trees split by the triangles' boxes cut at the nodes' faces, not by the clipped triangles",
+            KdOptions { perfect_splits: false, ..KdOptions::default() },
+        ),
+    ];
+    for (what, opts) in trees {
+        let kd = saarcor::kd::kd_of_world_with(world, opts)?;
+        out.push((what.to_string(), simulate(&FrameTrace::new(&Traced::Kd(&kd), cam), m)));
+    }
     Ok(out)
 }
 

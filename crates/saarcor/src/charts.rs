@@ -35,33 +35,49 @@ fn legend(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, names: &[(
 /// Hit rate (percent) against cache size (KB, log scale), one line per cache.
 #[must_use]
 pub fn hit_rate_chart(series: &[(&str, Vec<(f64, f64)>)]) -> String {
+    log2_lines(series, ("cache size, KB", "hit rate %"), 100.0, None)
+}
+
+/// Lines with their points over a log2 x axis (labelled by powers of two) and a linear y
+/// axis from 0 to `y_top`, one colour a series; with `linear`, the line y = x first,
+/// named so in the legend after the series.
+fn log2_lines(series: &[(&str, Vec<(f64, f64)>)], desc: (&str, &str), y_top: f64, linear: Option<&str>) -> String {
     svg((620, 340), |root| {
         let (plot, key) = root.split_vertically(300);
-        let max_kb = series.iter().flat_map(|s| s.1.iter().map(|p| p.0)).fold(2.0f64, f64::max);
+        let max_x = series.iter().flat_map(|s| s.1.iter().map(|p| p.0)).fold(2.0f64, f64::max);
         let mut chart = ChartBuilder::on(&plot)
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(50)
-            .build_cartesian_2d(0.0f64..max_kb.log2(), 0.0f64..100.0)
+            .build_cartesian_2d(0.0f64..max_x.log2(), 0.0f64..y_top)
             .map_err(|e| e.to_string())?;
         chart
             .configure_mesh()
             .light_line_style(TRANSPARENT)
-            .x_desc("cache size, KB")
-            .y_desc("hit rate %")
-            .x_labels(max_kb.log2() as usize + 1)
+            .x_desc(desc.0)
+            .y_desc(desc.1)
+            .x_labels(max_x.log2() as usize + 1)
             .x_label_formatter(&|v| format!("{:.0}", v.exp2()))
             .y_label_formatter(&|v| format!("{v:.0}"))
             .label_style(("sans-serif", 12))
             .draw()
             .map_err(|e| e.to_string())?;
+        let grey = COLORS[4];
+        if linear.is_some() {
+            let line: Vec<(f64, f64)> =
+                (0..=(max_x.log2() * 8.0) as u32).map(|k| f64::from(k) / 8.0).map(|x| (x, x.exp2())).filter(|p| p.1 <= y_top).collect();
+            chart.draw_series(LineSeries::new(line, grey.stroke_width(1))).map_err(|e| e.to_string())?;
+        }
         for (i, (_, pts)) in series.iter().enumerate() {
             let pts: Vec<(f64, f64)> = pts.iter().map(|&(x, y)| (x.log2(), y)).collect();
-            let c = COLORS[i % COLORS.len()];
+            let c = COLORS[i % 4];
             chart.draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(2))).map_err(|e| e.to_string())?;
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, c.filled()))).map_err(|e| e.to_string())?;
         }
-        let names: Vec<(&str, RGBColor)> = series.iter().enumerate().map(|(i, s)| (s.0, COLORS[i % COLORS.len()])).collect();
+        let mut names: Vec<(&str, RGBColor)> = series.iter().enumerate().map(|(i, s)| (s.0, COLORS[i % 4])).collect();
+        if let Some(name) = linear {
+            names.push((name, grey));
+        }
         legend(&key, &names)
     })
 }
@@ -118,44 +134,9 @@ pub fn usage_chart(rows: &[(String, [f64; 4])]) -> String {
 /// index, with the linear line (one thread's rate times the threads) for comparison.
 #[must_use]
 pub fn threads_chart(series: &[(&str, Vec<(f64, f64)>)]) -> String {
-    svg((620, 340), |root| {
-        let (plot, key) = root.split_vertically(300);
-        let max_t = series.iter().flat_map(|s| s.1.iter().map(|p| p.0)).fold(2.0f64, f64::max);
-        let max_y = series.iter().flat_map(|s| s.1.iter().map(|p| p.1)).fold(1.0f64, f64::max);
-        let mut chart = ChartBuilder::on(&plot)
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(50)
-            .build_cartesian_2d(0.0f64..max_t.log2(), 0.0f64..(max_y * 1.1).min(max_t))
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .light_line_style(TRANSPARENT)
-            .x_desc("threads per pipeline")
-            .y_desc("fps / fps of one thread")
-            .x_labels(max_t.log2() as usize + 1)
-            .x_label_formatter(&|v| format!("{:.0}", v.exp2()))
-            .y_label_formatter(&|v| format!("{v:.0}"))
-            .label_style(("sans-serif", 12))
-            .draw()
-            .map_err(|e| e.to_string())?;
-        let ideal = COLORS[4];
-        let line: Vec<(f64, f64)> = (0..=(max_t.log2() * 8.0) as u32)
-            .map(|k| f64::from(k) / 8.0)
-            .map(|x| (x, x.exp2()))
-            .filter(|p| p.1 <= (max_y * 1.1).min(max_t))
-            .collect();
-        chart.draw_series(LineSeries::new(line, ideal.stroke_width(1))).map_err(|e| e.to_string())?;
-        for (i, (_, pts)) in series.iter().enumerate() {
-            let pts: Vec<(f64, f64)> = pts.iter().map(|&(x, y)| (x.log2(), y)).collect();
-            let c = COLORS[i % 4];
-            chart.draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(2))).map_err(|e| e.to_string())?;
-            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, c.filled()))).map_err(|e| e.to_string())?;
-        }
-        let mut names: Vec<(&str, RGBColor)> = series.iter().enumerate().map(|(i, s)| (s.0, COLORS[i % 4])).collect();
-        names.push(("linear in threads", ideal));
-        legend(&key, &names)
-    })
+    let max_t = series.iter().flat_map(|s| s.1.iter().map(|p| p.0)).fold(2.0f64, f64::max);
+    let max_y = series.iter().flat_map(|s| s.1.iter().map(|p| p.1)).fold(1.0f64, f64::max);
+    log2_lines(series, ("threads per pipeline", "fps / fps of one thread"), (max_y * 1.1).min(max_t), Some("linear in threads"))
 }
 
 #[cfg(test)]

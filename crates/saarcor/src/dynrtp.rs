@@ -19,10 +19,10 @@ use std::collections::HashMap;
 /// What the model assumes, in the report's words.
 pub const ASSUMPTIONS: &[&str] = &[
     "Rays: one primary ray through each pixel centre; packets are the 2x2 pixel quads, traced in 8x8-pixel tiles in row order.",
-    "Threads: 64 (the prototype's), each holding one packet; a discrete-event simulation: a thread issues its packet's steps one after the other, each step reads its item through its cache (a miss waits for the memory: misses are served one after another at 1 GB/s, then 40 cycles of latency), waits for its unit (first come, first served; busy for the step's cycles) and has its result 20 cycles after the unit finishes. Neither latency is printed in the paper: these two reproduce its scaling statement on the 54-object Conference (`--objects 54`: 32 threads 25.5x one, 64 threads +9% over 32). The caches see the reads in the order the threads make them.",
+    "Threads: 64 (the prototype's), each holding one packet; a discrete-event simulation: a thread issues its packet's steps one after the other, each step reads its item through its cache (a miss waits for the memory: misses are served one after another at 1 GB/s, then 40 cycles of latency), waits for its unit (first come, first served; busy for the step's cycles) and has its result 20 cycles after the unit finishes. Neither latency is printed in the paper: these two reproduce its scaling statement on the 54-object Conference (`--objects 54`; the threads table gives the figures). The caches see the reads in the order the threads make them.",
     "Traversal unit: one cycle per node a packet visits (both indices walk the 4 rays as one packet: kd as SaarCOR does, the bvh with its interval test of a node's 8 children; packets whose rays disagree on direction signs go ray by ray, and each ray's nodes count). List unit: one cycle per object-list entry a packet reads.",
     "Transformation unit: n+1 steps (cycles) to carry n rays of a packet, which share an origin, into an instance's space or a triangle's unit-triangle space (bvh: each of a leaf's 4-triangle groups costs its 4 triangles); n+1 steps to make a packet's n primary rays from the camera's transformation (the paper's Section 2.2.2); 2 steps per shaded ray (normal and texture-coordinate interpolation). Intersection unit: one cycle per ray-triangle (or ray-shape) test.",
-    "Caches: direct mapped; traversal items 8 B (a kd node), list items 4 B, transformation items 12 B (a 4-value matrix row of 24-bit floats); an access looks up every item of the bytes it reads, once per packet. Addresses: kd, a memory image of the scene as uploaded (the top tree's nodes and list, then each object's nodes, list and unit-triangle maps, then the instances' matrices, each array 64-byte aligned): kd nodes 8 B, list entries 4 B, unit-triangle maps 40 B (SaarCOR: 36 B), instance matrices 48 B (SaarCOR: 36 B); bvh, lucent's own arrays (8-wide nodes of a few hundred bytes each, 4-triangle groups of 160 B) moved to a layout that does not change from run to run.",
+    "Caches: direct mapped; traversal items 8 B (a kd node), list items 4 B, transformation items 12 B (a 4-value matrix row of 24-bit floats); an access looks up every item of the bytes it reads, once per packet. Addresses: kd, a memory image of the scene as uploaded (the top tree's nodes and list, then each object's nodes, list and unit-triangle maps, then the instances' matrices, each array 64-byte aligned): kd nodes 8 B, list entries 4 B, unit-triangle maps 40 B (SaarCOR: 36 B), instance matrices 48 B (SaarCOR: 36 B); bvh, lucent's own arrays (8-wide nodes of a few hundred bytes each, 4-triangle groups of 160 B), their pages moved into one canonical layout (what the parallel build allocates where still moves its hit rates by about a tenth of a point from run to run).",
     "Memory: misses cost their items' bytes from external memory at 1 GB/s to the core. Shading bandwidth (not cached): 28 B per hit ray (the paper's figure with bilinear filtering) and per pixel a 4-byte frame-buffer write.",
 ];
 
@@ -194,6 +194,22 @@ pub enum Traced<'a> {
     Kd(&'a KdTwoLevel),
 }
 
+impl Traced<'_> {
+    /// Its name in the report ("bvh", "kd").
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Bvh(_) => Index::Bvh.name(),
+            Self::Kd(_) => Index::Kd.name(),
+        }
+    }
+}
+
+/// Cycles of a step as an [`Op`] holds them (saturating).
+fn step_cycles(x: u64) -> u16 {
+    u16::try_from(x).unwrap_or(u16::MAX)
+}
+
 /// One step of a packet: `cycles` on `unit` (0 traversal, 1 list, 2 transformation,
 /// 3 intersection), after `bytes` at `addr` are read through cache `cache` (or no read:
 /// [`NO_READ`]).
@@ -223,13 +239,12 @@ fn packet_ops(reads: &[(Kind, usize, u32, usize)], out: &mut Vec<Op>) {
         }
         *e += 1;
     }
-    let cyc = |x: u64| u16::try_from(x).unwrap_or(u16::MAX);
     for (k, addr, bytes, ctx) in order {
         let n = rays[&(k, addr, ctx)];
         let read = |unit: u8, cache: u8, cycles: u64| Op {
             addr: addr as u64,
             bytes: u16::try_from(bytes).unwrap_or(u16::MAX),
-            cycles: cyc(cycles),
+            cycles: step_cycles(cycles),
             unit,
             cache,
         };
@@ -239,11 +254,11 @@ fn packet_ops(reads: &[(Kind, usize, u32, usize)], out: &mut Vec<Op>) {
             Kind::Transform => out.push(read(2, 2, n + 1)),
             Kind::Tris(t) => {
                 out.push(read(2, 2, u64::from(t) * (n + 1)));
-                out.push(Op { addr: 0, bytes: 0, cycles: cyc(u64::from(t) * n), unit: 3, cache: NO_READ });
+                out.push(Op { addr: 0, bytes: 0, cycles: step_cycles(u64::from(t) * n), unit: 3, cache: NO_READ });
             }
             Kind::Shape => {
                 out.push(read(2, 2, n + 1));
-                out.push(Op { addr: 0, bytes: 0, cycles: cyc(n), unit: 3, cache: NO_READ });
+                out.push(Op { addr: 0, bytes: 0, cycles: step_cycles(n), unit: 3, cache: NO_READ });
             }
         }
     }
@@ -254,9 +269,8 @@ fn packet_ops(reads: &[(Kind, usize, u32, usize)], out: &mut Vec<Op>) {
 /// back through the traversal unit when the machine says so), its hit rays' shading.
 fn machine_ops(ops: &[Op], live: u64, hits: u64, m: &Machine, out: &mut Vec<Op>) {
     out.clear();
-    let cyc = |x: u64| u16::try_from(x).unwrap_or(u16::MAX);
     if m.generate_rays && live > 0 {
-        out.push(Op { addr: 0, bytes: 0, cycles: cyc(live + 1), unit: 2, cache: NO_READ });
+        out.push(Op { addr: 0, bytes: 0, cycles: step_cycles(live + 1), unit: 2, cache: NO_READ });
     }
     for &o in ops {
         out.push(o);
@@ -265,17 +279,18 @@ fn machine_ops(ops: &[Op], live: u64, hits: u64, m: &Machine, out: &mut Vec<Op>)
         }
     }
     if hits > 0 && m.shade_steps > 0 {
-        out.push(Op { addr: 0, bytes: 0, cycles: cyc(hits * m.shade_steps), unit: 2, cache: NO_READ });
+        out.push(Op { addr: 0, bytes: 0, cycles: step_cycles(hits * m.shade_steps), unit: 2, cache: NO_READ });
     }
 }
 
 /// Moves the addresses read into a layout that does not depend on where this run's
 /// allocator put the index: the touched pages fall into regions (runs with gaps under
 /// 1 MB, an array or a few arrays allocated together), and region k starts at k x 4 GB,
-/// keeping every address's offset from its region's first page. So a direct-mapped
-/// cache sees the same conflicts run after run (the raw addresses moved with address
-/// space layout randomisation: hit rates of the 6 KB cache, whose size is no multiple of
-/// a page, changed by several points between two runs).
+/// keeping every address's offset from its region's first page. Address space layout
+/// randomisation no longer moves a direct-mapped cache's conflicts (the raw addresses
+/// changed the 6 KB cache's hit rate, its size no multiple of a page, by several points
+/// between two runs); the kd index's addresses are its memory image's already, the bvh's
+/// still depend on where its parallel build's allocations land (a tenth of a point).
 fn canonical_addresses(ops: &mut [Op]) {
     let mut pages: Vec<u64> = ops.iter().filter(|o| o.cache != NO_READ).map(|o| o.addr >> 12).collect();
     pages.sort_unstable();
@@ -341,10 +356,7 @@ impl FrameTrace {
             .collect();
         let mut t = Self {
             size: (w, h),
-            index: match index {
-                Traced::Bvh(_) => "bvh",
-                Traced::Kd(_) => "kd",
-            },
+            index: index.name(),
             ops: Vec::with_capacity(per_tile.iter().map(|p| p.0.len()).sum()),
             packets: Vec::new(),
         };
@@ -366,10 +378,10 @@ impl FrameTrace {
 /// Models one frame of primary rays through `cam` at its size, on `m.threads` threads.
 #[must_use]
 pub fn model_frame(index: &Traced<'_>, cam: &Camera, m: &Machine) -> FrameModel {
-    simulate(&FrameTrace::new(index, cam), m, m.threads)
+    simulate(&FrameTrace::new(index, cam), m)
 }
 
-/// Runs a traced frame through the machine with `threads` packets in flight: a
+/// Runs a traced frame through the machine with `m.threads` packets in flight: a
 /// discrete-event simulation. Each thread holds one packet and issues its steps one after
 /// the other; a step first reads its item through its cache (a miss waits for the memory,
 /// which serves misses one after another at the machine's bandwidth, plus
@@ -378,32 +390,32 @@ pub fn model_frame(index: &Traced<'_>, cam: &Camera, m: &Machine) -> FrameModel 
 /// `unit_latency` cycles after the unit finishes. A thread whose packet is done takes the
 /// next packet in tile order. The caches see the reads in the order the threads make them.
 #[must_use]
-pub fn simulate(t: &FrameTrace, m: &Machine, threads: u32) -> FrameModel {
+pub fn simulate(t: &FrameTrace, m: &Machine) -> FrameModel {
     let order: Vec<usize> = (0..t.packets.len()).collect();
-    simulate_in(t, m, threads, &order)
+    simulate_in(t, m, &order)
 }
 
 /// [`simulate`] with the packets handed to the threads in scanline order (rows of 2x2
 /// quads across the whole image) instead of 8x8-pixel tiles.
 #[must_use]
-pub fn simulate_in_rows(t: &FrameTrace, m: &Machine, threads: u32) -> FrameModel {
+pub fn simulate_in_rows(t: &FrameTrace, m: &Machine) -> FrameModel {
     let mut order: Vec<usize> = (0..t.packets.len()).collect();
     order.sort_by_key(|&p| (t.packets[p].1 .1, t.packets[p].1 .0));
-    simulate_in(t, m, threads, &order)
+    simulate_in(t, m, &order)
 }
 
 /// [`simulate`] with the packets dealt out from `strips` places of the image at once: the
 /// tile order cut into that many equal parts, the next packet taken from each part in
 /// turn, so the packets in flight lie far apart on the screen instead of side by side.
 #[must_use]
-pub fn simulate_in_strips(t: &FrameTrace, m: &Machine, threads: u32, strips: usize) -> FrameModel {
+pub fn simulate_in_strips(t: &FrameTrace, m: &Machine, strips: usize) -> FrameModel {
     let n = t.packets.len();
     let per = n.div_ceil(strips.max(1));
     let order: Vec<usize> = (0..per).flat_map(|i| (0..strips.max(1)).map(move |k| k * per + i)).filter(|&p| p < n).collect();
-    simulate_in(t, m, threads, &order)
+    simulate_in(t, m, &order)
 }
 
-fn simulate_in(t: &FrameTrace, m: &Machine, threads: u32, order: &[usize]) -> FrameModel {
+fn simulate_in(t: &FrameTrace, m: &Machine, order: &[usize]) -> FrameModel {
     use std::cmp::Reverse;
     use std::collections::BinaryHeap;
     let (w, h) = t.size;
@@ -417,7 +429,7 @@ fn simulate_in(t: &FrameTrace, m: &Machine, threads: u32, order: &[usize]) -> Fr
     let mut heat_misses = vec![0f32; (w * h) as usize];
     let bytes_per_cycle = m.memory_bytes_s / m.clock_hz;
     // Per thread: (packet, next step, its misses so far).
-    let threads = threads.max(1) as usize;
+    let threads = m.threads.max(1) as usize;
     let mut state: Vec<(usize, usize, u64)> = vec![(usize::MAX, 0, 0); threads];
     let mut bufs: Vec<Vec<Op>> = vec![Vec::new(); threads];
     let mut next_packet = 0usize;
@@ -458,7 +470,6 @@ fn simulate_in(t: &FrameTrace, m: &Machine, threads: u32, order: &[usize]) -> Fr
             }
         }
         let op = buf[s.1];
-        let mut at = now;
         if !ready && op.cache != NO_READ {
             let c = usize::from(op.cache);
             let missed = caches[c].access(op.addr, u64::from(op.bytes));
@@ -477,12 +488,11 @@ fn simulate_in(t: &FrameTrace, m: &Machine, threads: u32, order: &[usize]) -> Fr
             }
         }
         let u = usize::from(op.unit);
-        let start = unit_free[u].max(at);
+        let start = unit_free[u].max(now);
         unit_free[u] = start + u64::from(op.cycles);
         busy[u] += u64::from(op.cycles);
-        at = start + u64::from(op.cycles) + u64::from(m.unit_latency);
         s.1 += 1;
-        heap.push(Reverse((at, th, false)));
+        heap.push(Reverse((unit_free[u] + u64::from(m.unit_latency), th, false)));
     }
     let cycles = end.max(mem_free.ceil() as u64).max(1);
     let mem_cycles = (mem_bytes as f64 / bytes_per_cycle).ceil() as u64;
@@ -567,7 +577,7 @@ mod tests {
             Op { addr: 0, bytes: 0, cycles: 4, unit: 3, cache: NO_READ },
         ];
         let t = FrameTrace { size: (2, 2), index: "kd", ops, packets: vec![(0, (0, 0), 0, 0)] };
-        let f = simulate(&t, &m, 1);
+        let f = simulate(&t, &Machine { threads: 1, ..m });
         // Node: 1 cycle of memory (8 B at 8 B/cycle) + 10, 1 + 3; the same node again:
         // hit, 1 + 3; list entry: its 4-byte item, 0.5 cycle of memory from cycle 19 + 10
         // (arriving at 29.5, rounded up to 30), 1 + 3; intersection 4 + 3.

@@ -219,16 +219,22 @@ impl KdTree {
         (self.at + u64::from(i) * std::mem::size_of::<KdNode>() as u64) as usize
     }
 
+    /// The modelled address of its list: after its nodes, at a 64-byte boundary.
+    #[inline(always)]
+    fn list_at(&self) -> u64 {
+        align(self.at + (self.nodes.len() * std::mem::size_of::<KdNode>()) as u64)
+    }
+
     /// The modelled address of list entry `e`.
     #[inline(always)]
     fn list_addr(&self, e: u32) -> usize {
-        (align(self.at + (self.nodes.len() * std::mem::size_of::<KdNode>()) as u64) + u64::from(e) * 4) as usize
+        (self.list_at() + u64::from(e) * 4) as usize
     }
 
     /// Places the tree at `at`; returns the first address after its nodes and list.
     fn place(&mut self, at: u64) -> u64 {
         self.at = at;
-        align(align(at + (self.nodes.len() * std::mem::size_of::<KdNode>()) as u64) + self.list.len() as u64 * 4)
+        align(self.list_at() + self.list.len() as u64 * 4)
     }
 
     /// The box of every item in the tree.
@@ -870,8 +876,7 @@ impl KdMesh {
         };
         let tree = KdTree::build_clipped(&boxes, opts.perfect_splits.then_some(clip.as_slice()), opts)?;
         let mut m = Self { tree, tris, tris_at: 0 };
-        let end = m.tree.place(0);
-        m.tris_at = end;
+        m.tris_at = m.tree.place(0);
         Ok(m)
     }
 

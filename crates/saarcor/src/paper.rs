@@ -267,6 +267,9 @@ mod tests {
         let k = table1_implied_traversal();
         assert!((k - 0.545).abs() < 0.01, "{k}");
         assert_eq!(paper_name("/x/conference.obj.gz"), Some("Conference"));
+        // The scenes' notes stand in Table 3's order (the report pairs them by place).
+        assert!(SCENES.iter().zip(TABLE3).all(|(s, r)| s.0 == r.scene));
+        assert!(TABLE4.iter().zip(TABLE3).all(|(a, b)| a.scene == b.scene));
         assert_eq!(table4_of("sunflowers").map(|r| r.fps), Some(8.7));
     }
 }

@@ -115,13 +115,11 @@ impl Tables for SaarcorReport {
                 let _ = writeln!(s, "| {} | {} | {:.2} | {:.2} | {} |", r.index, r.threads, r.fps, r.fps / one, cells[1..8].join(" | "));
             }
             for ix in ["bvh", "kd"] {
-                let fps = |t: u32| self.threads.iter().find(|q| q.index == ix && q.threads == t).map(|q| q.fps);
-                if let (Some(a), Some(b), Some(c)) = (fps(1), fps(32), fps(64)) {
+                if let Some((x32, x64)) = self.scaling(ix) {
                     let _ = writeln!(
                         s,
-                        "\n{ix}: 32 threads {:.1}x one thread; 64 threads {:+.0}% over 32 (the paper: almost 32x, about +10%).",
-                        b / a,
-                        100.0 * (c / b - 1.0)
+                        "\n{ix}: 32 threads {x32:.1}x one thread; 64 threads {:+.0}% over 32 (the paper: almost 32x, about +10%).",
+                        100.0 * (x64 - 1.0)
                     );
                 }
             }
@@ -300,11 +298,20 @@ impl Tables for SaarcorReport {
 /// Table 4's figures of a frame, in the paper's column order: fps, usage x4, hit x3,
 /// MB/s x3.
 fn figures(r: &FrameModel) -> [f64; 11] {
-    [r.fps, r.usage[0], r.usage[1], r.usage[2], r.usage[3], r.hit[0], r.hit[1], r.hit[2], r.mb_s[0], r.mb_s[1], r.mb_s[2]]
+    figures_of(r.fps, r.usage, r.hit, r.mb_s)
 }
 
 fn paper_figures(p: &paper::Table4Row) -> [f64; 11] {
-    [p.fps, p.usage[0], p.usage[1], p.usage[2], p.usage[3], p.hit[0], p.hit[1], p.hit[2], p.mb_s[0], p.mb_s[1], p.mb_s[2]]
+    figures_of(p.fps, p.usage, p.hit, p.mb_s)
+}
+
+fn figures_of(fps: f64, usage: [f64; 4], hit: [f64; 3], mb_s: [f64; 3]) -> [f64; 11] {
+    [fps, usage[0], usage[1], usage[2], usage[3], hit[0], hit[1], hit[2], mb_s[0], mb_s[1], mb_s[2]]
+}
+
+/// The kd index's row of a table, or its first (a report of the bvh alone).
+fn kd_or_first(rows: &[FrameModel]) -> Option<&FrameModel> {
+    rows.iter().find(|r| r.index == "kd").or_else(|| rows.first())
 }
 
 fn table4_cells(f: &[f64; 11]) -> Vec<String> {
@@ -337,6 +344,13 @@ fn off(i: usize, model: f64, paper: f64) -> bool {
 }
 
 impl SaarcorReport {
+    /// Index `ix`'s frame rate against threads: at 32 threads over one, and at 64 over
+    /// 32 (when the threads table has those rows).
+    fn scaling(&self, ix: &str) -> Option<(f64, f64)> {
+        let fps = |t: u32| self.threads.iter().find(|q| q.index == ix && q.threads == t).map(|q| q.fps);
+        Some((fps(32)? / fps(1)?, fps(64)? / fps(32)?))
+    }
+
     /// The figures more than 25% (rates: 10 points) from the paper's, each with the
     /// modelling choices measured against it.
     fn gaps(&self, s: &mut String, p: &paper::Table4Row, kd: &FrameModel) {
@@ -402,8 +416,8 @@ impl SaarcorReport {
     /// The paper's text figures beside the model's.
     fn text_figures(&self, s: &mut String) {
         let _ = writeln!(s, "\n### The paper's other figures\n\n| figure | the paper | the model |\n|---|---|---|");
-        let kd3 = self.table3.iter().find(|r| r.index == "kd").or_else(|| self.table3.first());
-        let kd4 = self.table4.iter().find(|r| r.index == "kd").or_else(|| self.table4.first());
+        let kd3 = kd_or_first(&self.table3);
+        let kd4 = kd_or_first(&self.table4);
         let flops = f64::from(paper::TABLE2_TOTAL.0.total()) * 90e6;
         for (what, words) in paper::TEXT_FIGURES {
             let model = match what {
@@ -412,15 +426,9 @@ impl SaarcorReport {
                 "rays per second" => kd3.map_or("-".into(), |r| {
                     format!("{}: {:.1}M at 512x384 ({:.2} fps)", r.index, r.fps * f64::from(r.size.0) * f64::from(r.size.1) / 1e6, r.fps)
                 }),
-                "threads" => {
-                    let fps = |t: u32| self.threads.iter().find(|q| Some(q.index) == kd3.map(|r| r.index) && q.threads == t).map(|q| q.fps);
-                    match (fps(1), fps(32), fps(64)) {
-                        (Some(a), Some(b), Some(c)) => {
-                            format!("32 threads {:.1}x one; 64 {:+.0}% over 32 (latencies chosen to match)", b / a, 100.0 * (c / b - 1.0))
-                        }
-                        _ => "-".into(),
-                    }
-                }
+                "threads" => kd3.and_then(|r| self.scaling(r.index)).map_or("-".into(), |(x32, x64)| {
+                    format!("32 threads {x32:.1}x one; 64 {:+.0}% over 32 (latencies chosen to match)", 100.0 * (x64 - 1.0))
+                }),
                 "caches" => format!("{:?} KB, 512 items each", [4, 2, 6]),
                 "bandwidth" => kd4.map_or("-".into(), |r| {
                     format!("{}: {:.0} MB/s total at {:.2} fps (core {:.0})", r.index, r.mb_s[2], r.fps, r.mb_s[0])
@@ -440,7 +448,7 @@ impl SaarcorReport {
     pub fn html(&self, dir: &std::path::Path, stem: &str) -> Result<String, lucent_render::OutputError> {
         let mut h = page_head(&format!("lucent report: {}", self.scene));
         h += &md_to_html_tables(&self.markdown());
-        if let Some(r) = self.table4.iter().find(|r| r.index == "kd").or_else(|| self.table4.first()) {
+        if let Some(r) = kd_or_first(&self.table4) {
             let mut series = Vec::new();
             for (i, name) in ["traversal", "list", "transformation"].iter().enumerate() {
                 series.push((*name, r.sweep.iter().map(|&(kb, v)| (kb as f64, v[i])).collect::<Vec<_>>()));
