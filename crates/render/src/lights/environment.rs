@@ -348,7 +348,7 @@ pub(crate) struct EnvBatch {
 }
 
 /// The most lanes an [`EnvBatch`] holds.
-pub(crate) const ENV_BATCH: usize = 64;
+pub(crate) const ENV_BATCH: usize = 128;
 
 impl EnvBatch {
     pub(crate) fn new() -> Box<Self> {
