@@ -127,7 +127,8 @@ enum Cmd {
     /// the scene's camera; 1: shadows on/off; 2: reflection depth (0,1,2,4,6,10); 3:
     /// orthographic/perspective; 4: integrator (whitted, path, VPL, eye light, normals); 5:
     /// denoiser on/off (path and VPL: denoised while moving, fading out as a still image
-    /// gathers samples); P or F12: screenshot PNG; Space: pause a REND3R program; Esc: quit. Needs an X11 display
+    /// gathers samples); 6: moving frames blended with the frames before (reprojected, up to
+    /// 8, on by default with the denoiser); P or F12: screenshot PNG; Space: pause a REND3R program; Esc: quit. Needs an X11 display
     /// (DISPLAY); without one it says so and exits.
     View(view_cmd::ViewArgs),
     /// Serve REND3R as a networked device: clients stream programs over TCP (or UDP, or the
@@ -396,7 +397,11 @@ enum BenchCmd {
     /// (one sample per pixel at the resolution the viewer's planner picks to hold the
     /// target frame rate) and seconds until the still image has its samples, on the
     /// feature demo and Sponza (point and spot lights, depth 6), with the lane path
-    /// tracer and the scalar one. Run from the checkout's root.
+    /// tracer and the scalar one. Then what the viewer shows while moving, at half the
+    /// size: its frame rate with the guides, the blend with the frames before
+    /// (reprojected) and the denoiser, and the last frame's relMSE against 256 samples
+    /// per pixel, raw, denoised alone and blended then denoised. Run from the checkout's
+    /// root.
     Viewer {
         /// The reference scenes' folder.
         #[arg(long, default_value = "crates/render/tests/data/mitsuba")]

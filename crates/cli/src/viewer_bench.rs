@@ -13,7 +13,10 @@ use anyhow::{Context, Result};
 use lucent_accel::glam::Vec3;
 use lucent_accel::MeshOptions;
 use lucent_render::setup::{prepare, Recipe};
-use lucent_render::{render_region, Camera, Integrator, PathSettings, Region, RenderSettings, World};
+use lucent_render::{
+    denoise, render, render_aovs, render_region, Camera, DenoiseSettings, Film, Integrator, PathSettings, Region, RenderSettings, Temporal,
+    World,
+};
 use lucent_scene::CameraDesc;
 use lucent_viewer::control::Adaptive;
 use std::path::Path;
@@ -84,6 +87,85 @@ fn measure(world: &World, home: &CameraDesc, o: &ViewerOptions, lanes: bool) -> 
     Figures { fps: median(&mut fps), pixels: median(&mut pixels), converged_s: t.elapsed().as_secs_f64() }
 }
 
+/// What the viewer shows while moving, against the converged image (issue 55).
+struct Moving {
+    /// Frames per second of the whole moving frame: the samples, the guides, the blend
+    /// with the frames before and the denoiser.
+    fps: f64,
+    /// Of the blend alone, milliseconds per frame.
+    blend_ms: f64,
+    /// relMSE of the last frame against the converged image: raw, denoised, blended and
+    /// denoised; and the frames its pixels held on average.
+    raw: f64,
+    denoised: f64,
+    blended: f64,
+    frames_held: f64,
+}
+
+fn rel_mse(a: &Film, r: &Film) -> f64 {
+    let sum: f64 = a
+        .pixels
+        .iter()
+        .zip(&r.pixels)
+        .map(|(p, q)| {
+            let d = *p - *q;
+            f64::from((d * d / (*q * *q + Vec3::splat(1e-2))).element_sum()) / 3.0
+        })
+        .sum();
+    sum / a.pixels.len().max(1) as f64
+}
+
+/// The viewer's moving frames along the orbit at half the window's size, one sample per
+/// pixel each, shown as the viewer shows them (denoised, after the blend), and the last
+/// one against a converged image of its camera (`reference_spp` samples per pixel).
+fn moving(world: &World, home: &CameraDesc, o: &ViewerOptions, reference_spp: u32) -> Moving {
+    let integrator = Integrator::Path(PathSettings::default());
+    let (w, h) = (o.size.0 / 2, o.size.1 / 2);
+    let frames = o.frames.max(2);
+    let mut temporal = Temporal::new(8.0);
+    let (mut times, mut blend) = (Vec::new(), Vec::new());
+    let mut last = None;
+    for f in 0..frames {
+        let desc = orbit(home, 0.01 * f as f32);
+        let camera = Camera::new(&desc, w, h);
+        // (Each frame its own sample of the image of `frames` samples, as the viewer's
+        // passes.)
+        let rs = RenderSettings { spp: frames as u32, integrator, ..RenderSettings::new(w, h) };
+        let t = Instant::now();
+        let r = render_region(world, &camera, &rs, Region::full(w, h, f as u32, f as u32 + 1), &|_| {}).0;
+        let raw = Film {
+            width: w,
+            height: h,
+            pixels: r.sum.iter().zip(&r.weight).map(|(s, &wt)| if wt > 0.0 { *s / wt } else { world.scene().background }).collect(),
+        };
+        let aovs = render_aovs(world, &camera, w, h);
+        let tb = Instant::now();
+        let (blended, stats) = temporal.add(&camera, &raw, &aovs);
+        blend.push(tb.elapsed().as_secs_f64() * 1e3);
+        let shown = denoise(&blended, &aovs, &DenoiseSettings::default());
+        times.push(t.elapsed().as_secs_f64());
+        last = Some((desc, raw, aovs, shown, stats.mean_frames));
+    }
+    let Some((desc, raw, aovs, shown, frames_held)) = last else { unreachable!("at least two frames") };
+    let camera = Camera::new(&desc, w, h);
+    let rs = RenderSettings {
+        spp: reference_spp,
+        integrator: Integrator::Path(PathSettings { seed: 0x7e5e_ed02, ..PathSettings::default() }),
+        ..RenderSettings::new(w, h)
+    };
+    let reference = render(world, &camera, &rs, &|_| {}).0;
+    let denoised = denoise(&raw, &aovs, &DenoiseSettings::default());
+    let half = times.len() / 2;
+    Moving {
+        fps: 1.0 / median(&mut times[half..].to_vec()).max(1e-9),
+        blend_ms: median(&mut blend),
+        raw: rel_mse(&raw, &reference),
+        denoised: rel_mse(&denoised, &reference),
+        blended: rel_mse(&shown, &reference),
+        frames_held,
+    }
+}
+
 /// Runs the benchmark on the feature demo and Sponza (the Mitsuba reference scene's: its
 /// point and spot lights, depth 6).
 pub fn run(o: &ViewerOptions) -> Result<()> {
@@ -109,6 +191,7 @@ pub fn run(o: &ViewerOptions) -> Result<()> {
     );
     println!("| scene | path tracer | fps moving | pixels moving | s to {} spp |", o.spp);
     println!("|---|---|---|---|---|");
+    let mut quality = Vec::new();
     for (name, scene) in scenes {
         let recipe = Recipe {
             integrator: Integrator::Path(PathSettings::default()),
@@ -130,6 +213,26 @@ pub fn run(o: &ViewerOptions) -> Result<()> {
                 serde_json::json!({"kind": "viewer", "scene": name, "lanes": lanes, "fps_moving": f.fps, "pixels_moving": f.pixels, "seconds_to_spp": f.converged_s, "spp": o.spp, "width": o.size.0, "height": o.size.1})
             );
         }
+        quality.push((name, moving(&prepared.world, &prepared.desc, o, 256)));
+    }
+    println!();
+    println!(
+        "While moving, at {}x{}, one sample per pixel a frame, {} frames along the orbit; the last frame's relMSE against 256 samples per pixel of its camera:",
+        o.size.0 / 2,
+        o.size.1 / 2,
+        o.frames.max(2)
+    );
+    println!("| scene | fps (samples, guides, blend, denoiser) | blend ms | raw | denoised | blended with the frames before, denoised | frames held |");
+    println!("|---|---|---|---|---|---|---|");
+    for (name, m) in quality {
+        println!(
+            "| {name} | {:.1} | {:.2} | {:.4} | {:.4} | {:.4} | {:.1} |",
+            m.fps, m.blend_ms, m.raw, m.denoised, m.blended, m.frames_held
+        );
+        println!(
+            "{}",
+            serde_json::json!({"kind": "viewer_moving", "scene": name, "fps": m.fps, "blend_ms": m.blend_ms, "rel_mse_raw": m.raw, "rel_mse_denoised": m.denoised, "rel_mse_blended_denoised": m.blended, "frames_held": m.frames_held})
+        );
     }
     Ok(())
 }

@@ -10,7 +10,7 @@
 //! 1. the floor: [`color`], [`sampling`], [`sampler`], `lanes`, [`aov`], [`texture`],
 //!    [`camera`];
 //! 2. the scene as rendered: [`bsdf`], [`lights`], [`materials`], [`world`], `coverage`,
-//!    [`film`], [`mod@denoise`];
+//!    [`film`], [`mod@denoise`], [`temporal`];
 //! 3. the tile loop, [`tiles`];
 //! 4. the [`integrator`]s;
 //! 5. the driver: [`render()`], [`render_region`], [`progressive`], [`setup`].
@@ -44,6 +44,7 @@ mod render;
 pub mod sampler;
 pub mod sampling;
 pub mod setup;
+pub mod temporal;
 pub mod texture;
 pub mod tiles;
 pub mod world;
@@ -58,6 +59,7 @@ pub use integrator::{Integrator, LightSampling, PathSettings, VplSettings, Whitt
 pub use lights::{EmissionSample, LightModel, LightSample};
 pub use render::{render, render_pixel, render_region, RenderSettings};
 pub use sampler::{filter_offset, jitter, pcg_hash, CameraSamples, PixelSampler, Sampler};
+pub use temporal::{Temporal, TemporalStats};
 pub use tiles::{Block, Job, Traversal, TILE};
 pub use world::pose::vertex_normals;
 pub use world::record::{record_rays, RecordedRays};

@@ -8,7 +8,7 @@ use glam::Vec3;
 use lucent_render::progressive::Progressive;
 use lucent_render::{
     denoise, render_aovs, render_region, Camera, DenoiseSettings, Film, Integrator, PathSettings, Region, RegionFilm, RenderSettings,
-    VplSettings, WhittedSettings, World,
+    Temporal, VplSettings, WhittedSettings, World,
 };
 use rend3r_machine::{render_frame, FrameSettings, Processor, Step};
 use std::collections::HashSet;
@@ -109,6 +109,10 @@ const VIEWS: usize = 5;
 /// Samples per pixel at which the denoised image has faded out (path tracer and VPL).
 const DENOISE_FADE_SPP: f32 = 64.0;
 
+/// The most frames a moving pixel's history holds (see [`Temporal`]): at 20 frames per
+/// second, the last 0.4 s.
+const TEMPORAL_FRAMES: f32 = 8.0;
+
 struct App {
     opts: ViewOptions,
     /// Where passes are rendered, when not here.
@@ -131,6 +135,11 @@ struct App {
     guides: Option<(lucent_scene::CameraDesc, (u32, u32), lucent_render::Aovs)>,
     /// Milliseconds the last denoise took (guides included).
     denoise_ms: f64,
+    /// Moving frames blended with the ones before, reprojected (key 6), and how many
+    /// frames the last one held on average.
+    temporal: Temporal,
+    temporal_on: bool,
+    temporal_frames: f64,
     gfx: Option<Gfx>,
     error: Option<ViewerError>,
     keys: HashSet<KeyCode>,
@@ -183,9 +192,15 @@ impl App {
 
     /// The denoised image of the accumulated one, faded toward it as samples grow (fully
     /// denoised at one sample, not at all from [`DENOISE_FADE_SPP`]).
-    fn denoise_shown(&mut self, camera: &lucent_scene::CameraDesc, size: (u32, u32)) {
+    /// While `moving`, the frame is first blended with the frames before it (key 6).
+    fn denoise_shown(&mut self, camera: &lucent_scene::CameraDesc, size: (u32, u32), moving: bool) {
         self.shown = None;
+        if !(moving && self.temporal_on) {
+            self.temporal.reset();
+            self.temporal_frames = 0.0;
+        }
         if !self.denoising() {
+            self.temporal.reset();
             return;
         }
         let spp = self.acc.passes() as f32;
@@ -205,6 +220,15 @@ impl App {
         if (raw.width, raw.height) != size {
             return;
         }
+        let blended;
+        let raw = if moving && self.temporal_on {
+            let (f, stats) = self.temporal.add(&Camera::new(camera, size.0, size.1), raw, aovs);
+            self.temporal_frames = stats.mean_frames;
+            blended = f;
+            &blended
+        } else {
+            raw
+        };
         let mut d = denoise(raw, aovs, &DenoiseSettings::default());
         if keep < 1.0 {
             for (o, r) in d.pixels.iter_mut().zip(&raw.pixels) {
@@ -301,6 +325,7 @@ impl App {
             }
             KeyCode::Digit4 => self.view = (self.view + 1) % VIEWS,
             KeyCode::Digit5 => self.denoise = !self.denoise,
+            KeyCode::Digit6 => self.temporal_on = !self.temporal_on,
             KeyCode::Space => {
                 if let Some(p) = self.program.as_mut() {
                     p.paused = !p.paused;
@@ -404,7 +429,7 @@ impl App {
             self.adaptive.finished(&plan, 0.0, false);
         }
         self.acc.add(film, plan.accumulate);
-        self.denoise_shown(&desc, (plan.width, plan.height));
+        self.denoise_shown(&desc, (plan.width, plan.height), moving);
         self.count(rays, moving, plan);
         true
     }
@@ -503,7 +528,9 @@ impl App {
             Integrator::Vpl(v) => format!("vpl {} VPLs {}x{}", v.count, v.interleave, v.interleave),
             i => i.name().to_string(),
         };
-        let denoise = if self.shown.is_some() {
+        let denoise = if self.shown.is_some() && self.temporal_frames > 1.0 {
+            format!(" | {:.1} frames, denoised ({:.0} ms)", self.temporal_frames, self.denoise_ms)
+        } else if self.shown.is_some() {
             format!(" | denoised ({:.0} ms)", self.denoise_ms)
         } else if self.denoising() {
             " | denoise faded".to_string()
@@ -738,6 +765,9 @@ pub fn run_with(content: Content, opts: ViewOptions, passes: Option<Box<dyn Pass
         shown: None,
         guides: None,
         denoise_ms: 0.0,
+        temporal: Temporal::new(TEMPORAL_FRAMES),
+        temporal_on: true,
+        temporal_frames: 0.0,
         gfx: None,
         error: None,
         keys: HashSet::new(),
