@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 mod animate_cmd;
 mod bench;
+mod denoise_bench;
 mod dynamic_bench;
 mod frame_bench;
 mod isa_cmd;
@@ -285,6 +286,31 @@ enum BenchCmd {
         speed_only: bool,
         /// Only these scenes (comma-separated: conference, kitchen for speed; cornell,
         /// sponza, kitchen, kitchen-diffuse for quality). Default: all.
+        #[arg(long, value_delimiter = ',')]
+        only: Vec<String>,
+    },
+    /// The denoiser on the scenes its settings were tuned on (Cornell box, Sponza, the
+    /// kitchen) and on scenes it was never given (the feature demo and the studio: glass,
+    /// mirrors, textures; Mitsuba's envmap, materials and bunny scenes: an HDR map, delta
+    /// lights, 69k triangles): relMSE of 4 samples per pixel denoised against 64 raw and
+    /// of 16 denoised against 256 raw (median of three seeds; goal: a ratio of at most 1),
+    /// against path-traced references cached in target/bench-cache/ (minutes each); then
+    /// the denoiser's time per frame at 512x384 and 1024x768. Run from the checkout's root.
+    Denoise {
+        /// The shared scenes folder.
+        #[arg(long, default_value = "../shared/scenes")]
+        dir: PathBuf,
+        /// The reference scenes' folder.
+        #[arg(long, default_value = "crates/render/tests/data/mitsuba")]
+        data: PathBuf,
+        /// Image size of the quality figures.
+        #[arg(long, default_value = "256x192", value_parser = render_cmd::parse_size)]
+        size: (u32, u32),
+        /// Samples per pixel of the references.
+        #[arg(long, default_value_t = 2048)]
+        reference_spp: u32,
+        /// Only these scenes (comma-separated: cornell, sponza, kitchen, demo, studio,
+        /// envmap, materials, bunny). Default: all.
         #[arg(long, value_delimiter = ',')]
         only: Vec<String>,
     },
@@ -589,6 +615,9 @@ fn run() -> Result<()> {
         }
         Cmd::Bench(BenchCmd::Vpl { dir, size, frames, reference_spp, speed_only, only }) => {
             vpl_bench::run(&vpl_bench::VplOptions { dir, size, frames, reference_spp, speed_only, only })
+        }
+        Cmd::Bench(BenchCmd::Denoise { dir, data, size, reference_spp, only }) => {
+            denoise_bench::run(&denoise_bench::DenoiseOptions { dir, data, size, reference_spp, only })
         }
         Cmd::Bench(BenchCmd::Net { soak: true, soak_clients, soak_frames, .. }) => net_cmd::soak(soak_clients, soak_frames),
         Cmd::Bench(BenchCmd::Net { clients, seconds, size, format, .. }) => net_cmd::bench(&clients, seconds, size, pixel_format(&format)),

@@ -43,7 +43,7 @@ impl VplOptions {
 }
 
 /// A scene of the benchmark: its world and camera.
-fn load(o: &VplOptions, name: &str) -> Result<(World, CameraDesc)> {
+pub(crate) fn load(o: &VplOptions, name: &str) -> Result<(World, CameraDesc)> {
     match name {
         "cornell" => {
             let p = Path::new("crates/render/tests/data/mitsuba/cornell_box/scene.xml");

@@ -635,7 +635,17 @@ fn planes(v: &[Vec3]) -> [Vec<f32>; 3] {
 /// (+8% on the kitchen).
 #[must_use]
 pub fn denoise(color: &Film, aovs: &Aovs, s: &DenoiseSettings) -> Film {
-    denoise_with(color, aovs, s, lucent_accel::simd::avx2_fma())
+    denoise_with(color, aovs, s, None, lucent_accel::simd::avx2_fma())
+}
+
+/// [`denoise`] with the noise measured from the samples themselves: `variance` holds
+/// each pixel's variance of its mean's luminance (such as [`crate::render_halves`] finds
+/// from two half images), in place of the estimate from each pixel's 5 × 5 neighbourhood,
+/// which also counts the image's own detail as noise. A `variance` of another length is
+/// not used.
+#[must_use]
+pub fn denoise_with_variance(color: &Film, aovs: &Aovs, s: &DenoiseSettings, variance: &[f32]) -> Film {
+    denoise_with(color, aovs, s, Some(variance), lucent_accel::simd::avx2_fma())
 }
 
 /// The constants of one à-trous pass.
@@ -957,7 +967,7 @@ fn blur_sd(var: &[f32], w: usize, h: usize, y: usize, out: &mut [f32]) {
 /// [`denoise`] with the lane kernels' AVX2 build (`simd`, where the CPU has it) or their
 /// portable one: the same image.
 #[must_use]
-pub(crate) fn denoise_with(color: &Film, aovs: &Aovs, s: &DenoiseSettings, simd: bool) -> Film {
+pub(crate) fn denoise_with(color: &Film, aovs: &Aovs, s: &DenoiseSettings, variance: Option<&[f32]>, simd: bool) -> Film {
     let simd = simd && lucent_accel::simd::avx2_fma();
     let (w, h) = (color.width as usize, color.height as usize);
     let n = w * h;
@@ -988,23 +998,31 @@ pub(crate) fn denoise_with(color: &Film, aovs: &Aovs, s: &DenoiseSettings, simd:
     // The noise's variance (of luminance): over each pixel's 5 × 5 neighbourhood on its
     // surface.
     let mut var = vec![0.0f32; n];
-    var.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let (g, l) = (&g, &l[..]);
-        lanes!(simd, |g: &Guides, l: &[f32], y: usize, row: &mut [f32]| {
-            for x0 in (0..g.w).step_by(LANES) {
-                let (k, m1, m2, _) = neighbour_stats(g, l, y, x0, true);
-                for j in 0..LANES.min(g.w - x0) {
-                    let k = k.0[j];
-                    row[x0 + j] = if g.kind[y * g.w + x0 + j] == 0.0 || k < 2.0 {
-                        0.0
-                    } else {
-                        let mean = m1.0[j] / k;
-                        (m2.0[j] / k - mean * mean).max(0.0) * k / (k - 1.0)
-                    };
+    if let Some(v) = variance.filter(|v| v.len() == n) {
+        // The samples' own: of the demodulated luminance (the colour over the albedo).
+        for (i, o) in var.iter_mut().enumerate() {
+            let a = crate::color::luminance(alb[i]);
+            *o = if g.kind[i] == 0.0 || !(v[i].is_finite() && v[i] >= 0.0) { 0.0 } else { v[i] / (a * a) };
+        }
+    } else {
+        var.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let (g, l) = (&g, &l[..]);
+            lanes!(simd, |g: &Guides, l: &[f32], y: usize, row: &mut [f32]| {
+                for x0 in (0..g.w).step_by(LANES) {
+                    let (k, m1, m2, _) = neighbour_stats(g, l, y, x0, true);
+                    for j in 0..LANES.min(g.w - x0) {
+                        let k = k.0[j];
+                        row[x0 + j] = if g.kind[y * g.w + x0 + j] == 0.0 || k < 2.0 {
+                            0.0
+                        } else {
+                            let mean = m1.0[j] / k;
+                            (m2.0[j] / k - mean * mean).max(0.0) * k / (k - 1.0)
+                        };
+                    }
                 }
-            }
+            });
         });
-    });
+    }
     let normal_int = if s.sigma_normal.fract() == 0.0 && (0.0..=1024.0).contains(&s.sigma_normal) { s.sigma_normal as i32 } else { -1 };
     // The least cosine between normals whose weight reaches e^-30.
     let cos_min = if s.sigma_normal > 0.0 { (-30.0 / s.sigma_normal).exp() } else { -1.0 };
@@ -1182,8 +1200,8 @@ mod tests {
 
     fn compare_with_reference(noisy: &Film, aovs: &Aovs) {
         let s = DenoiseSettings::default();
-        let fast = denoise_with(noisy, aovs, &s, true);
-        let portable = denoise_with(noisy, aovs, &s, false);
+        let fast = denoise_with(noisy, aovs, &s, None, true);
+        let portable = denoise_with(noisy, aovs, &s, None, false);
         let slow = reference::denoise(noisy, aovs, &s);
         for (i, (a, b)) in fast.pixels.iter().zip(&portable.pixels).enumerate() {
             assert!(a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits), "pixel {i}: AVX2 {a} portable {b}");

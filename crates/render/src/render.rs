@@ -126,3 +126,31 @@ pub fn render_region(w: &World, cam: &Camera, s: &RenderSettings, region: Region
     let rays = s.integrator.render(w, cam, &s.job(), r, &sink, progress);
     (film, rays)
 }
+
+/// [`render`]'s image (the same samples; their sums added half by half, so the last bits
+/// may differ) and each pixel's variance of its mean's luminance,
+/// from the two halves of its samples (samples `0..spp/2` and `spp/2..spp`, whose means
+/// `a` and `b` give (ℓ(a) − ℓ(b))² / 4): what [`crate::denoise::denoise_with_variance`]
+/// takes. With one sample per pixel there are no halves: `None`.
+pub fn render_halves(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u64) + Sync)) -> (Film, Option<Vec<f32>>, u64) {
+    let spp = s.spp.max(1);
+    if spp < 2 {
+        let (f, rays) = render(w, cam, s, progress);
+        return (f, None, rays);
+    }
+    let half = spp / 2;
+    let (a, ra) = render_region(w, cam, s, Region::full(s.width, s.height, 0, half), progress);
+    let (b, rb) = render_region(w, cam, s, Region::full(s.width, s.height, half, spp), progress);
+    let mean = |f: &RegionFilm, i: usize| if f.weight[i] != 0.0 { f.sum[i] / f.weight[i] } else { w.scene.background };
+    let variance = (0..a.sum.len().min(b.sum.len()))
+        .map(|i| {
+            let d = crate::color::luminance(mean(&a, i)) - crate::color::luminance(mean(&b, i));
+            d * d / 4.0
+        })
+        .collect();
+    let mut acc = crate::film::FilmAccumulator::new(s.width, s.height);
+    // (Two regions of the whole image, of this size: they merge.)
+    let merged = acc.merge(a).and_then(|()| acc.merge(b));
+    let film = if merged.is_ok() { acc.resolve(w.scene.background) } else { render(w, cam, s, progress).0 };
+    (film, Some(variance), ra + rb)
+}

@@ -166,7 +166,10 @@ fn history(prev: &Frame, camera: &Camera, (x, y): (u32, u32), depth: f32, normal
         }
         let j = (qy * i64::from(pw) + qx) as usize;
         let pd = prev.depth[j];
-        if !((pd - want).abs() <= DEPTH_TOLERANCE * want.max(pd)) || prev.normal[j].dot(normal) < NORMAL_COS {
+        // (Written so that a NaN distance or normal refuses the pixel.)
+        let same_depth = (pd - want).abs() <= DEPTH_TOLERANCE * want.max(pd);
+        let same_normal = prev.normal[j].dot(normal) >= NORMAL_COS;
+        if !(same_depth && same_normal) {
             continue;
         }
         sum += prev.color[j] * wt;

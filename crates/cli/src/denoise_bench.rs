@@ -1,0 +1,189 @@
+//! `lucent bench denoise`: the denoiser on the scenes its settings were tuned on and on
+//! scenes it was never given (issue 55's method: the settings may not change after the
+//! held-out figures are seen). Per scene, at the given size, against a path-traced
+//! reference (cached in target/bench-cache/): the relMSE of 4 samples per pixel denoised
+//! against 64 raw, and of 16 denoised against 256 raw (each the median of three seeds;
+//! the goal is a ratio of at most 1.0), and the mean's drift; then the denoiser's time per
+//! frame at 512x384 and 1024x768 on two threads.
+
+use crate::stats::median;
+use anyhow::{bail, Context, Result};
+use lucent_accel::MeshOptions;
+use lucent_render::{
+    denoise, denoise_with_variance, render, render_aovs, render_halves, Camera, DenoiseSettings, Film, Integrator, PathSettings,
+    RenderSettings, World,
+};
+use lucent_scene::CameraDesc;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// What to measure.
+pub struct DenoiseOptions {
+    /// The shared scenes folder.
+    pub dir: PathBuf,
+    /// The reference scenes' folder (the held-out Mitsuba scenes).
+    pub data: PathBuf,
+    /// Image size of the quality figures.
+    pub size: (u32, u32),
+    /// Samples per pixel of the references.
+    pub reference_spp: u32,
+    /// Only these scenes (default: all).
+    pub only: Vec<String>,
+}
+
+/// The scenes the denoiser's settings were swept on.
+const TUNED: [&str; 3] = ["cornell", "sponza", "kitchen"];
+/// Scenes it was never tuned on: glass and mirrors in view (demo, studio), delta lights
+/// (demo, materials, bunny), textures (demo's floor), fine geometry (the 69k-triangle
+/// bunny), an environment map (envmap).
+const HELD_OUT: [&str; 5] = ["demo", "studio", "envmap", "materials", "bunny"];
+
+/// The seed of the references (not the images').
+const REFERENCE_SEED: u32 = 0x7e5e_ed03;
+/// Seeds of the images.
+const SEEDS: u32 = 3;
+
+fn load(o: &DenoiseOptions, name: &str) -> Result<(World, CameraDesc)> {
+    let mitsuba = |rel: &str| -> Result<(World, CameraDesc)> {
+        let p = o.data.join(rel).join("scene.xml");
+        let shared = o.dir.canonicalize().with_context(|| format!("{}", o.dir.display()))?;
+        let scene = lucent_scene::load_mitsuba_with(&p, &[("scenes".into(), shared.display().to_string())])
+            .with_context(|| format!("{}", p.display()))?;
+        let cam = scene.camera.with_context(|| format!("{}: no camera", p.display()))?;
+        Ok((World::new(scene, MeshOptions::default())?, cam))
+    };
+    let built_in = |scene: lucent_scene::Scene| -> Result<(World, CameraDesc)> {
+        let (lo, hi) = scene.bounds().context("empty scene")?;
+        let cam = scene.camera.unwrap_or_else(|| lucent_render::framing_camera(lo, hi));
+        Ok((World::new(scene, MeshOptions::default())?, cam))
+    };
+    match name {
+        "demo" => built_in(lucent_scene::demo_scene()),
+        "studio" => built_in(lucent_scene::studio_scene()),
+        "envmap" | "materials" | "bunny" => mitsuba(name),
+        "cornell" | "sponza" | "kitchen" => crate::vpl_bench::load(
+            &crate::vpl_bench::VplOptions {
+                dir: o.dir.clone(),
+                size: o.size,
+                frames: 0,
+                reference_spp: 0,
+                speed_only: false,
+                only: vec![],
+            },
+            name,
+        ),
+        _ => bail!("unknown scene '{name}' (tuned on: {}; held out: {})", TUNED.join(", "), HELD_OUT.join(", ")),
+    }
+}
+
+fn path(w: &World, cam: &Camera, size: (u32, u32), spp: u32, seed: u32) -> Film {
+    let rs = RenderSettings {
+        spp,
+        integrator: Integrator::Path(PathSettings { seed, ..PathSettings::default() }),
+        ..RenderSettings::new(size.0, size.1)
+    };
+    render(w, cam, &rs, &|_| {}).0
+}
+
+/// The scene's reference (cached).
+fn reference(o: &DenoiseOptions, name: &str, w: &World, cam: &Camera) -> Result<Film> {
+    let cache = PathBuf::from("target/bench-cache");
+    std::fs::create_dir_all(&cache)?;
+    let file = cache.join(format!("denoise_{name}_{}x{}_{}spp_seed{REFERENCE_SEED:08x}.exr", o.size.0, o.size.1, o.reference_spp));
+    if let Ok(f) = Film::load(&file) {
+        return Ok(f);
+    }
+    eprintln!("{name}: path tracing the reference ({} spp, cached in {})", o.reference_spp, file.display());
+    let f = path(w, cam, o.size, o.reference_spp, REFERENCE_SEED);
+    f.save(&file)?;
+    Ok(f)
+}
+
+/// The median of `v`.
+fn med(v: &[f64]) -> f64 {
+    median(&mut v.to_vec())
+}
+
+pub fn run(o: &DenoiseOptions) -> Result<()> {
+    if let Some(bad) = o.only.iter().find(|n| !TUNED.contains(&n.as_str()) && !HELD_OUT.contains(&n.as_str())) {
+        bail!("--only: unknown scene '{bad}' (tuned on: {}; held out: {})", TUNED.join(", "), HELD_OUT.join(", "));
+    }
+    let pool = crate::threads::pool(2, true)?;
+    let (wd, ht) = o.size;
+    println!("denoiser: {wd}x{ht}, 2 threads, references of {} samples per pixel, median of {SEEDS} seeds", o.reference_spp);
+    println!(
+        "Denoised with the noise estimated from each pixel's neighbourhood (spatial), and from the two halves of its samples (halves)."
+    );
+    println!("| set | scene | 4 spp denoised: spatial, halves | 64 spp raw | ratios | 16 spp denoised: spatial, halves | 256 spp raw | ratios | mean drift % |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let sets = [("tuned", &TUNED[..]), ("held out", &HELD_OUT[..])];
+    for (set, names) in sets {
+        for &name in names.iter().filter(|n| o.only.is_empty() || o.only.iter().any(|x| x == *n)) {
+            let (world, desc) = load(o, name)?;
+            let cam = Camera::new(&desc, wd, ht);
+            let reference = pool.install(|| reference(o, name, &world, &cam))?;
+            let rel = |f: &Film| f.rel_mse(&reference).unwrap_or(f64::NAN);
+            let aovs = pool.install(|| render_aovs(&world, &cam, wd, ht));
+            let mean = |f: &Film| f.pixels.iter().map(|p| f64::from(p.x + p.y + p.z)).sum::<f64>();
+            let (mut d4, mut h4, mut r64, mut d16, mut h16, mut r256, mut drift) = (vec![], vec![], vec![], vec![], vec![], vec![], 0f64);
+            for k in 0..SEEDS {
+                let seed = PathSettings::default().seed.wrapping_add(k);
+                for (few, many, den, halves, raw) in [(4, 64, &mut d4, &mut h4, &mut r64), (16, 256, &mut d16, &mut h16, &mut r256)] {
+                    let rs = RenderSettings {
+                        spp: few,
+                        integrator: Integrator::Path(PathSettings { seed, ..PathSettings::default() }),
+                        ..RenderSettings::new(wd, ht)
+                    };
+                    let (img, var, _) = pool.install(|| render_halves(&world, &cam, &rs, &|_| {}));
+                    let d = pool.install(|| denoise(&img, &aovs, &DenoiseSettings::default()));
+                    let dv =
+                        pool.install(|| denoise_with_variance(&img, &aovs, &DenoiseSettings::default(), var.as_deref().unwrap_or(&[])));
+                    for x in [&d, &dv] {
+                        drift = drift.max((mean(x) / mean(&img) - 1.0).abs());
+                    }
+                    den.push(rel(&d));
+                    halves.push(rel(&dv));
+                    raw.push(rel(&pool.install(|| path(&world, &cam, o.size, many, seed))));
+                }
+            }
+            let (a, av, b, c, cv, d) = (med(&d4), med(&h4), med(&r64), med(&d16), med(&h16), med(&r256));
+            println!(
+                "| {set} | {name} | {a:.4}, {av:.4} | {b:.4} | {:.2}, {:.2} | {c:.4}, {cv:.4} | {d:.4} | {:.2}, {:.2} | {:.2} |",
+                a / b,
+                av / b,
+                c / d,
+                cv / d,
+                drift * 100.0
+            );
+            println!(
+                "{}",
+                serde_json::json!({"kind": "denoise_quality", "set": set, "scene": name, "width": wd, "height": ht, "reference_spp": o.reference_spp,
+                    "denoised4": d4, "denoised4_halves": h4, "raw64": r64, "denoised16": d16, "denoised16_halves": h16, "raw256": r256,
+                    "ratio_4_64": a / b, "ratio_4_64_halves": av / b, "ratio_16_256": c / d, "ratio_16_256_halves": cv / d, "mean_drift": drift})
+            );
+        }
+    }
+    // The denoiser's time per frame (its guides apart), on Sponza.
+    let (world, desc) = load(o, "sponza")?;
+    println!();
+    println!("| size | denoiser ms (2 threads, median of 5) | guides ms |");
+    println!("|---|---|---|");
+    for (w, h) in [(512u32, 384u32), (1024, 768)] {
+        let cam = Camera::new(&desc, w, h);
+        let t = Instant::now();
+        let aovs = pool.install(|| render_aovs(&world, &cam, w, h));
+        let guides = t.elapsed().as_secs_f64();
+        let img = pool.install(|| path(&world, &cam, (w, h), 1, 1));
+        let mut times: Vec<f64> = (0..5)
+            .map(|_| {
+                let t = Instant::now();
+                std::hint::black_box(pool.install(|| denoise(&img, &aovs, &DenoiseSettings::default())));
+                t.elapsed().as_secs_f64()
+            })
+            .collect();
+        let ms = median(&mut times) * 1e3;
+        println!("| {w}x{h} | {ms:.1} | {:.1} |", guides * 1e3);
+        println!("{}", serde_json::json!({"kind": "denoise_time", "width": w, "height": h, "denoise_ms": ms, "guides_ms": guides * 1e3}));
+    }
+    Ok(())
+}
