@@ -11,6 +11,15 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Options of `lucent render`.
+
+/// The least samples per pixel from which `--denoise` measures each pixel's noise from the
+/// two halves of its samples. Chosen on the denoiser's tuning scenes (`lucent bench
+/// denoise`, 256x192, relMSE against 2048 samples, median of three seeds): at 16 samples
+/// the halves' variance beat the neighbourhood's estimate on all three (Cornell box 0.0010
+/// -> 0.0009, Sponza 0.0059 -> 0.0052, the kitchen 0.0308 -> 0.0270); at 4 samples (halves
+/// of two) it lost on the Cornell box (0.0017 -> 0.0020), tied on Sponza and won on the
+/// kitchen.
+const HALVES_SPP: u32 = 16;
 #[derive(clap::Args, Debug)]
 pub struct RenderArgs {
     /// Scene file (.obj, .obj.gz, .ply, .gltf, .glb, or a Mitsuba 3 .xml scene). Without it:
@@ -77,8 +86,11 @@ pub struct RenderArgs {
     pub seed: Option<u32>,
     /// Denoise the image (an edge-avoiding à-trous filter guided by the albedo, normal and
     /// distance of the first surface each pixel sees, through mirrors and glass): a few
-    /// samples per pixel look like many more. A built-in scene (no scene file) is denoised
-    /// by default when path traced or lit by VPLs, at 8 samples per pixel unless --spp says.
+    /// samples per pixel look like many more. From 16 samples per pixel (path tracing) the
+    /// filter follows each pixel's noise as the two halves of its samples measure it;
+    /// below, as its neighbourhood's spread estimates it. A built-in scene (no scene file)
+    /// is denoised by default when path traced or lit by VPLs, at 8 samples per pixel
+    /// unless --spp says.
     #[arg(long, conflicts_with = "no_denoise")]
     pub denoise: bool,
     /// Do not denoise a built-in scene (see --denoise).
@@ -341,6 +353,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     let t2 = Instant::now();
     let mut cluster = None;
+    // Denoised path tracing from HALVES_SPP samples per pixel measures each pixel's noise
+    // from the two halves of its samples (render_halves), which the denoiser then follows.
+    let halves =
+        denoise && crop.is_none() && settings.spp >= HALVES_SPP && matches!(settings.integrator, lucent_render::Integrator::Path(_));
+    let mut variance = None;
     let (film, rays, spp) = match (&session, a.time) {
         (Some(s), budget) => {
             // Every rank's samples, as they come back.
@@ -365,7 +382,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
             (acc.resolve(), rays, spp)
         }
         (None, None) => {
-            let tiles = (w.div_ceil(lucent_render::TILE) * h.div_ceil(lucent_render::TILE)) as u64;
+            // (Two passes over the tiles when the samples are rendered in halves.)
+            let tiles = (w.div_ceil(lucent_render::TILE) * h.div_ceil(lucent_render::TILE)) as u64 * if halves { 2 } else { 1 };
             let bar = if std::io::stderr().is_terminal() { ProgressBar::new(tiles) } else { ProgressBar::hidden() };
             bar.set_style(
                 ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} tiles {elapsed}")
@@ -380,6 +398,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
                     let mut acc = lucent_render::FilmAccumulator::new(w, h);
                     acc.merge(part)?;
                     (acc.resolve(world.scene().background), rays)
+                }
+                None if halves => {
+                    let (film, var, rays) = lucent_render::render_halves(&world, &cam, &settings, &|n| bar.inc(n));
+                    variance = var;
+                    (film, rays)
                 }
                 None => render(&world, &cam, &settings, &|n| bar.inc(n)),
             };
@@ -409,7 +432,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let film = match &aovs {
         Some(aovs) if denoise => {
             let t = Instant::now();
-            let f = lucent_render::denoise(&film, aovs, &lucent_render::DenoiseSettings::default());
+            let f = match &variance {
+                Some(v) => lucent_render::denoise_with_variance(&film, aovs, &lucent_render::DenoiseSettings::default(), v),
+                None => lucent_render::denoise(&film, aovs, &lucent_render::DenoiseSettings::default()),
+            };
             let ms = t.elapsed().as_secs_f64() * 1e3;
             println!("denoised in {ms:.1} ms (guides included: {:.1} ms)", t3.elapsed().as_secs_f64() * 1e3);
             if built_in_denoise {
