@@ -170,32 +170,6 @@ impl Bend {
         }
     }
 
-    /// Its normals and α² (below zero: no bend), as [`Bend::from_parts`] takes them.
-    #[inline(always)]
-    pub(crate) fn parts(self) -> (Vec3, Vec3, f32) {
-        (self.n0, self.n, self.alpha2)
-    }
-
-    /// The bend of [`Bend::parts`].
-    #[inline(always)]
-    pub(crate) fn from_parts(n0: Vec3, n: Vec3, alpha2: f32) -> Self {
-        Self { n0, n, alpha2 }
-    }
-
-    /// [`Bend::weight`] branch-free (selects only, for lane loops; the same bits).
-    #[inline(always)]
-    pub(crate) fn weight_lane(self, wi: Vec3) -> f32 {
-        let c0 = wi.dot(self.n0);
-        let tan2 = ((1.0 - c0 * c0) / (c0 * c0)).max(0.0);
-        let v = 2.0 / (1.0 + (1.0 + self.alpha2 * tan2).sqrt());
-        let v = if c0 * wi.dot(self.n) <= 0.0 { 0.0 } else { v };
-        if self.alpha2 < 0.0 {
-            1.0
-        } else {
-            v
-        }
-    }
-
     /// The factor on the BSDF's value for light from world direction `wi`.
     #[inline]
     pub(crate) fn weight(self, wi: Vec3) -> f32 {

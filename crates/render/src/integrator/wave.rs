@@ -44,7 +44,7 @@ use crate::lights::{flat_sample, Choice, LightSample, Weights};
 use crate::sampler::PixelSampler;
 use crate::sampling::{power_heuristic, ShadingFrame};
 use crate::tiles::{Block, SampleBlock, NO_RAYS};
-use crate::world::surface::spawn_from;
+use crate::world::surface::Surface;
 use crate::world::World;
 use glam::Vec3;
 use lucent_accel::{Hit, Ray, MAX_PACKET};
@@ -123,22 +123,10 @@ struct Wave<'w> {
     /// This bounce (stage 1): whether the path scatters here, its surface, BSDF, frame
     /// and the direction toward the viewer in it.
     scatter: [bool; CAP],
+    surf: [Surface; CAP],
     bsdf: [Option<Bsdf<'w>>; CAP],
-    /// The surface point as rows (its position, geometric normal and error bound: what
-    /// [`crate::world::surface::Surface::spawn`] reads), so that lane loops read them as vectors.
-    p: Rows,
-    ng: Rows,
-    p_err: Rows,
-    /// The shading frame's axes as rows.
-    ft: Rows,
-    fb: Rows,
-    fnn: Rows,
-    /// The normal map's bend as rows (its normals and α², below zero: none).
-    bend_n0: Rows,
-    bend_n: Rows,
-    bend_a2: [f32; CAP],
-    /// Where the light choice is weighed and the sky sampled (`light_normal`).
-    ln: Rows,
+    frame: [ShadingFrame; CAP],
+    bend: [Bend; CAP],
     wo: Rows,
     /// This bounce's numbers (stage 2): the light choice and point, the lobe choice and
     /// direction.
@@ -154,6 +142,7 @@ struct Wave<'w> {
 impl<'w> Wave<'w> {
     fn new() -> Box<Self> {
         let zero = [[0.0; CAP]; 3];
+        let surf = Surface { p: Vec3::ZERO, ng: Vec3::Z, ns: Vec3::Z, uv: glam::Vec2::ZERO, material: 0, p_err: Vec3::ZERO };
         Box::new(Self {
             n: 0,
             slot: [0; CAP],
@@ -172,17 +161,10 @@ impl<'w> Wave<'w> {
             depth: [0; CAP],
             eta: [1.0; CAP],
             scatter: [false; CAP],
+            surf: [surf; CAP],
             bsdf: [None; CAP],
-            p: zero,
-            ng: zero,
-            p_err: zero,
-            ft: zero,
-            fb: zero,
-            fnn: zero,
-            bend_n0: zero,
-            bend_n: zero,
-            bend_a2: [-1.0; CAP],
-            ln: zero,
+            frame: [ShadingFrame::new(Vec3::Z); CAP],
+            bend: [Bend::NONE; CAP],
             wo: zero,
             u_light: [0.0; CAP],
             u2_light: [[0.0; CAP]; 2],
@@ -221,24 +203,6 @@ impl<'w> Wave<'w> {
         } else {
             lights.weigh(get3(&self.prev_p, i), get3(&self.prev_n, i))
         }
-    }
-
-    /// Lane `i`'s shading frame.
-    #[inline(always)]
-    fn frame(&self, i: usize) -> ShadingFrame {
-        ShadingFrame { t: get3(&self.ft, i), b: get3(&self.fb, i), n: get3(&self.fnn, i) }
-    }
-
-    /// Lane `i`'s surface point as [`crate::world::surface::Surface::spawn`] needs it (the rest left at zero).
-    #[inline(always)]
-    fn spawn(&self, i: usize, dir: Vec3) -> Ray {
-        spawn_from(get3(&self.p, i), get3(&self.ng, i), get3(&self.p_err, i), dir)
-    }
-
-    /// Lane `i`'s bend.
-    #[inline(always)]
-    fn bend(&self, i: usize) -> Bend {
-        Bend::from_parts(get3(&self.bend_n0, i), get3(&self.bend_n, i), self.bend_a2[i])
     }
 
     /// Moves the path of lane `from` into lane `to` (what a path carries between bounces).
@@ -1069,18 +1033,10 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
         }
         let ns = shading_normal(w, &hit_ray, &hit, &surf);
         let (bsdf, frame) = bsdf_frame(w, &hit_ray, &hit, &surf, ns, d);
-        let (n0, bn, a2) = Bend::of(w, &surf, ns).parts();
-        put3(&mut wave.bend_n0, i, n0);
-        put3(&mut wave.bend_n, i, bn);
-        wave.bend_a2[i] = a2;
-        put3(&mut wave.p, i, surf.p);
-        put3(&mut wave.ng, i, surf.ng);
-        put3(&mut wave.p_err, i, surf.p_err);
-        put3(&mut wave.ln, i, light_normal(&bsdf, &frame));
-        put3(&mut wave.ft, i, frame.t);
-        put3(&mut wave.fb, i, frame.b);
-        put3(&mut wave.fnn, i, frame.n);
+        wave.bend[i] = Bend::of(w, &surf, ns);
+        wave.surf[i] = surf;
         wave.bsdf[i] = Some(bsdf);
+        wave.frame[i] = frame;
         put3(&mut wave.wo, i, frame.to_local(-d));
         wave.scatter[i] = true;
     }
@@ -1159,13 +1115,12 @@ fn light<'w>(
     let mut alone = [0u8; CAP];
     let mut n_alone = 0;
     // (A light sample's BSDF value, packed with its model's lanes.)
-    let (ft, fb, fnn) = (&wave.ft, &wave.fb, &wave.fnn);
     let mut pack = |models: &mut Models<'w>, i: usize, bsdf: Bsdf<'w>, ls: &LightSample| {
         sampled[i] = true;
         put3(&mut dir, i, ls.dir);
         put3(&mut li, i, ls.li);
         (pdf[i], delta[i], dist[i]) = (ls.pdf, ls.delta, ls.dist);
-        let wi = ShadingFrame { t: get3(ft, i), b: get3(fb, i), n: get3(fnn, i) }.to_local(ls.dir);
+        let wi = wave.frame[i].to_local(ls.dir);
         if !models.push(i, bsdf, get3(&wave.wo, i), wi, 0.0, (0.0, 0.0)) {
             alone[n_alone] = i as u8;
             n_alone += 1;
@@ -1181,7 +1136,7 @@ fn light<'w>(
         if bsdf.is_delta() {
             continue;
         }
-        let (p, n) = (get3(&wave.p, i), get3(&wave.ln, i));
+        let (p, n) = (wave.surf[i].p, light_normal(&bsdf, &wave.frame[i]));
         let u2 = (wave.u2_light[0][i], wave.u2_light[1][i]);
         let wt = lights.weigh(p, n);
         // (Kept only when weighed: uniform weights cost nothing to find again.)
@@ -1227,7 +1182,7 @@ fn light<'w>(
     for &i in &alone[..n_alone] {
         let i = usize::from(i);
         let Some(bsdf) = wave.bsdf[i] else { continue };
-        let (wo, wi) = (get3(&wave.wo, i), wave.frame(i).to_local(get3(&dir, i)));
+        let (wo, wi) = (get3(&wave.wo, i), wave.frame[i].to_local(get3(&dir, i)));
         let (fi, pdf) = bsdf.eval_pdf(wo, wi);
         put3(&mut f, i, fi);
         bsdf_pdf[i] = pdf;
@@ -1235,13 +1190,13 @@ fn light<'w>(
     let mut pending: [(u8, Ray, Vec3); CAP] = [(0, NO_RAYS[0], Vec3::ZERO); CAP];
     let mut count = 0;
     for i in 0..wave.n {
-        let fi = get3(&f, i) * wave.bend(i).weight(get3(&dir, i));
+        let fi = get3(&f, i) * wave.bend[i].weight(get3(&dir, i));
         if !sampled[i] || fi.max_element() <= 0.0 {
             continue;
         }
         let tmax = if dist[i].is_finite() { dist[i] * (1.0 - 1e-4) } else { f32::INFINITY };
         let weight = if delta[i] || s.sampling == LightSampling::Nee { 1.0 } else { power_heuristic(pdf[i], bsdf_pdf[i]) };
-        let ray = wave.spawn(i, get3(&dir, i)).with_range(0.0, tmax);
+        let ray = wave.surf[i].spawn(get3(&dir, i)).with_range(0.0, tmax);
         pending[count] = (i as u8, ray, get3(&wave.beta, i) * fi * get3(&li, i) * (weight / pdf[i]));
         count += 1;
     }
@@ -1255,38 +1210,6 @@ fn light<'w>(
         }
     }
     watch.lap(Part::ShadowRays);
-}
-
-/// The next rays of the lanes that scatter, and their throughputs (see [`scatter`]).
-struct NextRays {
-    dir: Rows,
-    org: Rows,
-    beta: Rows,
-}
-
-impl NextRays {
-    fn new() -> Self {
-        let z = [[0.0; CAP]; 3];
-        Self { dir: z, org: z, beta: z }
-    }
-
-    /// Every lane in use, in whole strips: the sampled direction `wi` (shading frame) in
-    /// the world, the throughput times the sample's `weight` and the normal map's bend,
-    /// the ray's origin off the surface ([`spawn_from`]); the scalar path tracer's bits.
-    #[inline(always)]
-    fn fill(&mut self, wave: &Wave, wi: &Rows, weight: &Rows) {
-        for strip in 0..wave.n.div_ceil(STRIP).min(CAP / STRIP) {
-            for l in 0..STRIP {
-                let i = strip * STRIP + l;
-                let frame = ShadingFrame { t: get3(&wave.ft, i), b: get3(&wave.fb, i), n: get3(&wave.fnn, i) };
-                let dir = frame.to_world(get3(wi, i));
-                let bend = Bend::from_parts(get3(&wave.bend_n0, i), get3(&wave.bend_n, i), wave.bend_a2[i]).weight_lane(dir);
-                put3(&mut self.dir, i, dir);
-                put3(&mut self.beta, i, get3(&wave.beta, i) * get3(weight, i) * bend);
-                put3(&mut self.org, i, spawn_from(get3(&wave.p, i), get3(&wave.ng, i), get3(&wave.p_err, i), dir).org);
-            }
-        }
-    }
 }
 
 /// The lanes whose chosen light is an untextured triangle or parallelogram
@@ -1436,10 +1359,6 @@ fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, w
             (pdf[i], delta[i], eta[i]) = (bs.pdf, bs.delta, bs.eta);
         }
     }
-    // The directions in the world, the throughputs and the next rays' origins, on lanes
-    // (every lane in use computes: those that do not scatter go unused).
-    let mut next = NextRays::new();
-    on_lanes!(|next: &mut NextRays, wave: &Wave, wi: &Rows, weight: &Rows| next.fill(wave, wi, weight))(&mut next, wave, &wi, &weight);
     for i in 0..wave.n {
         if !wave.scatter[i] {
             continue;
@@ -1448,7 +1367,8 @@ fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, w
             wave.done[i] = true;
             continue;
         }
-        let beta = get3(&next.beta, i);
+        let bend = wave.bend[i].weight(wave.frame[i].to_world(get3(&wi, i)));
+        let beta = get3(&wave.beta, i) * get3(&weight, i) * bend;
         put3(&mut wave.beta, i, beta);
         if !beta.is_finite() || beta.max_element() <= 0.0 {
             wave.done[i] = true;
@@ -1457,9 +1377,9 @@ fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, w
         wave.eta[i] *= eta[i];
         wave.prev_pdf[i] = pdf[i];
         wave.prev_delta[i] = delta[i];
-        put3(&mut wave.prev_p, i, get3(&wave.p, i));
-        put3(&mut wave.prev_n, i, get3(&wave.ln, i));
-        wave.ray[i] = Ray::new(get3(&next.org, i), get3(&next.dir, i));
+        put3(&mut wave.prev_p, i, wave.surf[i].p);
+        put3(&mut wave.prev_n, i, wave.bsdf[i].map_or(Vec3::ZERO, |b| light_normal(&b, &wave.frame[i])));
+        wave.ray[i] = wave.surf[i].spawn(wave.frame[i].to_world(get3(&wi, i)));
         wave.depth[i] += 1;
         if wave.depth[i] >= s.rr_depth {
             let q = (beta.max_element() * wave.eta[i] * wave.eta[i]).min(0.95);

@@ -39,7 +39,7 @@ impl Surface {
     #[inline]
     #[must_use]
     pub fn offset(&self) -> f32 {
-        offset_of(self.ng, self.p_err, self.p)
+        self.ng.abs().dot(self.p_err + self.p.abs() * f32::EPSILON) + f32::MIN_POSITIVE
     }
 
     /// A ray leaving the surface along `dir`: its origin moved off `p` by
@@ -48,24 +48,9 @@ impl Surface {
     #[inline]
     #[must_use]
     pub fn spawn(&self, dir: Vec3) -> Ray {
-        spawn_from(self.p, self.ng, self.p_err, dir)
+        let n = if dir.dot(self.ng) < 0.0 { -self.ng } else { self.ng };
+        Ray::new(self.p + n * self.offset(), dir)
     }
-}
-
-/// [`Surface::offset`] of a point at `p` with geometric normal `ng` and error bound `p_err`.
-#[inline(always)]
-fn offset_of(ng: Vec3, p_err: Vec3, p: Vec3) -> f32 {
-    ng.abs().dot(p_err + p.abs() * f32::EPSILON) + f32::MIN_POSITIVE
-}
-
-/// [`Surface::spawn`] of the surface point at `p` with geometric normal `ng` and error
-/// bound `p_err` (what it reads of a [`Surface`]).
-#[inline(always)]
-#[must_use]
-pub fn spawn_from(p: Vec3, ng: Vec3, p_err: Vec3, dir: Vec3) -> Ray {
-    let offset = offset_of(ng, p_err, p);
-    let n = if dir.dot(ng) < 0.0 { -ng } else { ng };
-    Ray::new(p + n * offset, dir)
 }
 
 impl World {
