@@ -185,7 +185,8 @@ fn print_costs(costs: &[Cost]) {
     println!();
     println!("Cost per sample, thread-ns (wall time x threads / samples), equal-error renders:");
     println!(
-        "| scene | scalar: whole, less its rays alone | lanes: whole | traversal (closest, shadow) | shading (surfaces, numbers, lights, scatter) | elsewhere (camera, film) | paths in flight of 64 | lanes per BSDF loop, one by one % |"
+        "| scene | scalar: whole, less its rays alone | lanes: whole | traversal (closest, shadow) | shading (surfaces, numbers, lights, scatter) | elsewhere (camera, film) | paths in flight of {} | lanes per BSDF loop, one by one % |",
+        lucent_render::integrator::wave::CAP
     );
     println!("|---|---|---|---|---|---|---|---|");
     for c in costs {

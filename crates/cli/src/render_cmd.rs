@@ -10,8 +10,6 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Options of `lucent render`.
-
 /// The least samples per pixel from which `--denoise` measures each pixel's noise from the
 /// two halves of its samples. Chosen on the denoiser's tuning scenes (`lucent bench
 /// denoise`, 256x192, relMSE against 2048 samples, median of three seeds): at 16 samples
@@ -20,6 +18,8 @@ use std::time::Instant;
 /// of two) it lost on the Cornell box (0.0017 -> 0.0020), tied on Sponza and won on the
 /// kitchen.
 const HALVES_SPP: u32 = 16;
+
+/// Options of `lucent render`.
 #[derive(clap::Args, Debug)]
 pub struct RenderArgs {
     /// Scene file (.obj, .obj.gz, .ply, .gltf, .glb, or a Mitsuba 3 .xml scene). Without it:
