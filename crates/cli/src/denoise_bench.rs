@@ -87,16 +87,7 @@ fn path(w: &World, cam: &Camera, size: (u32, u32), spp: u32, seed: u32) -> Film 
 
 /// The scene's reference (cached).
 fn reference(o: &DenoiseOptions, name: &str, w: &World, cam: &Camera) -> Result<Film> {
-    let cache = PathBuf::from("target/bench-cache");
-    std::fs::create_dir_all(&cache)?;
-    let file = cache.join(format!("denoise_{name}_{}x{}_{}spp_seed{REFERENCE_SEED:08x}.exr", o.size.0, o.size.1, o.reference_spp));
-    if let Ok(f) = Film::load(&file) {
-        return Ok(f);
-    }
-    eprintln!("{name}: path tracing the reference ({} spp, cached in {})", o.reference_spp, file.display());
-    let f = path(w, cam, o.size, o.reference_spp, REFERENCE_SEED);
-    f.save(&file)?;
-    Ok(f)
+    crate::stats::cached_path_image(&format!("denoise_{name}"), w, cam, o.size, o.reference_spp, REFERENCE_SEED)
 }
 
 /// The median of `v`.

@@ -31,3 +31,32 @@ pub fn proc_status_kib(field: &str) -> Option<u64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
     s.lines().find(|l| l.starts_with(field))?.split_whitespace().nth(1)?.parse().ok()
 }
+
+/// A path-traced image of `world` through `cam` at `size`, `spp` samples per pixel with
+/// sampler `seed`: read from `target/bench-cache/{stem}_{W}x{H}_{spp}spp_seed{seed}.exr`,
+/// else rendered (minutes for a reference) and saved there. The benchmarks' references.
+pub fn cached_path_image(
+    stem: &str,
+    world: &lucent_render::World,
+    cam: &lucent_render::Camera,
+    size: (u32, u32),
+    spp: u32,
+    seed: u32,
+) -> anyhow::Result<lucent_render::Film> {
+    use lucent_render::{render, Film, Integrator, PathSettings, RenderSettings};
+    let cache = std::path::PathBuf::from("target/bench-cache");
+    std::fs::create_dir_all(&cache)?;
+    let file = cache.join(format!("{stem}_{}x{}_{spp}spp_seed{seed:08x}.exr", size.0, size.1));
+    if let Ok(f) = Film::load(&file) {
+        return Ok(f);
+    }
+    eprintln!("{stem}: path tracing the reference ({spp} spp, cached in {})", file.display());
+    let rs = RenderSettings {
+        spp,
+        integrator: Integrator::Path(PathSettings { seed, ..PathSettings::default() }),
+        ..RenderSettings::new(size.0, size.1)
+    };
+    let f = render(world, cam, &rs, &|_| {}).0;
+    f.save(&file)?;
+    Ok(f)
+}

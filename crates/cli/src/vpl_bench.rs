@@ -116,17 +116,7 @@ const QUALITY_SCENES: [&str; 4] = ["cornell", "sponza", "kitchen", "kitchen-diff
 
 /// The path-traced reference of a scene (cached).
 fn reference(o: &VplOptions, name: &str, w: &World, cam: &Camera) -> Result<Film> {
-    let cache = PathBuf::from("target/bench-cache");
-    std::fs::create_dir_all(&cache)?;
-    let file = cache.join(format!("{name}_{}x{}_{}spp_seed{REFERENCE_SEED:08x}.exr", o.size.0, o.size.1, o.reference_spp));
-    if let Ok(f) = Film::load(&file) {
-        return Ok(f);
-    }
-    eprintln!("{name}: path tracing the reference ({} spp, cached in {})", o.reference_spp, file.display());
-    let path = Integrator::Path(PathSettings { seed: REFERENCE_SEED, ..PathSettings::default() });
-    let f = render(w, cam, &settings(o.size, o.reference_spp, path), &|_| {}).0;
-    f.save(&file)?;
-    Ok(f)
+    crate::stats::cached_path_image(name, w, cam, o.size, o.reference_spp, REFERENCE_SEED)
 }
 
 /// Rays per second of packets traced one after another (`occluded`: shadow rays).
