@@ -10,8 +10,8 @@ use crate::stats::median;
 use anyhow::{bail, Context, Result};
 use lucent_accel::MeshOptions;
 use lucent_render::{
-    denoise, denoise_with_variance, render, render_aovs, render_halves, Camera, DenoiseSettings, Film, Integrator, PathSettings,
-    RenderSettings, World,
+    denoise, denoise_with_variance, render_aovs, render_halves, Camera, DenoiseSettings, Film, Integrator, PathSettings, RenderSettings,
+    World,
 };
 use lucent_scene::CameraDesc;
 use std::path::PathBuf;
@@ -76,15 +76,6 @@ fn load(o: &DenoiseOptions, name: &str) -> Result<(World, CameraDesc)> {
     }
 }
 
-fn path(w: &World, cam: &Camera, size: (u32, u32), spp: u32, seed: u32) -> Film {
-    let rs = RenderSettings {
-        spp,
-        integrator: Integrator::Path(PathSettings { seed, ..PathSettings::default() }),
-        ..RenderSettings::new(size.0, size.1)
-    };
-    render(w, cam, &rs, &|_| {}).0
-}
-
 /// The scene's reference (cached).
 fn reference(o: &DenoiseOptions, name: &str, w: &World, cam: &Camera) -> Result<Film> {
     crate::stats::cached_path_image(&format!("denoise_{name}"), w, cam, o.size, o.reference_spp, REFERENCE_SEED)
@@ -134,7 +125,7 @@ pub fn run(o: &DenoiseOptions) -> Result<()> {
                     }
                     den.push(rel(&d));
                     halves.push(rel(&dv));
-                    raw.push(rel(&pool.install(|| path(&world, &cam, o.size, many, seed))));
+                    raw.push(rel(&pool.install(|| crate::stats::path_image(&world, &cam, o.size, many, seed))));
                 }
             }
             let (a, av, b, c, cv, d) = (med(&d4), med(&h4), med(&r64), med(&d16), med(&h16), med(&r256));
@@ -164,7 +155,7 @@ pub fn run(o: &DenoiseOptions) -> Result<()> {
         let t = Instant::now();
         let aovs = pool.install(|| render_aovs(&world, &cam, w, h));
         let guides = t.elapsed().as_secs_f64();
-        let img = pool.install(|| path(&world, &cam, (w, h), 1, 1));
+        let img = pool.install(|| crate::stats::path_image(&world, &cam, (w, h), 1, 1));
         let mut times: Vec<f64> = (0..5)
             .map(|_| {
                 let t = Instant::now();

@@ -43,7 +43,7 @@ pub fn cached_path_image(
     spp: u32,
     seed: u32,
 ) -> anyhow::Result<lucent_render::Film> {
-    use lucent_render::{render, Film, Integrator, PathSettings, RenderSettings};
+    use lucent_render::Film;
     let cache = std::path::PathBuf::from("target/bench-cache");
     std::fs::create_dir_all(&cache)?;
     let file = cache.join(format!("{stem}_{}x{}_{spp}spp_seed{seed:08x}.exr", size.0, size.1));
@@ -51,12 +51,19 @@ pub fn cached_path_image(
         return Ok(f);
     }
     eprintln!("{stem}: path tracing the reference ({spp} spp, cached in {})", file.display());
+    let f = path_image(world, cam, size, spp, seed);
+    f.save(&file)?;
+    Ok(f)
+}
+
+/// A path-traced image of `world` through `cam` at `size`, `spp` samples per pixel with
+/// sampler `seed` (the path tracer's other settings as default).
+pub fn path_image(world: &lucent_render::World, cam: &lucent_render::Camera, size: (u32, u32), spp: u32, seed: u32) -> lucent_render::Film {
+    use lucent_render::{render, Integrator, PathSettings, RenderSettings};
     let rs = RenderSettings {
         spp,
         integrator: Integrator::Path(PathSettings { seed, ..PathSettings::default() }),
         ..RenderSettings::new(size.0, size.1)
     };
-    let f = render(world, cam, &rs, &|_| {}).0;
-    f.save(&file)?;
-    Ok(f)
+    render(world, cam, &rs, &|_| {}).0
 }

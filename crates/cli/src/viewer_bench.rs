@@ -14,8 +14,8 @@ use lucent_accel::glam::Vec3;
 use lucent_accel::MeshOptions;
 use lucent_render::setup::{prepare, Recipe};
 use lucent_render::{
-    denoise, render, render_aovs, render_region, Camera, DenoiseSettings, Film, Integrator, PathSettings, Region, RenderSettings, Temporal,
-    World,
+    denoise, render, render_aovs, render_region, Camera, DenoiseSettings, FilmAccumulator, Integrator, PathSettings, Region,
+    RenderSettings, Temporal, World,
 };
 use lucent_scene::CameraDesc;
 use lucent_viewer::control::Adaptive;
@@ -102,19 +102,6 @@ struct Moving {
     frames_held: f64,
 }
 
-fn rel_mse(a: &Film, r: &Film) -> f64 {
-    let sum: f64 = a
-        .pixels
-        .iter()
-        .zip(&r.pixels)
-        .map(|(p, q)| {
-            let d = *p - *q;
-            f64::from((d * d / (*q * *q + Vec3::splat(1e-2))).element_sum()) / 3.0
-        })
-        .sum();
-    sum / a.pixels.len().max(1) as f64
-}
-
 /// The viewer's moving frames along the orbit at half the window's size, one sample per
 /// pixel each, shown as the viewer shows them (denoised, after the blend), and the last
 /// one against a converged image of its camera (`reference_spp` samples per pixel).
@@ -133,11 +120,12 @@ fn moving(world: &World, home: &CameraDesc, o: &ViewerOptions, reference_spp: u3
         let rs = RenderSettings { spp: frames as u32, integrator, ..RenderSettings::new(w, h) };
         let t = Instant::now();
         let r = render_region(world, &camera, &rs, Region::full(w, h, f as u32, f as u32 + 1), &|_| {}).0;
-        let raw = Film {
-            width: w,
-            height: h,
-            pixels: r.sum.iter().zip(&r.weight).map(|(s, &wt)| if wt > 0.0 { *s / wt } else { world.scene().background }).collect(),
-        };
+        let mut acc = FilmAccumulator::new(w, h);
+        // (A region of the whole image of this size: it merges, as a later pass's samples.)
+        if acc.merge(r).is_err() {
+            continue;
+        }
+        let raw = acc.resolve(world.scene().background);
         let aovs = render_aovs(world, &camera, w, h);
         let tb = Instant::now();
         let (blended, stats) = temporal.add(&camera, &raw, &aovs);
@@ -159,9 +147,9 @@ fn moving(world: &World, home: &CameraDesc, o: &ViewerOptions, reference_spp: u3
     Moving {
         fps: 1.0 / median(&mut times[half..].to_vec()).max(1e-9),
         blend_ms: median(&mut blend),
-        raw: rel_mse(&raw, &reference),
-        denoised: rel_mse(&denoised, &reference),
-        blended: rel_mse(&shown, &reference),
+        raw: raw.rel_mse(&reference).unwrap_or(f64::NAN),
+        denoised: denoised.rel_mse(&reference).unwrap_or(f64::NAN),
+        blended: shown.rel_mse(&reference).unwrap_or(f64::NAN),
         frames_held,
     }
 }

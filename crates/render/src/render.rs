@@ -141,16 +141,17 @@ pub fn render_halves(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dy
     let half = spp / 2;
     let (a, ra) = render_region(w, cam, s, Region::full(s.width, s.height, 0, half), progress);
     let (b, rb) = render_region(w, cam, s, Region::full(s.width, s.height, half, spp), progress);
-    let mean = |f: &RegionFilm, i: usize| if f.weight[i] != 0.0 { f.sum[i] / f.weight[i] } else { w.scene.background };
-    let variance = (0..a.sum.len().min(b.sum.len()))
-        .map(|i| {
-            let d = crate::color::luminance(mean(&a, i)) - crate::color::luminance(mean(&b, i));
-            d * d / 4.0
-        })
-        .collect();
-    let mut acc = crate::film::FilmAccumulator::new(s.width, s.height);
-    // (Two regions of the whole image, of this size: they merge.)
-    let merged = acc.merge(a).and_then(|()| acc.merge(b));
-    let film = if merged.is_ok() { acc.resolve(w.scene.background) } else { render(w, cam, s, progress).0 };
+    // Each pixel's weighted mean of its samples, or the background where none landed (as
+    // `FilmAccumulator::resolve`, which would add the two halves' sums the same way).
+    let bg = w.scene.background;
+    let mean = |sum: Vec3, weight: f32| if weight > 0.0 { sum / weight } else { bg };
+    let (mut pixels, mut variance) = (Vec::with_capacity(a.sum.len()), Vec::with_capacity(a.sum.len()));
+    for (i, (sa, sb)) in a.sum.iter().zip(&b.sum).enumerate() {
+        let (wa, wb) = (a.weight[i], b.weight[i]);
+        let d = crate::color::luminance(mean(*sa, wa)) - crate::color::luminance(mean(*sb, wb));
+        variance.push(d * d / 4.0);
+        pixels.push(mean(*sa + *sb, wa + wb));
+    }
+    let film = Film { width: s.width, height: s.height, pixels };
     (film, Some(variance), ra + rb)
 }

@@ -91,19 +91,19 @@ impl Temporal {
         // blur onto its dark surroundings frame after frame.)
         let emission = |i: usize| aovs.emission.pixels.get(i).copied().filter(|e| e.is_finite()).unwrap_or(Vec3::ZERO);
         let color: Vec<Vec3> = fresh.pixels.iter().enumerate().map(|(i, p)| *p - emission(i)).collect();
-        // Each pixel's normal turned toward the camera: a wall's two sides are two surfaces.
-        let faced: Vec<Vec3> = (0..n)
+        // Each pixel's surface point (its centre's ray at the guides' distance; `None` where
+        // it sees none) and its normal turned toward the camera: a wall's two sides are two
+        // surfaces.
+        let (points, faced): (Vec<Option<Vec3>>, Vec<Vec3>) = (0..n)
             .into_par_iter()
             .map(|i| {
-                let (x, y) = ((i % w as usize) as f32 + 0.5, (i / w as usize) as f32 + 0.5);
-                let nrm = aovs.normal.pixels[i];
-                if nrm.dot(camera.ray(x, y).dir) > 0.0 {
-                    -nrm
-                } else {
-                    nrm
-                }
+                let ray = camera.ray((i % w as usize) as f32 + 0.5, (i / w as usize) as f32 + 0.5);
+                let (nrm, depth) = (aovs.normal.pixels[i], aovs.depth[i]);
+                let faced = if nrm.dot(ray.dir) > 0.0 { -nrm } else { nrm };
+                let seen = depth.is_finite() && depth > 0.0 && nrm != Vec3::ZERO;
+                (seen.then(|| ray.org + ray.dir.normalize_or_zero() * depth), faced)
             })
-            .collect();
+            .unzip();
         // Per pixel: its value without emission blended with its history, and the frames
         // that holds (1: none).
         let mut blended: Vec<(Vec3, f32)> = color.iter().map(|&c| (c, 1.0)).collect();
@@ -112,7 +112,7 @@ impl Temporal {
             blended.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
                 for (x, out) in row.iter_mut().enumerate() {
                     let i = y * w as usize + x;
-                    if let Some((hist, held)) = history(prev, camera, (x as u32, y as u32), aovs.depth[i], faced[i]) {
+                    if let Some((hist, held)) = points[i].and_then(|p| history(prev, p, faced[i])) {
                         let held = held.min(max_held);
                         if held > 0.0 {
                             // The mean of `held` frames of history and the new one.
@@ -136,17 +136,11 @@ impl Temporal {
     }
 }
 
-/// The history of pixel `(x, y)` of a frame of `camera` whose surface lies at distance
-/// `depth` along the pixel centre's ray, with normal `normal` (turned toward the camera):
-/// the previous frame's values around where that point was seen, bilinear over those that
-/// saw the same surface, and the frames they held; `None` where none did.
-fn history(prev: &Frame, camera: &Camera, (x, y): (u32, u32), depth: f32, normal: Vec3) -> Option<(Vec3, f32)> {
-    if !(depth.is_finite() && depth > 0.0) || normal == Vec3::ZERO {
-        return None;
-    }
+/// The history of a pixel whose surface point is `p`, with normal `normal` (turned toward
+/// its camera): the previous frame's values around where that point was seen, bilinear
+/// over those that saw the same surface, and the frames they held; `None` where none did.
+fn history(prev: &Frame, p: Vec3, normal: Vec3) -> Option<(Vec3, f32)> {
     let (pw, ph) = prev.camera.size();
-    let ray = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
-    let p = ray.org + ray.dir.normalize_or_zero() * depth;
     let (px, py, _) = prev.camera.project(p)?;
     // (The distance along the previous camera's ray through that point, from its origin:
     // the eye, or a point of the view plane when orthographic.)

@@ -195,12 +195,13 @@ impl App {
     /// While `moving`, the frame is first blended with the frames before it (key 6).
     fn denoise_shown(&mut self, camera: &lucent_scene::CameraDesc, size: (u32, u32), moving: bool) {
         self.shown = None;
-        if !(moving && self.temporal_on) {
+        // (The blend needs the guides, made here for the denoiser.)
+        let blend = moving && self.temporal_on && self.denoising();
+        if !blend {
             self.temporal.reset();
             self.temporal_frames = 0.0;
         }
         if !self.denoising() {
-            self.temporal.reset();
             return;
         }
         let spp = self.acc.passes() as f32;
@@ -221,7 +222,7 @@ impl App {
             return;
         }
         let blended;
-        let raw = if moving && self.temporal_on {
+        let raw = if blend {
             let (f, stats) = self.temporal.add(&Camera::new(camera, size.0, size.1), raw, aovs);
             self.temporal_frames = stats.mean_frames;
             blended = f;
