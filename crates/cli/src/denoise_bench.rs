@@ -1,18 +1,27 @@
-//! `lucent bench denoise`: the denoiser on the scenes its settings were tuned on and on
-//! scenes it was never given (issue 55's method: the settings may not change after the
+//! `lucent bench denoise`: the denoisers on the scenes their settings were tuned on and on
+//! scenes they were never given (issue 55's method: the settings may not change after the
 //! held-out figures are seen). Per scene, at the given size, against a path-traced
 //! reference (cached in target/bench-cache/): the relMSE of 4 samples per pixel denoised
 //! against 64 raw, and of 16 denoised against 256 raw (each the median of three seeds;
-//! the goal is a ratio of at most 1.0), and the mean's drift; then the denoiser's time per
-//! frame at 512x384 and 1024x768 on two threads.
+//! the goal is a ratio of at most 1.0), for the à-trous filter (the noise from the
+//! neighbourhood, and from the samples' halves) and the regression denoiser (over the
+//! halves), and the mean's drift; then each denoiser's time per frame at 512x384 and
+//! 1024x768 on two threads.
 
 use crate::stats::median;
 use anyhow::{bail, Context, Result};
 use lucent_accel::MeshOptions;
+use lucent_render::color::luminance;
+use lucent_render::denoise::regression::{denoise_halves, RegressionSettings};
+use lucent_render::integrator::guides::render_features;
 use lucent_render::{
-    denoise, denoise_with_variance, render_aovs, render_halves, Camera, DenoiseSettings, Film, Integrator, PathSettings, RenderSettings,
-    World,
+    denoise, denoise_with_variance, render_aovs, render_two_halves, Camera, DenoiseSettings, Film, Integrator, PathSettings,
+    RenderSettings, World,
 };
+
+/// Points per pixel along each axis of the regression denoiser's guides (as `lucent
+/// render --denoise` takes them).
+const FEATURE_GRID: u32 = 4;
 use lucent_scene::CameraDesc;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -94,11 +103,12 @@ pub fn run(o: &DenoiseOptions) -> Result<()> {
     let (wd, ht) = o.size;
     println!("denoiser: {wd}x{ht}, 2 threads, references of {} samples per pixel, median of {SEEDS} seeds", o.reference_spp);
     println!(
-        "Denoised with the noise estimated from each pixel's neighbourhood (spatial), and from the two halves of its samples (halves)."
+        "Denoised: the à-trous filter with the noise estimated from each pixel's neighbourhood (spatial) and from the two halves of its samples (halves); the regression denoiser over the two halves (regression)."
     );
-    println!("| set | scene | 4 spp denoised: spatial, halves | 64 spp raw | ratios | 16 spp denoised: spatial, halves | 256 spp raw | ratios | mean drift % |");
+    println!("| set | scene | 4 spp denoised: spatial, halves, regression | 64 spp raw | ratios | 16 spp denoised: spatial, halves, regression | 256 spp raw | ratios | mean drift %: à-trous, regression |");
     println!("|---|---|---|---|---|---|---|---|---|");
     let sets = [("tuned", &TUNED[..]), ("held out", &HELD_OUT[..])];
+    let regression = RegressionSettings::default();
     for (set, names) in sets {
         for &name in names.iter().filter(|n| o.only.is_empty() || o.only.iter().any(|x| x == *n)) {
             let (world, desc) = load(o, name)?;
@@ -106,50 +116,60 @@ pub fn run(o: &DenoiseOptions) -> Result<()> {
             let reference = pool.install(|| reference(o, name, &world, &cam))?;
             let rel = |f: &Film| f.rel_mse(&reference).unwrap_or(f64::NAN);
             let aovs = pool.install(|| render_aovs(&world, &cam, wd, ht));
+            let feats = pool.install(|| render_features(&world, &cam, wd, ht, FEATURE_GRID));
             let mean = |f: &Film| f.pixels.iter().map(|p| f64::from(p.x + p.y + p.z)).sum::<f64>();
-            let (mut d4, mut h4, mut r64, mut d16, mut h16, mut r256, mut drift) = (vec![], vec![], vec![], vec![], vec![], vec![], 0f64);
+            // Per sample count (4, 16): relMSE of the three denoised images and of the raw
+            // one with 16 times the samples, per seed.
+            let mut rows = [[vec![], vec![], vec![], vec![]], [vec![], vec![], vec![], vec![]]];
+            let (mut drift, mut drift_regression) = (0f64, 0f64);
             for k in 0..SEEDS {
                 let seed = PathSettings::default().seed.wrapping_add(k);
-                for (few, many, den, halves, raw) in [(4, 64, &mut d4, &mut h4, &mut r64), (16, 256, &mut d16, &mut h16, &mut r256)] {
+                for (row, few) in rows.iter_mut().zip([4u32, 16]) {
                     let rs = RenderSettings {
                         spp: few,
                         integrator: Integrator::Path(PathSettings { seed, ..PathSettings::default() }),
                         ..RenderSettings::new(wd, ht)
                     };
-                    let (img, var, _) = pool.install(|| render_halves(&world, &cam, &rs, &|_| {}));
-                    let d = pool.install(|| denoise(&img, &aovs, &DenoiseSettings::default()));
-                    let dv =
-                        pool.install(|| denoise_with_variance(&img, &aovs, &DenoiseSettings::default(), var.as_deref().unwrap_or(&[])));
+                    let two = pool.install(|| render_two_halves(&world, &cam, &rs, &|_| {})).ok().context("two halves")?;
+                    let img = &two.whole;
+                    // (As `render_halves` estimates it.)
+                    let var: Vec<f32> =
+                        two.a.pixels.iter().zip(&two.b.pixels).map(|(&x, &y)| (luminance(x) - luminance(y)).powi(2) / 4.0).collect();
+                    let d = pool.install(|| denoise(img, &aovs, &DenoiseSettings::default()));
+                    let dv = pool.install(|| denoise_with_variance(img, &aovs, &DenoiseSettings::default(), &var));
+                    let dr = pool.install(|| denoise_halves(&two.a, &two.b, &aovs, &feats, &regression));
                     for x in [&d, &dv] {
-                        drift = drift.max((mean(x) / mean(&img) - 1.0).abs());
+                        drift = drift.max((mean(x) / mean(img) - 1.0).abs());
                     }
-                    den.push(rel(&d));
-                    halves.push(rel(&dv));
-                    raw.push(rel(&pool.install(|| crate::stats::path_image(&world, &cam, o.size, many, seed))));
+                    drift_regression = drift_regression.max((mean(&dr) / mean(img) - 1.0).abs());
+                    let raw = pool.install(|| crate::stats::path_image(&world, &cam, o.size, 16 * few, seed));
+                    for (v, f) in row.iter_mut().zip([&d, &dv, &dr, &raw]) {
+                        v.push(rel(f));
+                    }
                 }
             }
-            let (a, av, b, c, cv, d) = (med(&d4), med(&h4), med(&r64), med(&d16), med(&h16), med(&r256));
-            println!(
-                "| {set} | {name} | {a:.4}, {av:.4} | {b:.4} | {:.2}, {:.2} | {c:.4}, {cv:.4} | {d:.4} | {:.2}, {:.2} | {:.2} |",
-                a / b,
-                av / b,
-                c / d,
-                cv / d,
-                drift * 100.0
-            );
+            let m = rows.clone().map(|r| r.map(|v| med(&v)));
+            let cell = |r: &[f64; 4]| {
+                format!("{:.4}, {:.4}, {:.4} | {:.4} | {:.2}, {:.2}, {:.2}", r[0], r[1], r[2], r[3], r[0] / r[3], r[1] / r[3], r[2] / r[3])
+            };
+            println!("| {set} | {name} | {} | {} | {:.2}, {:.2} |", cell(&m[0]), cell(&m[1]), drift * 100.0, drift_regression * 100.0);
+            let [[d4, h4, g4, r64], [d16, h16, g16, r256]] = &rows;
             println!(
                 "{}",
                 serde_json::json!({"kind": "denoise_quality", "set": set, "scene": name, "width": wd, "height": ht, "reference_spp": o.reference_spp,
-                    "denoised4": d4, "denoised4_halves": h4, "raw64": r64, "denoised16": d16, "denoised16_halves": h16, "raw256": r256,
-                    "ratio_4_64": a / b, "ratio_4_64_halves": av / b, "ratio_16_256": c / d, "ratio_16_256_halves": cv / d, "mean_drift": drift})
+                    "denoised4": d4, "denoised4_halves": h4, "denoised4_regression": g4, "raw64": r64,
+                    "denoised16": d16, "denoised16_halves": h16, "denoised16_regression": g16, "raw256": r256,
+                    "ratio_4_64": m[0][0] / m[0][3], "ratio_4_64_halves": m[0][1] / m[0][3], "ratio_4_64_regression": m[0][2] / m[0][3],
+                    "ratio_16_256": m[1][0] / m[1][3], "ratio_16_256_halves": m[1][1] / m[1][3], "ratio_16_256_regression": m[1][2] / m[1][3],
+                    "mean_drift": drift, "mean_drift_regression": drift_regression})
             );
         }
     }
     // The denoiser's time per frame (its guides apart), on Sponza.
     let (world, desc) = load(o, "sponza")?;
     println!();
-    println!("| size | denoiser ms (2 threads, median of 5) | guides ms |");
-    println!("|---|---|---|");
+    println!("| size | à-trous ms (2 threads, median of 5) | its guides ms | regression ms (one run) | its guides ms |");
+    println!("|---|---|---|---|---|");
     for (w, h) in [(512u32, 384u32), (1024, 768)] {
         let cam = Camera::new(&desc, w, h);
         let t = Instant::now();
@@ -164,8 +184,21 @@ pub fn run(o: &DenoiseOptions) -> Result<()> {
             })
             .collect();
         let ms = median(&mut times) * 1e3;
-        println!("| {w}x{h} | {ms:.1} | {:.1} |", guides * 1e3);
-        println!("{}", serde_json::json!({"kind": "denoise_time", "width": w, "height": h, "denoise_ms": ms, "guides_ms": guides * 1e3}));
+        // The regression denoiser, once (seconds), on the halves of 4 samples.
+        let t = Instant::now();
+        let feats = pool.install(|| render_features(&world, &cam, w, h, FEATURE_GRID));
+        let feature_ms = t.elapsed().as_secs_f64() * 1e3;
+        let rs = RenderSettings { spp: 4, ..RenderSettings::new(w, h) };
+        let two = pool.install(|| render_two_halves(&world, &cam, &rs, &|_| {})).ok().context("two halves")?;
+        let t = Instant::now();
+        std::hint::black_box(pool.install(|| denoise_halves(&two.a, &two.b, &aovs, &feats, &regression)));
+        let regression_ms = t.elapsed().as_secs_f64() * 1e3;
+        println!("| {w}x{h} | {ms:.1} | {:.1} | {regression_ms:.0} | {feature_ms:.0} |", guides * 1e3);
+        println!(
+            "{}",
+            serde_json::json!({"kind": "denoise_time", "width": w, "height": h, "denoise_ms": ms, "guides_ms": guides * 1e3,
+                "regression_ms": regression_ms, "regression_guides_ms": feature_ms})
+        );
     }
     Ok(())
 }

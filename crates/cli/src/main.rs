@@ -289,13 +289,14 @@ enum BenchCmd {
         #[arg(long, value_delimiter = ',')]
         only: Vec<String>,
     },
-    /// The denoiser on the scenes its settings were tuned on (Cornell box, Sponza, the
-    /// kitchen) and on scenes it was never given (the feature demo and the studio: glass,
-    /// mirrors, textures; Mitsuba's envmap, materials and bunny scenes: an HDR map, delta
-    /// lights, 69k triangles): relMSE of 4 samples per pixel denoised against 64 raw and
-    /// of 16 denoised against 256 raw (median of three seeds; goal: a ratio of at most 1),
-    /// against path-traced references cached in target/bench-cache/ (minutes each); then
-    /// the denoiser's time per frame at 512x384 and 1024x768. Run from the checkout's root.
+    /// The denoisers (the à-trous filter and the regression over the samples' halves) on
+    /// the scenes their settings were tuned on (Cornell box, Sponza, the kitchen) and on
+    /// scenes they were never given (the feature demo and the studio: glass, mirrors,
+    /// textures; Mitsuba's envmap, materials and bunny scenes: an HDR map, delta lights,
+    /// 69k triangles): relMSE of 4 samples per pixel denoised against 64 raw and of 16
+    /// denoised against 256 raw (median of three seeds; goal: a ratio of at most 1), against
+    /// path-traced references cached in target/bench-cache/ (minutes each); then each
+    /// denoiser's time per frame at 512x384 and 1024x768. Run from the checkout's root.
     Denoise {
         /// The shared scenes folder.
         #[arg(long, default_value = "../shared/scenes")]

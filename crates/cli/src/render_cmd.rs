@@ -19,6 +19,31 @@ use std::time::Instant;
 /// kitchen.
 const HALVES_SPP: u32 = 16;
 
+/// The least samples per pixel from which `--denoise` uses the regression denoiser
+/// (`lucent_render::denoise::regression`) on path-traced images: two halves of two
+/// samples each. On the tuning scenes (`lucent bench denoise`, 256x192, median of three
+/// seeds) it beat the à-trous filter at 4 samples on all three (relMSE Cornell box 0.0017
+/// -> 0.0011, Sponza 0.0096 -> 0.0061, the kitchen 0.058 -> 0.013).
+const REGRESSION_SPP: u32 = 4;
+
+/// Points per pixel along each axis of the regression denoiser's guides
+/// (`render_features`: 4 × 4, as `lucent bench denoise` measures it).
+const FEATURE_GRID: u32 = 4;
+
+/// Which denoiser `--denoise` runs.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Denoiser {
+    /// The regression denoiser for path tracing from 4 samples per pixel (not for a
+    /// crop window or a time budget), else the à-trous filter; a built-in scene shown
+    /// by default gets the à-trous filter (its first image in seconds).
+    Auto,
+    /// First-order regression on the two halves of the samples, after NFOR (Bitterli et
+    /// al. 2016): the better image, seconds per megapixel.
+    Regression,
+    /// The edge-avoiding à-trous filter: tens of milliseconds.
+    Atrous,
+}
+
 /// Options of `lucent render`.
 #[derive(clap::Args, Debug)]
 pub struct RenderArgs {
@@ -84,18 +109,22 @@ pub struct RenderArgs {
     /// Path: the sampler's seed (another seed, another equally good set of samples).
     #[arg(long)]
     pub seed: Option<u32>,
-    /// Denoise the image (an edge-avoiding à-trous filter guided by the albedo, normal and
-    /// distance of the first surface each pixel sees, through mirrors and glass): a few
-    /// samples per pixel look like many more. From 16 samples per pixel (path tracing) the
-    /// filter follows each pixel's noise as the two halves of its samples measure it;
-    /// below, as its neighbourhood's spread estimates it. A built-in scene (no scene file)
-    /// is denoised by default when path traced or lit by VPLs, at 8 samples per pixel
-    /// unless --spp says.
+    /// Denoise the image, guided by the albedo, normal and distance of the first surface
+    /// each pixel sees (through mirrors and glass): a few samples per pixel look like many
+    /// more. Path tracing from 4 samples per pixel: a first-order regression over the two
+    /// halves of the samples (each half filtered with weights from the other, the best of
+    /// several strengths chosen pixel by pixel); else an edge-avoiding à-trous filter
+    /// (see --denoiser). A built-in scene (no scene file) is denoised by default when path
+    /// traced or lit by VPLs, at 8 samples per pixel unless --spp says.
     #[arg(long, conflicts_with = "no_denoise")]
     pub denoise: bool,
     /// Do not denoise a built-in scene (see --denoise).
     #[arg(long)]
     pub no_denoise: bool,
+    /// Which denoiser --denoise runs (regression needs path tracing, at least 4 samples
+    /// per pixel and the whole film; otherwise the à-trous filter runs).
+    #[arg(long, value_enum, default_value_t = Denoiser::Auto)]
+    pub denoiser: Denoiser,
     /// VPL: virtual point lights per frame (each sample of a pixel is a frame with its own
     /// set).
     #[arg(long, default_value_t = VplSettings::default().count)]
@@ -355,9 +384,22 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let mut cluster = None;
     // Denoised path tracing from HALVES_SPP samples per pixel measures each pixel's noise
     // from the two halves of its samples (render_halves), which the denoiser then follows.
-    let halves =
-        denoise && crop.is_none() && settings.spp >= HALVES_SPP && matches!(settings.integrator, lucent_render::Integrator::Path(_));
+    let path = matches!(settings.integrator, lucent_render::Integrator::Path(_));
+    let regression = denoise
+        && crop.is_none()
+        && path
+        && settings.spp >= REGRESSION_SPP
+        && match a.denoiser {
+            Denoiser::Auto => !built_in_denoise,
+            Denoiser::Regression => true,
+            Denoiser::Atrous => false,
+        };
+    if denoise && a.denoiser == Denoiser::Regression && !regression {
+        tracing::warn!("--denoiser regression needs path tracing, at least {REGRESSION_SPP} samples per pixel and the whole film: the à-trous filter runs");
+    }
+    let halves = denoise && crop.is_none() && path && (regression || settings.spp >= HALVES_SPP);
     let mut variance = None;
+    let mut two = None;
     let (film, rays, spp) = match (&session, a.time) {
         (Some(s), budget) => {
             // Every rank's samples, as they come back.
@@ -399,6 +441,14 @@ pub fn run(a: RenderArgs) -> Result<()> {
                     acc.merge(part)?;
                     (acc.resolve(world.scene().background), rays)
                 }
+                None if regression => match lucent_render::render_two_halves(&world, &cam, &settings, &|n| bar.inc(n)) {
+                    Ok(h) => {
+                        let (film, rays) = (h.whole.clone(), h.rays);
+                        two = Some(h);
+                        (film, rays)
+                    }
+                    Err(whole) => whole,
+                },
                 None if halves => {
                     let (film, var, rays) = lucent_render::render_halves(&world, &cam, &settings, &|n| bar.inc(n));
                     variance = var;
@@ -432,12 +482,23 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let film = match &aovs {
         Some(aovs) if denoise => {
             let t = Instant::now();
-            let f = match &variance {
-                Some(v) => lucent_render::denoise_with_variance(&film, aovs, &lucent_render::DenoiseSettings::default(), v),
-                None => lucent_render::denoise(&film, aovs, &lucent_render::DenoiseSettings::default()),
+            let (f, how) = match (&two, &variance) {
+                (Some(hv), _) => {
+                    let feats = lucent_render::integrator::guides::render_features(&world, &cam, w, h, FEATURE_GRID);
+                    let s = lucent_render::denoise::regression::RegressionSettings::default();
+                    (
+                        lucent_render::denoise::regression::denoise_halves(&hv.a, &hv.b, aovs, &feats, &s),
+                        "regression over the samples' halves",
+                    )
+                }
+                (None, Some(v)) => (
+                    lucent_render::denoise_with_variance(&film, aovs, &lucent_render::DenoiseSettings::default(), v),
+                    "à-trous, the halves' noise",
+                ),
+                (None, None) => (lucent_render::denoise(&film, aovs, &lucent_render::DenoiseSettings::default()), "à-trous"),
             };
             let ms = t.elapsed().as_secs_f64() * 1e3;
-            println!("denoised in {ms:.1} ms (guides included: {:.1} ms)", t3.elapsed().as_secs_f64() * 1e3);
+            println!("denoised ({how}) in {ms:.1} ms (guides included: {:.1} ms)", t3.elapsed().as_secs_f64() * 1e3);
             if built_in_denoise {
                 println!("(a built-in scene is denoised by default; --no-denoise shows the raw samples)");
             }

@@ -111,6 +111,31 @@ fn render_vpl_and_denoise() {
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--interleave"));
 }
 
+/// `--denoise` picks its denoiser: path tracing from 4 samples per pixel gets the
+/// regression over the samples' halves (the image's mean kept within 1%), `--denoiser
+/// atrous` the à-trous filter, and a request the regression cannot take (2 samples) falls
+/// back to the à-trous filter.
+#[test]
+fn denoise_chooses_its_denoiser() {
+    let d = tempfile::tempdir().expect("tmp");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/mitsuba/scenes/cornell_box.xml");
+    let run = |extra: &[&str], name: &str| {
+        let out = d.path().join(name);
+        let o = lucent().arg("render").arg(&scene).args(["--threads", "2", "-o"]).arg(&out).args(extra).output().expect("run");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let img = image::open(&out).expect("exr").to_rgb32f();
+        (String::from_utf8_lossy(&o.stdout).into_owned(), img.pixels().map(|p| f64::from(p.0[0] + p.0[1] + p.0[2])).sum::<f64>())
+    };
+    let (text, m_den) = run(&["--spp", "4", "--denoise"], "r.exr");
+    assert!(text.contains("denoised (regression over the samples' halves)"), "{text}");
+    let (_, m_raw) = run(&["--spp", "4"], "raw.exr");
+    assert!((m_den / m_raw - 1.0).abs() < 0.01, "mean {m_den} denoised against {m_raw}");
+    let (text, _) = run(&["--spp", "4", "--denoise", "--denoiser", "atrous"], "a.exr");
+    assert!(text.contains("denoised (à-trous) in"), "{text}");
+    let (text, _) = run(&["--spp", "2", "--denoise", "--denoiser", "regression"], "f.exr");
+    assert!(text.contains("denoised (à-trous) in"), "{text}");
+}
+
 /// Output piped into a reader that stops early (`lucent disasm … | head -2`) ends the
 /// command quietly, as `cat` does, not with a panic about a broken pipe.
 #[cfg(unix)]
@@ -630,7 +655,7 @@ fn the_built_in_scene_is_denoised_by_default() {
         (String::from_utf8_lossy(&o.stdout).into_owned(), image::open(&out).expect("png").to_rgb8())
     };
     let (text, clean) = run(&[], "clean.png");
-    assert!(text.contains("denoised in") && text.contains("--no-denoise") && text.contains("8 spp"), "{text}");
+    assert!(text.contains("denoised (à-trous) in") && text.contains("--no-denoise") && text.contains("8 spp"), "{text}");
     let (text, raw) = run(&["--no-denoise"], "raw.png");
     assert!(!text.contains("denoised"), "{text}");
     // The back wall: the mean absolute difference of horizontal neighbours.

@@ -58,6 +58,7 @@ use rayon::prelude::*;
 
 #[cfg(test)]
 mod reference;
+pub mod regression;
 
 /// The denoiser's settings.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -57,7 +57,7 @@ pub use film::{Aovs, Film, FilmAccumulator, MergeError, OutputError, Region, Reg
 pub use integrator::guides::render_aovs;
 pub use integrator::{Integrator, LightSampling, PathSettings, VplSettings, WhittedSettings};
 pub use lights::{EmissionSample, LightModel, LightSample};
-pub use render::{render, render_halves, render_pixel, render_region, RenderSettings};
+pub use render::{render, render_halves, render_pixel, render_region, render_two_halves, Halves, RenderSettings};
 pub use sampler::{filter_offset, jitter, pcg_hash, CameraSamples, PixelSampler, Sampler};
 pub use temporal::{Temporal, TemporalStats};
 pub use tiles::{Block, Job, Traversal, TILE};

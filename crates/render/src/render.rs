@@ -133,10 +133,43 @@ pub fn render_region(w: &World, cam: &Camera, s: &RenderSettings, region: Region
 /// `a` and `b` give (ℓ(a) − ℓ(b))² / 4): what [`crate::denoise::denoise_with_variance`]
 /// takes. With one sample per pixel there are no halves: `None`.
 pub fn render_halves(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u64) + Sync)) -> (Film, Option<Vec<f32>>, u64) {
+    match render_two_halves(w, cam, s, progress) {
+        Ok(h) => {
+            let variance =
+                h.a.pixels
+                    .iter()
+                    .zip(&h.b.pixels)
+                    .map(|(&a, &b)| {
+                        let d = crate::color::luminance(a) - crate::color::luminance(b);
+                        d * d / 4.0
+                    })
+                    .collect();
+            (h.whole, Some(variance), h.rays)
+        }
+        Err((f, rays)) => (f, None, rays),
+    }
+}
+
+/// The two halves of an image's samples, each its own image, and the whole: what the
+/// regression denoiser ([`crate::denoise::regression`]) takes.
+#[derive(Clone, Debug)]
+pub struct Halves {
+    /// The mean of samples `0..spp/2` of each pixel.
+    pub a: Film,
+    /// The mean of samples `spp/2..spp`.
+    pub b: Film,
+    /// [`render`]'s image: the mean of all of them (the halves' sums added).
+    pub whole: Film,
+    /// Rays traced.
+    pub rays: u64,
+}
+
+/// [`Halves`] of `s.spp` samples per pixel; with fewer than two samples there are no
+/// halves: the image alone (`Err`).
+pub fn render_two_halves(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u64) + Sync)) -> Result<Halves, (Film, u64)> {
     let spp = s.spp.max(1);
     if spp < 2 {
-        let (f, rays) = render(w, cam, s, progress);
-        return (f, None, rays);
+        return Err(render(w, cam, s, progress));
     }
     let half = spp / 2;
     let (a, ra) = render_region(w, cam, s, Region::full(s.width, s.height, 0, half), progress);
@@ -145,13 +178,11 @@ pub fn render_halves(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dy
     // `FilmAccumulator::resolve`, which would add the two halves' sums the same way).
     let bg = w.scene.background;
     let mean = |sum: Vec3, weight: f32| if weight > 0.0 { sum / weight } else { bg };
-    let (mut pixels, mut variance) = (Vec::with_capacity(a.sum.len()), Vec::with_capacity(a.sum.len()));
-    for (i, (sa, sb)) in a.sum.iter().zip(&b.sum).enumerate() {
-        let (wa, wb) = (a.weight[i], b.weight[i]);
-        let d = crate::color::luminance(mean(*sa, wa)) - crate::color::luminance(mean(*sb, wb));
-        variance.push(d * d / 4.0);
-        pixels.push(mean(*sa + *sb, wa + wb));
-    }
-    let film = Film { width: s.width, height: s.height, pixels };
-    (film, Some(variance), ra + rb)
+    let film = |f: &dyn Fn(usize) -> Vec3| Film { width: s.width, height: s.height, pixels: (0..a.sum.len()).map(f).collect() };
+    Ok(Halves {
+        a: film(&|i| mean(a.sum[i], a.weight[i])),
+        b: film(&|i| mean(b.sum[i], b.weight[i])),
+        whole: film(&|i| mean(a.sum[i] + b.sum[i], a.weight[i] + b.weight[i])),
+        rays: ra + rb,
+    })
 }

@@ -101,6 +101,52 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> Aovs {
     }
 }
 
+/// The regression denoiser's guides ([`crate::denoise::regression::Features`]): per
+/// pixel, the means over a `grid` × `grid` lattice of points in it (as the box filter
+/// averages the colour's samples, so that a pixel straddling an edge gets the mixture of
+/// both sides' guides its colour is a mixture of) of the albedo, the shading normal and
+/// the distance of the first surface past mirrors and glass that each point's ray meets,
+/// and the share of points that meet one (the normal and distance over those).
+#[must_use]
+pub fn render_features(w: &World, cam: &Camera, width: u32, height: u32, grid: u32) -> crate::denoise::regression::Features {
+    let n = width as usize * height as usize;
+    let grid = grid.max(1);
+    let px: Vec<(Vec3, Vec3, f32, f32)> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = ((i % width as usize) as f32, (i / width as usize) as f32);
+            let (mut al, mut nn, mut d, mut hits) = (Vec3::ZERO, Vec3::ZERO, 0.0f32, 0.0f32);
+            for sy in 0..grid {
+                for sx in 0..grid {
+                    let (u, v) = ((sx as f32 + 0.5) / grid as f32, (sy as f32 + 0.5) / grid as f32);
+                    let r = cam.ray(x + u, y + v);
+                    match through_specular(w, w.intersect_solid(&r)) {
+                        (Some(End { r, surf, ns }), beta, dist) => {
+                            al += beta * w.prepared(surf.material).albedo(&w.scene.textures, surf.uv);
+                            nn += ns;
+                            d += dist + (surf.p - r.org).length();
+                            hits += 1.0;
+                        }
+                        _ => al += w.scene.background,
+                    }
+                }
+            }
+            let m = (grid * grid) as f32;
+            if hits > 0.0 {
+                (al / m, nn / hits, d / hits, hits / m)
+            } else {
+                (al / m, Vec3::ZERO, f32::INFINITY, 0.0)
+            }
+        })
+        .collect();
+    crate::denoise::regression::Features {
+        albedo: px.iter().map(|p| p.0).collect(),
+        normal: px.iter().map(|p| p.1).collect(),
+        depth: px.iter().map(|p| p.2).collect(),
+        coverage: px.iter().map(|p| p.3).collect(),
+    }
+}
+
 /// Most mirrors and glass surfaces the guides follow (as the VPL integrator's camera paths).
 const SPECULAR_DEPTH: u32 = 8;
 
