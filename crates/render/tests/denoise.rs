@@ -22,6 +22,16 @@ fn uniform(mut state: u32) -> impl FnMut() -> f32 {
     }
 }
 
+/// The reference Cornell box: its world, camera, Mitsuba's converged image and its size.
+fn cornell_box() -> (World, Camera, Film, (u32, u32)) {
+    let scene = lucent_scene::load_mitsuba_with(&data("cornell_box/scene.xml"), &[]).expect("scene");
+    let hints = scene.hints.expect("hints");
+    let (wd, ht) = (hints.width, hints.height);
+    let cam = Camera::new(&scene.camera.expect("camera"), wd, ht);
+    let reference = Film::load(&data("cornell_box/reference_4096spp.exr")).expect("reference");
+    (World::new(scene, MeshOptions::default()).expect("world"), cam, reference, (wd, ht))
+}
+
 fn mean(f: &Film) -> f64 {
     f.pixels.iter().map(|p| f64::from(p.x + p.y + p.z)).sum::<f64>() / (3 * f.pixels.len()) as f64
 }
@@ -60,12 +70,7 @@ fn denoised_cornell_box_keeps_its_mean_and_comes_closer() {
 /// converged image than the raw image and than the neighbourhood's estimate does.
 #[test]
 fn the_samples_own_variance() {
-    let scene = lucent_scene::load_mitsuba_with(&data("cornell_box/scene.xml"), &[]).expect("scene");
-    let hints = scene.hints.expect("hints");
-    let (wd, ht) = (hints.width, hints.height);
-    let cam = Camera::new(&scene.camera.expect("camera"), wd, ht);
-    let reference = Film::load(&data("cornell_box/reference_4096spp.exr")).expect("reference");
-    let w = World::new(scene, MeshOptions::default()).expect("world");
+    let (w, cam, reference, (wd, ht)) = cornell_box();
     for filter in [lucent_scene::PixelFilter::Box, lucent_scene::PixelFilter::Gaussian { stddev: 0.5 }] {
         let st = RenderSettings { spp: 8, filter, integrator: Integrator::Path(PathSettings::default()), ..RenderSettings::new(wd, ht) };
         let (img, var, _) = lucent_render::render_halves(&w, &cam, &st, &|_| {});
@@ -339,12 +344,7 @@ fn mirror_scene(bsdf: &str) -> Aovs {
 #[test]
 fn regression_on_halves_beats_the_atrous_filter() {
     use lucent_render::denoise::regression::{denoise_halves, RegressionSettings};
-    let scene = lucent_scene::load_mitsuba_with(&data("cornell_box/scene.xml"), &[]).expect("scene");
-    let hints = scene.hints.expect("hints");
-    let (wd, ht) = (hints.width, hints.height);
-    let cam = Camera::new(&scene.camera.expect("camera"), wd, ht);
-    let reference = Film::load(&data("cornell_box/reference_4096spp.exr")).expect("reference");
-    let w = World::new(scene, MeshOptions::default()).expect("world");
+    let (w, cam, reference, (wd, ht)) = cornell_box();
     let aovs = render_aovs(&w, &cam, wd, ht);
     let feats = lucent_render::integrator::guides::render_features(&w, &cam, wd, ht, 4);
     let st = |spp, seed| RenderSettings {

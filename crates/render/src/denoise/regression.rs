@@ -554,20 +554,27 @@ fn cols(w: usize, dx: isize) -> (usize, usize) {
     ((-dx).max(0) as usize, (w as isize - dx.max(0)).max(0) as usize)
 }
 
+/// The columns `x0..x1` of row `y` whose partners at offset (dx, dy) are inside, with the
+/// index of the first one's pixel and of its partner; `None`: there are none.
+#[inline(always)]
+fn span(inp: &Input, dy: isize, dx: isize, y: usize) -> Option<(usize, usize, usize, usize)> {
+    let w = inp.w;
+    let qy = y as isize + dy;
+    let (x0, x1) = cols(w, dx);
+    if qy < 0 || qy >= inp.h as isize || x0 >= x1 {
+        return None;
+    }
+    Some((x0, x1, ((qy as usize * w) as isize + dx) as usize + x0, y * w + x0))
+}
+
 /// Row `y`'s guide differences at offset (dx, dy), partner minus pixel, into `sc.diff`
 /// (columns `x0..x1` of [`cols`]; nothing when the partners' row is outside).
 #[inline(always)]
 fn diffs(ctx: &Ctx, sc: &mut Scratch, dy: isize, dx: isize, y: usize) {
     let inp = ctx.inp;
     let w = inp.w;
-    let qy = y as isize + dy;
-    let (x0, x1) = cols(w, dx);
-    if qy < 0 || qy >= inp.h as isize || x0 >= x1 {
-        return;
-    }
+    let Some((x0, x1, qo, po)) = span(inp, dy, dx, y) else { return };
     let len = x1 - x0;
-    let qo = ((qy as usize * w) as isize + dx) as usize + x0;
-    let po = y * w + x0;
     for i in 0..NF {
         let (q, p) = (&inp.f[i][qo..qo + len], &inp.f[i][po..po + len]);
         let o = &mut sc.diff[i * w + x0..i * w + x1];
@@ -583,16 +590,11 @@ fn diffs(ctx: &Ctx, sc: &mut Scratch, dy: isize, dx: isize, y: usize) {
 fn accumulate(ctx: &Ctx, sc: &Scratch, dy: isize, dx: isize, y: usize, y0: usize, acc: &mut [f32]) {
     let inp = ctx.inp;
     let w = inp.w;
-    let qy = y as isize + dy;
-    let (x0, x1) = cols(w, dx);
-    if qy < 0 || qy >= inp.h as isize || x0 >= x1 {
-        return;
-    }
+    let Some((x0, x1, qo, _)) = span(inp, dy, dx, y) else { return };
     let len = x1 - x0;
     let yr = y - y0;
     let plane = acc.len() / NA;
     let wt = &sc.wt[yr * w + x0..yr * w + x1];
-    let qo = ((qy as usize * w) as isize + dx) as usize + x0;
     let d: [&[f32]; NF] = std::array::from_fn(|i| &sc.diff[i * w + x0..i * w + x1]);
     let at = yr * w + x0;
     for i in 0..D {
@@ -716,15 +718,10 @@ fn solve(sums: &[f32; NA], ridge: f32) -> [f32; D * 3] {
 fn predict(ctx: &Ctx, sc: &mut Scratch, beta: &[f32], dy: isize, dx: isize, y: usize, y0: usize, acc: &mut [f32]) {
     let inp = ctx.inp;
     let (w, n) = (inp.w, inp.w * inp.h);
-    let qy = y as isize + dy;
-    let (x0, x1) = cols(w, dx);
-    if qy < 0 || qy >= inp.h as isize || x0 >= x1 {
-        return;
-    }
+    let Some((x0, x1, qo, _)) = span(inp, dy, dx, y) else { return };
     let len = x1 - x0;
     let yr = y - y0;
     let plane = acc.len() / 4;
-    let qo = ((qy as usize * w) as isize + dx) as usize + x0;
     let at = yr * w + x0;
     let Scratch { wt, diff, pred, .. } = sc;
     let wt = &wt[yr * w + x0..yr * w + x1];
