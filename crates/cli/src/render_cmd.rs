@@ -38,7 +38,7 @@ pub enum Denoiser {
     /// by default gets the à-trous filter (its first image in seconds).
     Auto,
     /// First-order regression on the two halves of the samples, after NFOR (Bitterli et
-    /// al. 2016): the better image, seconds per megapixel.
+    /// al. 2016): the better image, about a minute per megapixel on two cores.
     Regression,
     /// The edge-avoiding à-trous filter: tens of milliseconds.
     Atrous,

@@ -32,6 +32,14 @@
 //! dark surfaces are filtered in radiance among themselves; emitters and the background
 //! pass through), so textures stay sharp.
 //!
+//! Afterwards one factor per channel keeps the image's sum (see `keep_energy`).
+//!
+//! Settings were swept on the tuning scenes of `lucent bench denoise` (Cornell box, Sponza,
+//! the kitchen) and frozen before the held-out scenes were measured: at 4 samples
+//! denoised against 64 raw, relMSE ratios 0.50 / 0.66 / 1.09 (the à-trous filter: 0.80 /
+//! 1.06 / 5.11). Speed: 11.6 s at 512 × 384 on two threads (the à-trous filter: 61 ms),
+//! about a minute per megapixel: an offline denoiser.
+//!
 //! Every stage runs over bands of rows (`BAND`), offset by offset within a band: each
 //! pixel's sums for its regression stay in the cache, and the loops over a row are plain
 //! loops over planes that the compiler vectorizes (built twice, for the baseline CPU and
@@ -300,7 +308,31 @@ pub(crate) fn denoise_halves_with(a: &Film, b: &Film, aovs: &Aovs, feats: &Featu
             (v * alb[i]).max(Vec3::ZERO)
         })
         .collect();
-    Film { width: a.width, height: a.height, pixels }
+    let mut out = Film { width: a.width, height: a.height, pixels };
+    keep_energy(&mut out, a, b, &input.kind);
+    out
+}
+
+/// Scales the filtered pixels (kind ≠ 0), channel by channel, so that their sum is the
+/// halves' mean's: the fits and the choice between candidates are not conservative (a
+/// window's fit is normalised by its own weights; on the envmap scene at 4 samples the
+/// image's mean drifted up to 1.2%), while the input's sum is an unbiased estimate of the
+/// light. (One factor per channel over the whole image: the sum of tens of thousands of
+/// pixels is nearly noise-free, where a local sum would bring back the noise.)
+fn keep_energy(out: &mut Film, a: &Film, b: &Film, kind: &[u8]) {
+    let (mut sum_in, mut sum_out) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
+    for (i, p) in out.pixels.iter().enumerate() {
+        if kind[i] != 0 {
+            sum_in += ((a.pixels[i] + b.pixels[i]) * 0.5).as_dvec3();
+            sum_out += p.as_dvec3();
+        }
+    }
+    let scale = Vec3::from_array(std::array::from_fn(|c| if sum_out[c] > 0.0 { (sum_in[c] / sum_out[c]) as f32 } else { 1.0 }));
+    for (i, p) in out.pixels.iter_mut().enumerate() {
+        if kind[i] != 0 {
+            *p *= scale;
+        }
+    }
 }
 
 /// The mean of `v` over each pixel's `(2r+1)²` neighbours of its kind (kind 0: 0).
@@ -839,7 +871,7 @@ mod tests {
             }
         }
         let sum = |p: &[Vec3]| p.iter().map(|v| f64::from(v.x)).sum::<f64>();
-        assert!((sum(&out.pixels) / sum(&mean) - 1.0).abs() < 0.01);
+        assert!((sum(&out.pixels) / sum(&mean) - 1.0).abs() < 1e-5, "{} against {}", sum(&out.pixels), sum(&mean));
     }
 
     /// Guides or halves of another size: the halves' mean.
