@@ -50,6 +50,21 @@ def test_render_is_the_cli_image_bit_for_bit(tmp_path, integrator, spp, extra):
     assert np.array_equal(got, want), f"{integrator}: max difference {np.abs(got - want).max()}"
 
 
+def test_denoised_render_is_the_cli_image_bit_for_bit(tmp_path):
+    """Denoised path tracing from 4 samples per pixel (the regression over the samples'
+    halves) gives `lucent render --denoise`'s image, and keeps the raw image's mean."""
+    scene = lucent.load(CORNELL)
+    img = lucent.render(scene, width=SIZE[0], height=SIZE[1], spp=4, denoise=True)
+    raw = lucent.render(scene, width=SIZE[0], height=SIZE[1], spp=4)
+    want = cli_image(tmp_path, [str(CORNELL), "--size", f"{SIZE[0]}x{SIZE[1]}", "--spp", "4", "--denoise"])
+    got = same_through_exr(tmp_path, img)
+    assert np.array_equal(got, want), f"max difference {np.abs(got - want).max()}"
+    assert abs(img.mean() / raw.mean() - 1) < 0.01
+    # Smoother than the raw samples: neighbouring pixels differ less.
+    rough = lambda a: float(np.abs(np.diff(a, axis=1)).mean())
+    assert rough(img) < 0.7 * rough(raw)
+
+
 def test_aovs_and_denoise(tmp_path):
     scene = lucent.load(CORNELL)
     img, aov = lucent.render(scene, width=64, height=48, spp=2, aovs=("albedo", "normal", "depth", "prim_id", "inst_id", "geom_id"))

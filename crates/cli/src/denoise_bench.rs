@@ -19,9 +19,6 @@ use lucent_render::{
     RenderSettings, World,
 };
 
-/// Points per pixel along each axis of the regression denoiser's guides (as `lucent
-/// render --denoise` takes them).
-const FEATURE_GRID: u32 = 4;
 use lucent_scene::CameraDesc;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -116,7 +113,7 @@ pub fn run(o: &DenoiseOptions) -> Result<()> {
             let reference = pool.install(|| reference(o, name, &world, &cam))?;
             let rel = |f: &Film| f.rel_mse(&reference).unwrap_or(f64::NAN);
             let aovs = pool.install(|| render_aovs(&world, &cam, wd, ht));
-            let feats = pool.install(|| render_features(&world, &cam, wd, ht, FEATURE_GRID));
+            let feats = pool.install(|| render_features(&world, &cam, wd, ht, lucent_render::denoise::regression::FEATURE_GRID));
             let mean = |f: &Film| f.pixels.iter().map(|p| f64::from(p.x + p.y + p.z)).sum::<f64>();
             // Per sample count (4, 16): relMSE of the three denoised images and of the raw
             // one with 16 times the samples, per seed.
@@ -186,7 +183,7 @@ pub fn run(o: &DenoiseOptions) -> Result<()> {
         let ms = median(&mut times) * 1e3;
         // The regression denoiser, once (seconds), on the halves of 4 samples.
         let t = Instant::now();
-        let feats = pool.install(|| render_features(&world, &cam, w, h, FEATURE_GRID));
+        let feats = pool.install(|| render_features(&world, &cam, w, h, lucent_render::denoise::regression::FEATURE_GRID));
         let feature_ms = t.elapsed().as_secs_f64() * 1e3;
         let rs = RenderSettings { spp: 4, ..RenderSettings::new(w, h) };
         let two = pool.install(|| render_two_halves(&world, &cam, &rs, &|_| {})).ok().context("two halves")?;

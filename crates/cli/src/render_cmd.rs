@@ -26,10 +26,6 @@ const HALVES_SPP: u32 = 16;
 /// -> 0.0011, Sponza 0.0096 -> 0.0061, the kitchen 0.058 -> 0.013).
 const REGRESSION_SPP: u32 = 4;
 
-/// Points per pixel along each axis of the regression denoiser's guides
-/// (`render_features`: 4 × 4, as `lucent bench denoise` measures it).
-const FEATURE_GRID: u32 = 4;
-
 /// Which denoiser `--denoise` runs.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Denoiser {
@@ -484,7 +480,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
             let t = Instant::now();
             let (f, how) = match (&two, &variance) {
                 (Some(hv), _) => {
-                    let feats = lucent_render::integrator::guides::render_features(&world, &cam, w, h, FEATURE_GRID);
+                    let feats = lucent_render::integrator::guides::render_features(
+                        &world,
+                        &cam,
+                        w,
+                        h,
+                        lucent_render::denoise::regression::FEATURE_GRID,
+                    );
                     let s = lucent_render::denoise::regression::RegressionSettings::default();
                     (
                         lucent_render::denoise::regression::denoise_halves(&hv.a, &hv.b, aovs, &feats, &s),

@@ -97,6 +97,7 @@ fn render_bands(
     s0: u32,
     s1: u32,
     acc: &mut FilmAccumulator,
+    mut half: Option<&mut FilmAccumulator>,
     threads: Option<usize>,
 ) -> PyResult<()> {
     let (x1, h) = (x0 + ww, wy + wh);
@@ -106,6 +107,13 @@ fn render_bands(
         let part = py.detach(|| {
             guard("render", || crate::threads::run(threads, || lucent_render::render_region(world, cam, settings, region, &|_| {}).0))
         })?;
+        if let Some(h) = half.as_deref_mut() {
+            // (The half's own image counts its samples from 0.)
+            let mut own = part.clone();
+            own.region.s0 -= s0;
+            own.region.s1 -= s0;
+            h.merge(own).map_err(|e| LucentError::new_err(format!("render: {e}")))?;
+        }
         acc.merge(part).map_err(|e| LucentError::new_err(format!("render: {e}")))?;
         py.check_signals()?;
         y0 += BAND;
@@ -200,7 +208,9 @@ fn check_aovs(aovs: &[String]) -> PyResult<()> {
 /// ``'whitted'``, ``'vpl'``, ``'eye-light'``, ``'normals'``, ``'path-scalar'``.
 /// ``aovs``: names of extra images (``albedo``, ``normal``, ``depth``, ``prim_id``,
 /// ``inst_id``, ``geom_id``): then ``(image, {name: array})`` is returned. ``denoise``:
-/// the image is denoised with its albedo, normal and depth guides.
+/// the image is denoised with its albedo, normal and depth guides (path tracing from 4
+/// samples per pixel on the whole film: the regression over the two halves of the
+/// samples, as ``lucent render --denoise``, seconds per frame; else the à-trous filter).
 #[pyfunction]
 #[pyo3(signature = (scene, camera = None, *, width = None, height = None, spp = None, integrator = "path", max_depth = None, seed = None, aovs = None, denoise = false, threads = None))]
 #[allow(clippy::too_many_arguments)]
@@ -227,7 +237,22 @@ pub fn render<'py>(
     let p = &job.prepared;
     let (w, h) = (p.settings.width, p.settings.height);
     let mut acc = FilmAccumulator::new(w, h);
-    render_bands(py, &p.world, &p.camera, &p.settings, rendered(p), 0, p.settings.spp, &mut acc, threads)?;
+    // Denoised path tracing from 4 samples per pixel on the whole film: the regression
+    // denoiser over the two halves of the samples, as `lucent render --denoise` (the same
+    // image, bit for bit); the halves' own images are kept as they are rendered.
+    let spp = p.settings.spp.max(1);
+    let regression = denoise && p.crop.is_none() && spp >= 4 && matches!(p.settings.integrator, lucent_render::Integrator::Path(_));
+    let mut halves = None;
+    if regression {
+        let half = spp / 2;
+        let (mut a, mut b) = (FilmAccumulator::new(w, h), FilmAccumulator::new(w, h));
+        render_bands(py, &p.world, &p.camera, &p.settings, rendered(p), 0, half, &mut acc, Some(&mut a), threads)?;
+        render_bands(py, &p.world, &p.camera, &p.settings, rendered(p), half, spp, &mut acc, Some(&mut b), threads)?;
+        let bg = p.world.scene().background;
+        halves = Some((a.resolve(bg), b.resolve(bg)));
+    } else {
+        render_bands(py, &p.world, &p.camera, &p.settings, rendered(p), 0, p.settings.spp, &mut acc, None, threads)?;
+    }
     let mut film = window(p, acc.resolve(p.world.scene().background));
     let guides = (!aov_names.is_empty() || denoise).then(|| {
         let g = py.detach(|| crate::threads::run(threads, || lucent_render::render_aovs(&p.world, &p.camera, w, h)));
@@ -236,8 +261,32 @@ pub fn render<'py>(
             None => g,
         }
     });
-    if let (true, Some(g)) = (denoise, &guides) {
-        film = py.detach(|| crate::threads::run(threads, || lucent_render::denoise(&film, g, &lucent_render::DenoiseSettings::default())));
+    match (denoise, &guides, &halves) {
+        (true, Some(g), Some((a, b))) => {
+            film = py.detach(|| {
+                crate::threads::run(threads, || {
+                    let feats = lucent_render::integrator::guides::render_features(
+                        &p.world,
+                        &p.camera,
+                        w,
+                        h,
+                        lucent_render::denoise::regression::FEATURE_GRID,
+                    );
+                    lucent_render::denoise::regression::denoise_halves(
+                        a,
+                        b,
+                        g,
+                        &feats,
+                        &lucent_render::denoise::regression::RegressionSettings::default(),
+                    )
+                })
+            });
+        }
+        (true, Some(g), None) => {
+            film =
+                py.detach(|| crate::threads::run(threads, || lucent_render::denoise(&film, g, &lucent_render::DenoiseSettings::default())));
+        }
+        _ => {}
     }
     let img = film_array(py, &film)?.into_any();
     match guides {
@@ -300,7 +349,7 @@ impl Renderer {
         let settings = RenderSettings { spp: s1, ..p.job.prepared.settings };
         let before = p.acc.clone();
         let prep = &p.job.prepared;
-        let r = render_bands(py, &prep.world, &prep.camera, &settings, rendered(prep), s0, s1, &mut p.acc, self.threads);
+        let r = render_bands(py, &prep.world, &prep.camera, &settings, rendered(prep), s0, s1, &mut p.acc, None, self.threads);
         match r {
             Ok(()) => {
                 p.spp = s1;

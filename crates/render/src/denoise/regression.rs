@@ -102,6 +102,10 @@ pub struct Features {
     pub coverage: Vec<f32>,
 }
 
+/// Points per pixel along each axis of the guides [`denoise_halves`] is measured with
+/// ([`crate::integrator::guides::render_features`]'s `grid`).
+pub const FEATURE_GRID: u32 = 4;
+
 /// Guides of the regression: shading normal (3), log distance, albedo (3), screen x and y.
 const NF: usize = 9;
 /// With the intercept.
