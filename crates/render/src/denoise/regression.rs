@@ -98,8 +98,6 @@ pub struct Features {
     pub normal: Vec<Vec3>,
     /// Distance, over the points that meet a surface (infinite: none does).
     pub depth: Vec<f32>,
-    /// The share of points that meet a surface.
-    pub coverage: Vec<f32>,
 }
 
 /// Points per pixel along each axis of the guides [`denoise_halves`] is measured with
@@ -801,7 +799,6 @@ mod tests {
     /// picture.
     fn picture() -> (Film, Film, Aovs, Features, Film) {
         let (w, h) = (48u32, 32u32);
-        let n = (w * h) as usize;
         let mut rnd = uniform(99);
         let (mut a, mut b, mut clean) = (Vec::new(), Vec::new(), Vec::new());
         let (mut albedo, mut normal, mut depth, mut emission) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -828,7 +825,7 @@ mod tests {
             }
         }
         let film = |p: Vec<Vec3>| Film { width: w, height: h, pixels: p };
-        let feats = Features { albedo: albedo.clone(), normal: normal.clone(), depth: depth.clone(), coverage: vec![1.0; n] };
+        let feats = Features { albedo: albedo.clone(), normal: normal.clone(), depth: depth.clone() };
         let aovs = Aovs { albedo: film(albedo), normal: film(normal), depth, emission: film(emission) };
         (film(a), film(b), aovs, feats, film(clean))
     }

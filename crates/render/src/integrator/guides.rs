@@ -105,13 +105,13 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> Aovs {
 /// pixel, the means over a `grid` × `grid` lattice of points in it (as the box filter
 /// averages the colour's samples, so that a pixel straddling an edge gets the mixture of
 /// both sides' guides its colour is a mixture of) of the albedo, the shading normal and
-/// the distance of the first surface past mirrors and glass that each point's ray meets,
-/// and the share of points that meet one (the normal and distance over those).
+/// the distance of the first surface past mirrors and glass that each point's ray meets
+/// (the normal and distance over the points that meet one).
 #[must_use]
 pub fn render_features(w: &World, cam: &Camera, width: u32, height: u32, grid: u32) -> crate::denoise::regression::Features {
     let n = width as usize * height as usize;
     let grid = grid.max(1);
-    let px: Vec<(Vec3, Vec3, f32, f32)> = (0..n)
+    let px: Vec<(Vec3, Vec3, f32)> = (0..n)
         .into_par_iter()
         .map(|i| {
             let (x, y) = ((i % width as usize) as f32, (i / width as usize) as f32);
@@ -133,9 +133,9 @@ pub fn render_features(w: &World, cam: &Camera, width: u32, height: u32, grid: u
             }
             let m = (grid * grid) as f32;
             if hits > 0.0 {
-                (al / m, nn / hits, d / hits, hits / m)
+                (al / m, nn / hits, d / hits)
             } else {
-                (al / m, Vec3::ZERO, f32::INFINITY, 0.0)
+                (al / m, Vec3::ZERO, f32::INFINITY)
             }
         })
         .collect();
@@ -143,7 +143,6 @@ pub fn render_features(w: &World, cam: &Camera, width: u32, height: u32, grid: u
         albedo: px.iter().map(|p| p.0).collect(),
         normal: px.iter().map(|p| p.1).collect(),
         depth: px.iter().map(|p| p.2).collect(),
-        coverage: px.iter().map(|p| p.3).collect(),
     }
 }
 
