@@ -11,7 +11,6 @@
 use crate::stats::median;
 use anyhow::{bail, Context, Result};
 use lucent_accel::MeshOptions;
-use lucent_render::color::luminance;
 use lucent_render::denoise::regression::{denoise_halves, RegressionSettings};
 use lucent_render::integrator::guides::render_features;
 use lucent_render::{
@@ -129,9 +128,7 @@ pub fn run(o: &DenoiseOptions) -> Result<()> {
                     };
                     let two = pool.install(|| render_two_halves(&world, &cam, &rs, &|_| {})).ok().context("two halves")?;
                     let img = &two.whole;
-                    // (As `render_halves` estimates it.)
-                    let var: Vec<f32> =
-                        two.a.pixels.iter().zip(&two.b.pixels).map(|(&x, &y)| (luminance(x) - luminance(y)).powi(2) / 4.0).collect();
+                    let var = two.luminance_variance();
                     let d = pool.install(|| denoise(img, &aovs, &DenoiseSettings::default()));
                     let dv = pool.install(|| denoise_with_variance(img, &aovs, &DenoiseSettings::default(), &var));
                     let dr = pool.install(|| denoise_halves(&two.a, &two.b, &aovs, &feats, &regression));

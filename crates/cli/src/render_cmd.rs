@@ -19,13 +19,6 @@ use std::time::Instant;
 /// kitchen.
 const HALVES_SPP: u32 = 16;
 
-/// The least samples per pixel from which `--denoise` uses the regression denoiser
-/// (`lucent_render::denoise::regression`) on path-traced images: two halves of two
-/// samples each. On the tuning scenes (`lucent bench denoise`, 256x192, median of three
-/// seeds) it beat the à-trous filter at 4 samples on all three (relMSE Cornell box 0.0017
-/// -> 0.0011, Sponza 0.0096 -> 0.0061, the kitchen 0.058 -> 0.013).
-const REGRESSION_SPP: u32 = 4;
-
 /// Which denoiser `--denoise` runs.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Denoiser {
@@ -378,20 +371,24 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     let t2 = Instant::now();
     let mut cluster = None;
-    // Denoised path tracing from HALVES_SPP samples per pixel measures each pixel's noise
-    // from the two halves of its samples (render_halves), which the denoiser then follows.
+    // Denoised path tracing renders its samples in two halves: for the regression
+    // denoiser (from its MIN_SPP), else from HALVES_SPP for the à-trous filter to follow
+    // each pixel's noise as the halves measure it (render_halves).
     let path = matches!(settings.integrator, lucent_render::Integrator::Path(_));
     let regression = denoise
         && crop.is_none()
         && path
-        && settings.spp >= REGRESSION_SPP
+        && settings.spp >= lucent_render::denoise::regression::MIN_SPP
         && match a.denoiser {
             Denoiser::Auto => !built_in_denoise,
             Denoiser::Regression => true,
             Denoiser::Atrous => false,
         };
     if denoise && a.denoiser == Denoiser::Regression && !regression {
-        tracing::warn!("--denoiser regression needs path tracing, at least {REGRESSION_SPP} samples per pixel and the whole film: the à-trous filter runs");
+        let min = lucent_render::denoise::regression::MIN_SPP;
+        tracing::warn!(
+            "--denoiser regression needs path tracing, at least {min} samples per pixel and the whole film: the à-trous filter runs"
+        );
     }
     let halves = denoise && crop.is_none() && path && (regression || settings.spp >= HALVES_SPP);
     let mut variance = None;
@@ -479,20 +476,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
         Some(aovs) if denoise => {
             let t = Instant::now();
             let (f, how) = match (&two, &variance) {
-                (Some(hv), _) => {
-                    let feats = lucent_render::integrator::guides::render_features(
-                        &world,
-                        &cam,
-                        w,
-                        h,
-                        lucent_render::denoise::regression::FEATURE_GRID,
-                    );
-                    let s = lucent_render::denoise::regression::RegressionSettings::default();
-                    (
-                        lucent_render::denoise::regression::denoise_halves(&hv.a, &hv.b, aovs, &feats, &s),
-                        "regression over the samples' halves",
-                    )
-                }
+                (Some(hv), _) => (
+                    lucent_render::denoise::regression::denoise_render(&world, &cam, &hv.a, &hv.b, aovs),
+                    "regression over the samples' halves",
+                ),
                 (None, Some(v)) => (
                     lucent_render::denoise_with_variance(&film, aovs, &lucent_render::DenoiseSettings::default(), v),
                     "à-trous, the halves' noise",

@@ -237,11 +237,14 @@ pub fn render<'py>(
     let p = &job.prepared;
     let (w, h) = (p.settings.width, p.settings.height);
     let mut acc = FilmAccumulator::new(w, h);
-    // Denoised path tracing from 4 samples per pixel on the whole film: the regression
+    // Denoised path tracing from MIN_SPP samples per pixel on the whole film: the regression
     // denoiser over the two halves of the samples, as `lucent render --denoise` (the same
     // image, bit for bit); the halves' own images are kept as they are rendered.
     let spp = p.settings.spp.max(1);
-    let regression = denoise && p.crop.is_none() && spp >= 4 && matches!(p.settings.integrator, lucent_render::Integrator::Path(_));
+    let regression = denoise
+        && p.crop.is_none()
+        && spp >= lucent_render::denoise::regression::MIN_SPP
+        && matches!(p.settings.integrator, lucent_render::Integrator::Path(_));
     let mut halves = None;
     if regression {
         let half = spp / 2;
@@ -264,22 +267,7 @@ pub fn render<'py>(
     match (denoise, &guides, &halves) {
         (true, Some(g), Some((a, b))) => {
             film = py.detach(|| {
-                crate::threads::run(threads, || {
-                    let feats = lucent_render::integrator::guides::render_features(
-                        &p.world,
-                        &p.camera,
-                        w,
-                        h,
-                        lucent_render::denoise::regression::FEATURE_GRID,
-                    );
-                    lucent_render::denoise::regression::denoise_halves(
-                        a,
-                        b,
-                        g,
-                        &feats,
-                        &lucent_render::denoise::regression::RegressionSettings::default(),
-                    )
-                })
+                crate::threads::run(threads, || lucent_render::denoise::regression::denoise_render(&p.world, &p.camera, a, b, g))
             });
         }
         (true, Some(g), None) => {

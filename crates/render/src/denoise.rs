@@ -296,6 +296,26 @@ fn guides(w: usize, h: usize, normal: &[Vec3], depth: &[f32], valid: impl Fn(usi
     g
 }
 
+/// The guides of an image of `w` × `h` pixels from its AOVs, with the depth's slopes:
+/// a pixel is filtered where it sees a surface that emits nothing (emitters pass through:
+/// their light is not the albedo's to scale) and its colour is fine (`colour_ok`); dark
+/// surfaces are filtered among themselves (see `FILTER_ALBEDO_MIN`).
+fn aov_guides(w: usize, h: usize, aovs: &Aovs, colour_ok: impl Fn(usize) -> bool) -> Guides {
+    let mut g = guides(
+        w,
+        h,
+        &aovs.normal.pixels,
+        &aovs.depth,
+        |i| {
+            let (nn, z) = (aovs.normal.pixels[i], aovs.depth[i]);
+            z.is_finite() && z > 0.0 && nn != Vec3::ZERO && aovs.emission.pixels[i].max_element() <= 0.0 && colour_ok(i)
+        },
+        |i| is_dark(aovs.albedo.pixels[i]),
+    );
+    slopes(&mut g);
+    g
+}
+
 /// The depth's slope (the smaller one-sided difference toward the same surface, 0 where
 /// there is none), on the guides.
 fn slopes(g: &mut Guides) {
@@ -977,20 +997,7 @@ pub(crate) fn denoise_with(color: &Film, aovs: &Aovs, s: &DenoiseSettings, varia
         return color.clone();
     }
     let alb: Vec<Vec3> = aovs.albedo.pixels.iter().map(|&a| demodulating(a)).collect();
-    let mut g = guides(
-        w,
-        h,
-        &aovs.normal.pixels,
-        &aovs.depth,
-        // (Emitters pass through: their light is not the albedo's to scale.)
-        |i| {
-            let (nn, z) = (aovs.normal.pixels[i], aovs.depth[i]);
-            z.is_finite() && z > 0.0 && nn != Vec3::ZERO && aovs.emission.pixels[i].max_element() <= 0.0 && color.pixels[i].is_finite()
-        },
-        // (Dark surfaces are filtered among themselves: see `FILTER_ALBEDO_MIN`.)
-        |i| is_dark(aovs.albedo.pixels[i]),
-    );
-    slopes(&mut g);
+    let g = aov_guides(w, h, aovs, |i| color.pixels[i].is_finite());
     let albedo = planes(&alb);
     // Demodulated colour.
     let mut c = planes(&(0..n).map(|i| if g.kind[i] != 0.0 { color.pixels[i] / alb[i] } else { Vec3::ZERO }).collect::<Vec<_>>());

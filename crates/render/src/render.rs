@@ -135,15 +135,7 @@ pub fn render_region(w: &World, cam: &Camera, s: &RenderSettings, region: Region
 pub fn render_halves(w: &World, cam: &Camera, s: &RenderSettings, progress: &(dyn Fn(u64) + Sync)) -> (Film, Option<Vec<f32>>, u64) {
     match render_two_halves(w, cam, s, progress) {
         Ok(h) => {
-            let variance =
-                h.a.pixels
-                    .iter()
-                    .zip(&h.b.pixels)
-                    .map(|(&a, &b)| {
-                        let d = crate::color::luminance(a) - crate::color::luminance(b);
-                        d * d / 4.0
-                    })
-                    .collect();
+            let variance = h.luminance_variance();
             (h.whole, Some(variance), h.rays)
         }
         Err((f, rays)) => (f, None, rays),
@@ -162,6 +154,23 @@ pub struct Halves {
     pub whole: Film,
     /// Rays traced.
     pub rays: u64,
+}
+
+impl Halves {
+    /// Each pixel's variance of its mean's luminance, from the halves' means `a` and `b`:
+    /// (ℓ(a) − ℓ(b))² / 4 (what [`crate::denoise::denoise_with_variance`] takes).
+    #[must_use]
+    pub fn luminance_variance(&self) -> Vec<f32> {
+        self.a
+            .pixels
+            .iter()
+            .zip(&self.b.pixels)
+            .map(|(&a, &b)| {
+                let d = crate::color::luminance(a) - crate::color::luminance(b);
+                d * d / 4.0
+            })
+            .collect()
+    }
 }
 
 /// [`Halves`] of `s.spp` samples per pixel; with fewer than two samples there are no
