@@ -51,6 +51,7 @@
 use crate::aov::demodulating;
 use crate::color::luminance;
 use crate::film::{Aovs, Film};
+pub use crate::integrator::guides::Features;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -86,18 +87,6 @@ impl Default for RegressionSettings {
             outliers: true,
         }
     }
-}
-
-/// The regression's guides per pixel, each the mean over points spread over the pixel
-/// ([`crate::integrator::guides::render_features`]).
-#[derive(Clone, Debug, Default)]
-pub struct Features {
-    /// Albedo (past mirrors and glass, times the chain's throughput).
-    pub albedo: Vec<Vec3>,
-    /// Shading normal (the mean, not normalised), over the points that meet a surface.
-    pub normal: Vec<Vec3>,
-    /// Distance, over the points that meet a surface (infinite: none does).
-    pub depth: Vec<f32>,
 }
 
 /// Points per pixel along each axis of the guides [`denoise_halves`] is measured with

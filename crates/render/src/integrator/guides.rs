@@ -101,14 +101,27 @@ pub fn render_aovs(w: &World, cam: &Camera, width: u32, height: u32) -> Aovs {
     }
 }
 
-/// The regression denoiser's guides ([`crate::denoise::regression::Features`]): per
+/// The regression's guides per pixel, each the mean over points spread over the pixel
+/// ([`render_features`]), as the regression denoiser
+/// ([`crate::denoise::regression`]) takes them.
+#[derive(Clone, Debug, Default)]
+pub struct Features {
+    /// Albedo (past mirrors and glass, times the chain's throughput).
+    pub albedo: Vec<Vec3>,
+    /// Shading normal (the mean, not normalised), over the points that meet a surface.
+    pub normal: Vec<Vec3>,
+    /// Distance, over the points that meet a surface (infinite: none does).
+    pub depth: Vec<f32>,
+}
+
+/// The regression denoiser's guides ([`Features`]): per
 /// pixel, the means over a `grid` × `grid` lattice of points in it (as the box filter
 /// averages the colour's samples, so that a pixel straddling an edge gets the mixture of
 /// both sides' guides its colour is a mixture of) of the albedo, the shading normal and
 /// the distance of the first surface past mirrors and glass that each point's ray meets
 /// (the normal and distance over the points that meet one).
 #[must_use]
-pub fn render_features(w: &World, cam: &Camera, width: u32, height: u32, grid: u32) -> crate::denoise::regression::Features {
+pub fn render_features(w: &World, cam: &Camera, width: u32, height: u32, grid: u32) -> Features {
     let n = width as usize * height as usize;
     let grid = grid.max(1);
     let px: Vec<(Vec3, Vec3, f32)> = (0..n)
@@ -139,11 +152,7 @@ pub fn render_features(w: &World, cam: &Camera, width: u32, height: u32, grid: u
             }
         })
         .collect();
-    crate::denoise::regression::Features {
-        albedo: px.iter().map(|p| p.0).collect(),
-        normal: px.iter().map(|p| p.1).collect(),
-        depth: px.iter().map(|p| p.2).collect(),
-    }
+    Features { albedo: px.iter().map(|p| p.0).collect(), normal: px.iter().map(|p| p.1).collect(), depth: px.iter().map(|p| p.2).collect() }
 }
 
 /// Most mirrors and glass surfaces the guides follow (as the VPL integrator's camera paths).
