@@ -174,6 +174,7 @@ impl PreparedMaterial {
                     (r2.max(0.001), r2.max(0.001))
                 };
                 let gloss = float(&p.clearcoat_gloss);
+                let cc_alpha = 0.1 * (1.0 - gloss) + 0.001 * gloss;
                 Bsdf::Principled(Principled {
                     base: color(&p.base_color),
                     roughness: r,
@@ -184,7 +185,8 @@ impl PreparedMaterial {
                     sheen_tint: on(has.sheen_tint, &p.sheen_tint),
                     flatness: on(has.flatness, &p.flatness),
                     clearcoat: on(has.clearcoat, &p.clearcoat),
-                    cc_alpha: 0.1 * (1.0 - gloss) + 0.001 * gloss,
+                    cc_alpha,
+                    cc_ln: Principled::cc_ln_of(cc_alpha),
                     mf: Microfacet::anisotropic(lucent_scene::Distribution::Ggx, ax, ay),
                     eta: p.eta,
                     rates: p.rates,

@@ -62,6 +62,8 @@ pub struct Principled {
     pub clearcoat: f32,
     /// The clearcoat's GTR1 α.
     pub cc_alpha: f32,
+    /// ln α² of the clearcoat's α (GTR1's normalisation; see [`Principled::cc_ln_of`]).
+    pub cc_ln: f32,
     /// The main lobes' GGX distribution.
     pub mf: Microfacet,
     /// Relative index.
@@ -73,14 +75,14 @@ pub struct Principled {
 }
 
 /// Schlick's weight (1 − c)⁵, c clamped to [0, 1].
-#[inline]
+#[inline(always)]
 fn schlick_weight(c: f32) -> f32 {
     let m = (1.0 - c).clamp(0.0, 1.0);
     (m * m) * (m * m) * m
 }
 
 /// a (1 − t) + b t.
-#[inline]
+#[inline(always)]
 fn lerp(a: f32, b: f32, t: f32) -> f32 {
     a * (1.0 - t) + b * t
 }
@@ -88,6 +90,7 @@ fn lerp(a: f32, b: f32, t: f32) -> f32 {
 /// Schlick's Fresnel term of reflectance `r0` at normal incidence, for a direction of
 /// cosine `cos_i` with the facet (negative: from inside), with the refracted angle's
 /// weight when the light comes from the denser side, as Mitsuba's `calc_schlick`.
+#[inline(always)]
 fn schlick(r0: Vec3, cos_i: f32, eta: f32) -> Vec3 {
     let outside = cos_i >= 0.0;
     let (eta_it, eta_ti) = if outside { (eta, 1.0 / eta) } else { (1.0 / eta, eta) };
@@ -98,13 +101,14 @@ fn schlick(r0: Vec3, cos_i: f32, eta: f32) -> Vec3 {
 
 /// Whether the facet `m` and the macro surface agree on the sides of `wo` and `wi`
 /// (`reflection`: both on the facet's viewer side, else `wi` beyond it).
-#[inline]
+#[inline(always)]
 fn facet_agrees(m: Vec3, wo: Vec3, wi: Vec3, cos_o: f32, reflection: bool) -> bool {
     let m = if cos_o < 0.0 { -m } else { m };
     wo.dot(m) > 0.0 && if reflection { wi.dot(m) > 0.0 } else { wi.dot(m) < 0.0 }
 }
 
 /// Smith's masking of GGX of roughness `alpha` (the clearcoat's, isotropic).
+#[inline(always)]
 fn smith_ggx1(v: Vec3, m: Vec3, alpha: f32) -> f32 {
     let c2 = v.z * v.z;
     let tan2 = (1.0 - c2) / c2;
@@ -118,10 +122,13 @@ fn smith_ggx1(v: Vec3, m: Vec3, alpha: f32) -> f32 {
     }
 }
 
-/// Burley's GTR1 distribution of roughness `alpha`: D(m).
-fn gtr1(m: Vec3, alpha: f32) -> f32 {
+/// Burley's GTR1 distribution of roughness `alpha`: D(m); `ln_a2` is ln α² (made once
+/// per surface point: the logarithm is a library call, which a loop over lanes cannot
+/// vectorize).
+#[inline(always)]
+fn gtr1(m: Vec3, alpha: f32, ln_a2: f32) -> f32 {
     let a2 = alpha * alpha;
-    let r = (a2 - 1.0) / (PI * a2.ln() * (1.0 + (a2 - 1.0) * m.z * m.z));
+    let r = (a2 - 1.0) / (PI * ln_a2 * (1.0 + (a2 - 1.0) * m.z * m.z));
     if r * m.z > 1e-20 {
         r
     } else {
@@ -139,8 +146,14 @@ fn gtr1_sample(u: (f32, f32), alpha: f32) -> Vec3 {
 }
 
 impl Principled {
+    /// The value of [`Principled::cc_ln`] for a clearcoat of GTR1 α `cc_alpha`.
+    #[must_use]
+    pub fn cc_ln_of(cc_alpha: f32) -> f32 {
+        (cc_alpha * cc_alpha).ln()
+    }
+
     /// The weights of the reflecting (diffuse) and transmitting major lobes.
-    #[inline]
+    #[inline(always)]
     fn weights(&self) -> (f32, f32) {
         let brdf = (1.0 - self.metallic) * (1.0 - self.spec_trans);
         let bsdf = if self.has.spec_trans { (1.0 - self.metallic) * self.spec_trans } else { 0.0 };
@@ -149,15 +162,13 @@ impl Principled {
 
     /// The lobes' sampling probabilities (main reflection, transmission, clearcoat,
     /// diffuse) for the dielectric Fresnel term `f`, normalised.
+    #[inline(always)]
     fn probabilities(&self, front: bool, f: f32) -> [f32; 4] {
         let (brdf, bsdf) = self.weights();
         let [diff_rate, spec_rate, cc_rate] = self.rates;
         let reflect = if front { spec_rate * (1.0 - bsdf * (1.0 - f)) } else { f };
-        let trans = match (self.has.spec_trans, front) {
-            (false, _) => 0.0,
-            (true, true) => spec_rate * bsdf * (1.0 - f),
-            (true, false) => 1.0 - f,
-        };
+        let trans = if front { spec_rate * bsdf * (1.0 - f) } else { 1.0 - f };
+        let trans = if self.has.spec_trans { trans } else { 0.0 };
         let cc = if self.has.clearcoat && front { 0.25 * self.clearcoat * cc_rate } else { 0.0 };
         let diffuse = if front { brdf * diff_rate } else { 0.0 };
         let rcp = 1.0 / (reflect + trans + cc + diffuse);
@@ -166,7 +177,7 @@ impl Principled {
 
     /// The half vector of `wo` and `wi` (of a refraction when they lie on opposite sides),
     /// turned up, and the relative index along the path.
-    #[inline]
+    #[inline(always)]
     fn half(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32, bool) {
         let front = wo.z > 0.0;
         let eta_path = if front { self.eta } else { 1.0 / self.eta };
@@ -177,23 +188,25 @@ impl Principled {
 
     /// The main lobe's Fresnel term: the dielectric's, mixed with Schlick's for the
     /// metallic and tinted parts on the front side (Mitsuba's `principled_fresnel`).
+    /// Branch-free, as the value and density are (see [`Principled::eval_pdf`]).
+    #[inline(always)]
     fn fresnel(&self, f_dielectric: f32, cos_i: f32, front: bool, bsdf: f32) -> Vec3 {
-        if !front {
-            return Vec3::splat(bsdf * f_dielectric);
-        }
         let (m, tint) = (self.metallic, self.spec_tint);
-        let mut fs = Vec3::ZERO;
-        if self.has.metallic {
-            fs += m * schlick(self.base, cos_i, self.eta);
+        let fs = Vec3::ZERO;
+        let metal = m * schlick(self.base, cos_i, self.eta);
+        let fs = if self.has.metallic { fs + metal } else { fs };
+        let lum = luminance(self.base);
+        let c_tint = if lum > 0.0 { self.base / lum } else { Vec3::ONE };
+        let eta_it = if cos_i >= 0.0 { self.eta } else { 1.0 / self.eta };
+        let r0 = (eta_it - 1.0) / (eta_it + 1.0);
+        let tinted = (1.0 - m) * tint * schlick(c_tint * (r0 * r0), cos_i, self.eta);
+        let fs = if self.has.spec_tint { fs + tinted } else { fs };
+        let front_f = Vec3::splat((1.0 - m) * (1.0 - tint) * f_dielectric) + fs;
+        if front {
+            front_f
+        } else {
+            Vec3::splat(bsdf * f_dielectric)
         }
-        if self.has.spec_tint {
-            let lum = luminance(self.base);
-            let c_tint = if lum > 0.0 { self.base / lum } else { Vec3::ONE };
-            let eta_it = if cos_i >= 0.0 { self.eta } else { 1.0 / self.eta };
-            let r0 = ((eta_it - 1.0) / (eta_it + 1.0)).powi(2);
-            fs += (1.0 - m) * tint * schlick(c_tint * r0, cos_i, self.eta);
-        }
-        Vec3::splat((1.0 - m) * (1.0 - tint) * f_dielectric) + fs
     }
 
     /// f(wo, wi)·|cos θi|.
@@ -210,20 +223,38 @@ impl Principled {
 
     /// [`Principled::eval`] and [`Principled::pdf`] at once: the half vector, its Fresnel
     /// term and D once (the same bits as apart).
+    ///
+    /// Branch-free: every lobe is computed and kept or not by a select, so that a loop over
+    /// lanes that calls it vectorizes (the lane path tracer's), and one call gives the same
+    /// bits. (A lobe kept adds its term, one left out adds nothing: the same sums in the
+    /// same order as adding only the lobes that are on.)
+    #[inline(always)]
     #[must_use]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        if wo.z == 0.0 {
-            return (Vec3::ZERO, 0.0);
-        }
+        // PERF: every parameter read here, unconditionally: a load that only one arm of a
+        // select makes is a conditional load, which keeps a loop over lanes scalar.
+        let p = *self;
+        p.eval_pdf_local(wo, wi)
+    }
+
+    /// [`Principled::eval_pdf`] of a copy held in registers.
+    #[inline(always)]
+    fn eval_pdf_local(self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let (wh, eta_path, reflect) = self.half(wo, wi);
         let (oh, ih) = (wo.dot(wh), wi.dot(wh));
         let (f, _) = fresnel_dielectric(oh, self.eta);
         let d = self.mf.d_of::<false>(wh);
         let at = At { wh, eta_path, reflect, oh, ih, f, d };
-        (self.value(wo, wi, &at), self.density(wo, wi, &at))
+        let (value, pdf) = (self.value(wo, wi, &at), self.density(wo, wi, &at));
+        if wo.z == 0.0 {
+            (Vec3::ZERO, 0.0)
+        } else {
+            (value, pdf)
+        }
     }
 
     /// The value at `wi` given what it shares with the density.
+    #[inline(always)]
     fn value(&self, wo: Vec3, wi: Vec3, at: &At) -> Vec3 {
         let (ci, co) = (wo.z, wi.z);
         let (brdf, bsdf) = self.weights();
@@ -231,54 +262,50 @@ impl Principled {
         let At { wh, eta_path, reflect, oh, ih, f, d } = *at;
         let refract = ci * co < 0.0;
         let g = self.mf.g_of::<false>(wo, wi, wh);
-        let mut value = Vec3::ZERO;
-        if reflect && f > 0.0 && facet_agrees(wh, wo, wi, ci, true) {
-            value += self.fresnel(f, oh, front, bsdf) * (d * g / (4.0 * ci.abs()));
-        }
-        if self.has.spec_trans && bsdf > 0.0 && refract && f < 1.0 && facet_agrees(wh, wo, wi, ci, false) {
-            // (Radiance is compressed by 1/η² crossing: with it, η² cancels.)
-            let inv = 1.0 / eta_path;
-            let denom = oh + eta_path * ih;
-            let t = (inv * inv * (1.0 - f) * d * g * eta_path * eta_path * oh * ih / (ci * denom * denom)).abs();
-            let root = Vec3::new(self.base.x.sqrt(), self.base.y.sqrt(), self.base.z.sqrt());
-            value += root * (bsdf * t);
-        }
-        if self.has.clearcoat && self.clearcoat > 0.0 && reflect && front && facet_agrees(wh, wo, wi, ci, true) {
-            let fcc = schlick(Vec3::splat(0.04), oh, self.eta).x;
-            let gcc = smith_ggx1(wo, wh, 0.25) * smith_ggx1(wi, wh, 0.25);
-            value += Vec3::splat(self.clearcoat * 0.25 * fcc * gtr1(wh, self.cc_alpha) * gcc * co.abs());
-        }
+        let agree_r = facet_agrees(wh, wo, wi, ci, true);
+        let value = Vec3::ZERO;
+        let spec = self.fresnel(f, oh, front, bsdf) * (d * g / (4.0 * ci.abs()));
+        let value = if reflect & (f > 0.0) & agree_r { value + spec } else { value };
+        // (Radiance is compressed by 1/η² crossing: with it, η² cancels.)
+        let inv = 1.0 / eta_path;
+        let denom = oh + eta_path * ih;
+        let t = (inv * inv * (1.0 - f) * d * g * eta_path * eta_path * oh * ih / (ci * denom * denom)).abs();
+        let root = Vec3::new(self.base.x.sqrt(), self.base.y.sqrt(), self.base.z.sqrt());
+        let trans = root * (bsdf * t);
+        let trans_on = self.has.spec_trans & (bsdf > 0.0) & refract & (f < 1.0) & facet_agrees(wh, wo, wi, ci, false);
+        let value = if trans_on { value + trans } else { value };
+        let fcc = schlick(Vec3::splat(0.04), oh, self.eta).x;
+        let gcc = smith_ggx1(wo, wh, 0.25) * smith_ggx1(wi, wh, 0.25);
+        let coat = Vec3::splat(self.clearcoat * 0.25 * fcc * gtr1(wh, self.cc_alpha, self.cc_ln) * gcc * co.abs());
+        let coat_on = self.has.clearcoat & (self.clearcoat > 0.0) & reflect & front & agree_r;
+        let value = if coat_on { value + coat } else { value };
         let cos_d = wh.dot(wi);
-        if brdf > 0.0 && reflect && front {
-            let (fo, fi) = (schlick_weight(co.abs()), schlick_weight(ci.abs()));
-            let f_diff = (1.0 - 0.5 * fi) * (1.0 - 0.5 * fo);
-            let rr = 2.0 * self.roughness * cos_d * cos_d;
-            let f_retro = rr * (fo + fi + fo * fi * (rr - 1.0));
-            let shape = if self.has.flatness {
-                let fss90 = rr / 2.0;
-                let fss = lerp(1.0, fss90, fo) * lerp(1.0, fss90, fi);
-                let f_ss = 1.25 * (fss * (1.0 / (co.abs() + ci.abs()) - 0.5) + 0.5);
-                lerp(f_diff + f_retro, f_ss, self.flatness)
-            } else {
-                f_diff + f_retro
-            };
-            value += self.base * (brdf * co.abs() * FRAC_1_PI * shape);
+        let (fo, fi) = (schlick_weight(co.abs()), schlick_weight(ci.abs()));
+        let f_diff = (1.0 - 0.5 * fi) * (1.0 - 0.5 * fo);
+        let rr = 2.0 * self.roughness * cos_d * cos_d;
+        let f_retro = rr * (fo + fi + fo * fi * (rr - 1.0));
+        let fss90 = rr / 2.0;
+        let fss = lerp(1.0, fss90, fo) * lerp(1.0, fss90, fi);
+        let f_ss = 1.25 * (fss * (1.0 / (co.abs() + ci.abs()) - 0.5) + 0.5);
+        let shape = if self.has.flatness { lerp(f_diff + f_retro, f_ss, self.flatness) } else { f_diff + f_retro };
+        let diffuse = self.base * (brdf * co.abs() * FRAC_1_PI * shape);
+        let value = if (brdf > 0.0) & reflect & front { value + diffuse } else { value };
+        let fd = schlick_weight(cos_d.abs());
+        let lum = luminance(self.base);
+        let c_tint = if lum > 0.0 { self.base / lum } else { Vec3::ONE };
+        let tinted = Vec3::ONE * (1.0 - self.sheen_tint) + c_tint * self.sheen_tint;
+        let tint = if self.has.sheen_tint { tinted } else { Vec3::ONE };
+        let sheen = tint * (self.sheen * (1.0 - self.metallic) * fd * co.abs());
+        let sheen_on = self.has.sheen & (self.sheen > 0.0) & reflect & (1.0 - self.metallic > 0.0) & front;
+        if sheen_on {
+            value + sheen
+        } else {
+            value
         }
-        if self.has.sheen && self.sheen > 0.0 && reflect && 1.0 - self.metallic > 0.0 && front {
-            let fd = schlick_weight(cos_d.abs());
-            let tint = if self.has.sheen_tint {
-                let lum = luminance(self.base);
-                let c_tint = if lum > 0.0 { self.base / lum } else { Vec3::ONE };
-                Vec3::ONE * (1.0 - self.sheen_tint) + c_tint * self.sheen_tint
-            } else {
-                Vec3::ONE
-            };
-            value += tint * (self.sheen * (1.0 - self.metallic) * fd * co.abs());
-        }
-        value
     }
 
     /// The density at `wi` given what it shares with the value.
+    #[inline(always)]
     fn density(&self, wo: Vec3, wi: Vec3, at: &At) -> f32 {
         let (ci, co) = (wo.z, wi.z);
         let front = ci > 0.0;
@@ -286,29 +313,22 @@ impl Principled {
         let refract = ci * co < 0.0;
         let [p_reflect, p_trans, p_cc, p_diffuse] = self.probabilities(front, f);
         // |∂ωh/∂ωi| of a reflection or a refraction.
-        let jacobian = if self.has.spec_trans && !reflect {
-            (eta_path * eta_path * ih / ((oh + eta_path * ih) * (oh + eta_path * ih))).abs()
-        } else {
-            (1.0 / (4.0 * ih)).abs()
-        };
+        let refraction = (eta_path * eta_path * ih / ((oh + eta_path * ih) * (oh + eta_path * ih))).abs();
+        let jacobian = if self.has.spec_trans & !reflect { refraction } else { (1.0 / (4.0 * ih)).abs() };
         let v = if ci < 0.0 { -wo } else { wo };
-        let spec = |s: &Self| s.mf.pdf_with_d_of::<false>(v, wh, d) * jacobian;
-        let mut pdf = 0.0;
-        let reflect_ok = reflect && facet_agrees(wh, wo, wi, ci, true);
-        if reflect_ok {
-            pdf += p_reflect * spec(self);
+        let spec = self.mf.pdf_with_d_of::<false>(v, wh, d) * jacobian;
+        let pdf = 0.0;
+        let reflect_ok = reflect & facet_agrees(wh, wo, wi, ci, true);
+        let pdf = if reflect_ok { pdf + p_reflect * spec } else { pdf };
+        let pdf = if reflect { pdf + p_diffuse * FRAC_1_PI * co } else { pdf };
+        let trans_ok = self.has.spec_trans & refract & facet_agrees(wh, wo, wi, ci, false);
+        let pdf = if trans_ok { pdf + p_trans * spec } else { pdf };
+        let gtr = if wh.z < 0.0 { 0.0 } else { wh.z * gtr1(wh, self.cc_alpha, self.cc_ln) };
+        if self.has.clearcoat & reflect_ok {
+            pdf + p_cc * gtr * jacobian
+        } else {
+            pdf
         }
-        if reflect {
-            pdf += p_diffuse * FRAC_1_PI * co;
-        }
-        if self.has.spec_trans && refract && facet_agrees(wh, wo, wi, ci, false) {
-            pdf += p_trans * spec(self);
-        }
-        if self.has.clearcoat && reflect_ok {
-            let gtr = if wh.z < 0.0 { 0.0 } else { wh.z * gtr1(wh, self.cc_alpha) };
-            pdf += p_cc * gtr * jacobian;
-        }
-        pdf
     }
 
     /// A lobe chosen by `u` against the probabilities at a visible GGX facet drawn with
@@ -316,6 +336,19 @@ impl Principled {
     /// own facet, the diffuse lobe a cosine-distributed direction, from the same `u2`).
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
+        let (wi, eta) = self.direction(wo, u, u2)?;
+        let (value, pdf) = self.eval_pdf(wo, wi);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        Some(BsdfSample { wi, weight: value / pdf, pdf, delta: false, eta })
+    }
+
+    /// The direction [`Principled::sample`] takes and the relative index it crosses, or
+    /// `None` when it has none (its first part: the lane path tracer finds the value and
+    /// density of the lanes' directions together, on lanes).
+    #[must_use]
+    pub fn direction(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<(Vec3, f32)> {
         let ci = wo.z;
         let (_, bsdf) = self.weights();
         let front = ci > 0.0;
@@ -341,14 +374,7 @@ impl Principled {
             let wi = reflect(wo, m);
             (wi, 1.0, facet_agrees(m, wo, wi, ci, true) && ci * wi.z > 0.0)
         };
-        if !ok {
-            return None;
-        }
-        let (value, pdf) = self.eval_pdf(wo, wi);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        Some(BsdfSample { wi, weight: value / pdf, pdf, delta: false, eta })
+        ok.then_some((wi, eta))
     }
 
     /// Whether light may pass through (the transmission lobe is on and weighs something).
@@ -375,6 +401,7 @@ mod tests {
             flatness: 0.0,
             clearcoat: 0.0,
             cc_alpha: 0.1,
+            cc_ln: Principled::cc_ln_of(0.1),
             mf: Microfacet::new(Distribution::Ggx, 0.25),
             eta: 1.5,
             rates: [1.0, 1.0, 1.0],

@@ -34,8 +34,8 @@ use super::path::{LightSampling, PathSettings, CHOICES, PAIRS};
 use super::wave_profile::{now, Part, Watch};
 use crate::bsdf::sample::reflection_lane;
 use crate::bsdf::{
-    Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, RoughConductor, RoughDielectric,
-    RoughPlasticLane, ThinDielectric,
+    Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, Principled, RoughConductor,
+    RoughDielectric, RoughPlasticLane, ThinDielectric,
 };
 use crate::lanes::on_lanes;
 use crate::lights::area::EmissiveTri;
@@ -398,6 +398,39 @@ impl Model for MetallicRoughnessLane {
         (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta: 1.0 }, self.valid & (pdf > 0.0) & pdf.is_finite())
     }
 }
+/// Mitsuba's principled BSDF on lanes: its direction (a visible facet, a lobe) lane by
+/// lane, then value and density branch-free on lanes.
+#[derive(Clone, Copy)]
+struct PrincipledLane {
+    b: Principled,
+    /// The sampled direction's relative index, and whether there is one.
+    eta: f32,
+    valid: bool,
+}
+impl Model for PrincipledLane {
+    const VECTOR: bool = true;
+    const TWO_PHASE: bool = true;
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
+        some(self.b.sample(wo, u, u2))
+    }
+    #[inline(always)]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        self.b.eval_pdf(wo, wi)
+    }
+    #[inline(always)]
+    fn prepare(&mut self, wo: Vec3, u: f32, u2: (f32, f32)) -> Vec3 {
+        let d = self.b.direction(wo, u, u2);
+        self.valid = d.is_some();
+        let (wi, eta) = d.unwrap_or((Vec3::Z, 1.0));
+        self.eta = eta;
+        wi
+    }
+    #[inline(always)]
+    fn finish(&self, _wo: Vec3, wi: Vec3, f: Vec3, pdf: f32) -> (BsdfSample, bool) {
+        (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta: self.eta }, self.valid & (pdf > 0.0) & pdf.is_finite())
+    }
+}
 impl Model for ThinDielectric {
     const VECTOR: bool = true;
     #[inline(always)]
@@ -638,6 +671,9 @@ macro_rules! run_models {
         if !m.diffuse_glossy.bsdf.is_empty() {
             on_lanes!(|p: &mut Packed<DiffuseGlossy>| p.$method())(&mut m.diffuse_glossy);
         }
+        if !m.principled.bsdf.is_empty() {
+            on_lanes!(|p: &mut Packed<PrincipledLane>| p.$method())(&mut m.principled);
+        }
     }};
 }
 
@@ -697,6 +733,10 @@ macro_rules! each_model {
             let $p = &mut m.diffuse_glossy;
             $body
         }
+        {
+            let $p = &mut m.principled;
+            $body
+        }
     }};
 }
 
@@ -715,6 +755,7 @@ struct Models<'w> {
     metallic_roughness: Box<Packed<MetallicRoughnessLane>>,
     thin: Box<Packed<ThinDielectric>>,
     diffuse_glossy: Box<Packed<DiffuseGlossy>>,
+    principled: Box<Packed<PrincipledLane>>,
 }
 
 impl<'w> Models<'w> {
@@ -733,6 +774,7 @@ impl<'w> Models<'w> {
             metallic_roughness: Packed::new(),
             thin: Packed::new(),
             diffuse_glossy: Packed::new(),
+            principled: Packed::new(),
         }
     }
 
@@ -775,7 +817,8 @@ impl<'w> Models<'w> {
             Bsdf::MetallicRoughness(b) => self.metallic_roughness.push(i, MetallicRoughnessLane { b, valid: false }, wo, wi, u, u2),
             Bsdf::Thin(b) => self.thin.push(i, b, wo, wi, u, u2),
             Bsdf::DiffuseGlossy(b) => self.diffuse_glossy.push(i, b, wo, wi, u, u2),
-            Bsdf::Principled(_) | Bsdf::Blend(_) | Bsdf::Mask(_) | Bsdf::Custom(..) => return false,
+            Bsdf::Principled(b) => self.principled.push(i, PrincipledLane { b, eta: 1.0, valid: false }, wo, wi, u, u2),
+            Bsdf::Blend(_) | Bsdf::Mask(_) | Bsdf::Custom(..) => return false,
         }
         true
     }
