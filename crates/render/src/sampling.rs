@@ -26,7 +26,7 @@ pub fn concentric_disk(u: (f32, f32)) -> Vec2 {
 
 /// Cosine-weighted hemisphere sampling (Malley's method over Shirley and Chiu's concentric
 /// disk), local frame.
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn cosine_hemisphere(u: (f32, f32)) -> Vec3 {
     let d = concentric_disk(u);

@@ -479,7 +479,7 @@ pub fn fresnel_diffuse_reflectance(eta: f32) -> f32 {
 }
 
 /// Mirror reflection of `v` about `m`.
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn reflect(v: Vec3, m: Vec3) -> Vec3 {
     m * (2.0 * v.dot(m)) - v
@@ -488,7 +488,7 @@ pub fn reflect(v: Vec3, m: Vec3) -> Vec3 {
 /// Refraction of `v` through a facet of normal `m` (either side), given the cosine of the
 /// refracted direction `cos_t` (from [`fresnel_dielectric`] of `v · m`) and the relative
 /// index `eta` (inside over outside).
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn refract(v: Vec3, m: Vec3, cos_t: f32, eta: f32) -> Vec3 {
     let eta_ti = if cos_t < 0.0 { 1.0 / eta } else { eta };

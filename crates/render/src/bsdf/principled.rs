@@ -19,7 +19,7 @@
 use super::microfacet::{fresnel_dielectric, reflect, refract, Microfacet};
 use super::sample::BsdfSample;
 use crate::color::luminance;
-use crate::lanes::sin_cos;
+use crate::lanes::{exp, sin_cos};
 use crate::sampling::cosine_hemisphere;
 use glam::Vec3;
 use lucent_scene::PrincipledLobes;
@@ -136,11 +136,14 @@ fn gtr1(m: Vec3, alpha: f32, ln_a2: f32) -> f32 {
     }
 }
 
-/// A GTR1 normal drawn with density D(m) cos θm.
-fn gtr1_sample(u: (f32, f32), alpha: f32) -> Vec3 {
+/// A GTR1 normal drawn with density D(m) cos θm; `ln_a2` is ln α². (α^(2(1 − u)) as
+/// e^((1 − u) ln α²) by [`crate::lanes::exp`], branch-free, where a library `powf` kept a
+/// loop over lanes scalar.)
+#[inline(always)]
+fn gtr1_sample(u: (f32, f32), alpha: f32, ln_a2: f32) -> Vec3 {
     let (sin_phi, cos_phi) = sin_cos(2.0 * PI * u.0);
     let a2 = alpha * alpha;
-    let cos2 = (1.0 - a2.powf(1.0 - u.1)) / (1.0 - a2);
+    let cos2 = (1.0 - exp((1.0 - u.1) * ln_a2)) / (1.0 - a2);
     let sin_t = (1.0 - cos2).max(0.0).sqrt();
     Vec3::new(cos_phi * sin_t, sin_phi * sin_t, cos2.max(0.0).sqrt())
 }
@@ -349,32 +352,64 @@ impl Principled {
     /// density of the lanes' directions together, on lanes).
     #[must_use]
     pub fn direction(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<(Vec3, f32)> {
-        let ci = wo.z;
-        let (_, bsdf) = self.weights();
-        let front = ci > 0.0;
-        if ci == 0.0 || !(front || bsdf > 0.0) {
-            return None;
-        }
-        let v = if ci < 0.0 { -wo } else { wo };
-        let m = self.mf.ggx_sample(v, u2);
-        let (f, cos_t) = fresnel_dielectric(wo.dot(m), self.eta);
-        let [_, p_trans, p_cc, p_diffuse] = self.probabilities(front, f);
-        let (wi, eta, ok) = if u < p_diffuse {
-            let wi = cosine_hemisphere(u2);
-            (wi, 1.0, ci * wi.z > 0.0)
-        } else if self.has.clearcoat && u < p_diffuse + p_cc {
-            let mc = gtr1_sample(u2, self.cc_alpha);
-            let wi = reflect(wo, mc);
-            (wi, 1.0, facet_agrees(mc, wo, wi, ci, true) && ci * wi.z > 0.0)
-        } else if self.has.spec_trans && u < p_diffuse + p_cc + p_trans {
-            let wi = refract(wo, m, cos_t, self.eta);
-            let eta_it = if wo.dot(m) >= 0.0 { self.eta } else { 1.0 / self.eta };
-            (wi, eta_it, facet_agrees(m, wo, wi, ci, false) && ci * wi.z < 0.0)
-        } else {
-            let wi = reflect(wo, m);
-            (wi, 1.0, facet_agrees(m, wo, wi, ci, true) && ci * wi.z > 0.0)
-        };
+        let (wi, eta, ok) = self.direction_lane(wo, u, u2);
         ok.then_some((wi, eta))
+    }
+
+    /// [`Principled::direction`] branch-free (every lobe's direction made, one selected),
+    /// so that a loop over lanes vectorizes; the direction, its relative index and whether
+    /// there is one.
+    #[inline(always)]
+    #[must_use]
+    pub fn direction_lane(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (Vec3, f32, bool) {
+        // (Every parameter read unconditionally, as in `eval_pdf`.)
+        let p = *self;
+        let ci = wo.z;
+        let (_, bsdf) = p.weights();
+        let front = ci > 0.0;
+        let none = (ci == 0.0) | !(front | (bsdf > 0.0));
+        let v = if ci < 0.0 { -wo } else { wo };
+        let m = p.mf.ggx_sample(v, u2);
+        let (f, cos_t) = fresnel_dielectric(wo.dot(m), p.eta);
+        let [_, p_trans, p_cc, p_diffuse] = p.probabilities(front, f);
+        // The lobes in the order they are chosen: diffuse, clearcoat, transmission, the
+        // main reflection.
+        let wd = cosine_hemisphere(u2);
+        let ok_d = ci * wd.z > 0.0;
+        let mc = gtr1_sample(u2, p.cc_alpha, p.cc_ln);
+        let wc = reflect(wo, mc);
+        let ok_c = facet_agrees(mc, wo, wc, ci, true) & (ci * wc.z > 0.0);
+        let wt = refract(wo, m, cos_t, p.eta);
+        let eta_t = if wo.dot(m) >= 0.0 { p.eta } else { 1.0 / p.eta };
+        let ok_t = facet_agrees(m, wo, wt, ci, false) & (ci * wt.z < 0.0);
+        let wr = reflect(wo, m);
+        let ok_r = facet_agrees(m, wo, wr, ci, true) & (ci * wr.z > 0.0);
+        let diffuse = u < p_diffuse;
+        let coat = !diffuse & p.has.clearcoat & (u < p_diffuse + p_cc);
+        let trans = !diffuse & !coat & p.has.spec_trans & (u < p_diffuse + p_cc + p_trans);
+        let pick = |d: Vec3, c: Vec3, t: Vec3, r: Vec3| {
+            if diffuse {
+                d
+            } else if coat {
+                c
+            } else if trans {
+                t
+            } else {
+                r
+            }
+        };
+        let wi = pick(wd, wc, wt, wr);
+        let eta = if trans { eta_t } else { 1.0 };
+        let ok = if diffuse {
+            ok_d
+        } else if coat {
+            ok_c
+        } else if trans {
+            ok_t
+        } else {
+            ok_r
+        };
+        (wi, eta, ok & !none)
     }
 
     /// Whether light may pass through (the transmission lobe is on and weighs something).

@@ -260,6 +260,16 @@ trait Model: Copy {
     fn finish(&self, wo: Vec3, wi: Vec3, f: Vec3, pdf: f32) -> (BsdfSample, bool) {
         reflection_lane(wo, wi, f, pdf)
     }
+    /// With [`Model::TWO_PHASE`]: whether the direction is found on lanes too
+    /// ([`Model::direction_lane`], branch-free), its sample then being `f / pdf` where the
+    /// direction is valid and the density positive and finite (not a delta).
+    const LANE_DIRECTION: bool = false;
+    /// With [`Model::LANE_DIRECTION`]: the sample's direction, the relative index it
+    /// crosses, and whether there is one.
+    #[inline(always)]
+    fn direction_lane(&self, _wo: Vec3, _u: f32, _u2: (f32, f32)) -> (Vec3, f32, bool) {
+        (Vec3::Z, 1.0, false)
+    }
 }
 
 /// A sample as [`Model::sample`] gives it.
@@ -398,37 +408,23 @@ impl Model for MetallicRoughnessLane {
         (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta: 1.0 }, self.valid & (pdf > 0.0) & pdf.is_finite())
     }
 }
-/// Mitsuba's principled BSDF on lanes: its direction (a visible facet, a lobe) lane by
-/// lane, then value and density branch-free on lanes.
-#[derive(Clone, Copy)]
-struct PrincipledLane {
-    b: Principled,
-    /// The sampled direction's relative index, and whether there is one.
-    eta: f32,
-    valid: bool,
-}
-impl Model for PrincipledLane {
+/// Mitsuba's principled BSDF on lanes: its direction, value and density all branch-free,
+/// each a loop over lanes.
+impl Model for Principled {
     const VECTOR: bool = true;
     const TWO_PHASE: bool = true;
+    const LANE_DIRECTION: bool = true;
     #[inline(always)]
     fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (BsdfSample, bool) {
-        some(self.b.sample(wo, u, u2))
+        some(Principled::sample(self, wo, u, u2))
     }
     #[inline(always)]
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        self.b.eval_pdf(wo, wi)
+        Principled::eval_pdf(self, wo, wi)
     }
     #[inline(always)]
-    fn prepare(&mut self, wo: Vec3, u: f32, u2: (f32, f32)) -> Vec3 {
-        let d = self.b.direction(wo, u, u2);
-        self.valid = d.is_some();
-        let (wi, eta) = d.unwrap_or((Vec3::Z, 1.0));
-        self.eta = eta;
-        wi
-    }
-    #[inline(always)]
-    fn finish(&self, _wo: Vec3, wi: Vec3, f: Vec3, pdf: f32) -> (BsdfSample, bool) {
-        (BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta: self.eta }, self.valid & (pdf > 0.0) & pdf.is_finite())
+    fn direction_lane(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (Vec3, f32, bool) {
+        Principled::direction_lane(self, wo, u, u2)
     }
 }
 impl Model for ThinDielectric {
@@ -578,6 +574,23 @@ impl<B: Model> Packed<B> {
     /// The sample of every packed lane.
     #[inline(always)]
     fn sample_all(&mut self) {
+        if B::TWO_PHASE && B::LANE_DIRECTION {
+            let n = self.padded();
+            packed_loop!(self.bsdf, n, |bsdf, j| {
+                let (wi, eta, ok) = bsdf[j].direction_lane(get3(&self.wo, j), self.u[j], (self.u2[0][j], self.u2[1][j]));
+                put3(&mut self.wi, j, wi);
+                self.eta[j] = eta;
+                self.ok[j] = ok;
+            });
+            packed_loop!(self.bsdf, n, |bsdf, j| {
+                let (f, pdf) = bsdf[j].eval_pdf(get3(&self.wo, j), get3(&self.wi, j));
+                put3(&mut self.f, j, f / pdf);
+                self.pdf[j] = pdf;
+                self.ok[j] &= (pdf > 0.0) & pdf.is_finite();
+                self.delta[j] = false;
+            });
+            return;
+        }
         if B::TWO_PHASE {
             // (The directions lane by lane, then their values and densities on lanes as
             // `eval_all` takes them, then the weights. PERF: one loop for the last two, as
@@ -672,7 +685,7 @@ macro_rules! run_models {
             on_lanes!(|p: &mut Packed<DiffuseGlossy>| p.$method())(&mut m.diffuse_glossy);
         }
         if !m.principled.bsdf.is_empty() {
-            on_lanes!(|p: &mut Packed<PrincipledLane>| p.$method())(&mut m.principled);
+            on_lanes!(|p: &mut Packed<Principled>| p.$method())(&mut m.principled);
         }
     }};
 }
@@ -755,7 +768,7 @@ struct Models<'w> {
     metallic_roughness: Box<Packed<MetallicRoughnessLane>>,
     thin: Box<Packed<ThinDielectric>>,
     diffuse_glossy: Box<Packed<DiffuseGlossy>>,
-    principled: Box<Packed<PrincipledLane>>,
+    principled: Box<Packed<Principled>>,
 }
 
 impl<'w> Models<'w> {
@@ -817,7 +830,7 @@ impl<'w> Models<'w> {
             Bsdf::MetallicRoughness(b) => self.metallic_roughness.push(i, MetallicRoughnessLane { b, valid: false }, wo, wi, u, u2),
             Bsdf::Thin(b) => self.thin.push(i, b, wo, wi, u, u2),
             Bsdf::DiffuseGlossy(b) => self.diffuse_glossy.push(i, b, wo, wi, u, u2),
-            Bsdf::Principled(b) => self.principled.push(i, PrincipledLane { b, eta: 1.0, valid: false }, wo, wi, u, u2),
+            Bsdf::Principled(b) => self.principled.push(i, b, wo, wi, u, u2),
             Bsdf::Blend(_) | Bsdf::Mask(_) | Bsdf::Custom(..) => return false,
         }
         true
