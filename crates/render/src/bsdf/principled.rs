@@ -231,9 +231,19 @@ impl Principled {
     /// lanes that calls it vectorizes (the lane path tracer's), and one call gives the same
     /// bits. (A lobe kept adds its term, one left out adds nothing: the same sums in the
     /// same order as adding only the lobes that are on.)
-    #[inline(always)]
+    ///
+    /// (Not inlined: the BSDF dispatch that calls it one lane at a time stays small. The
+    /// lane path tracer's loops call [`Principled::eval_pdf_lane`].)
+    #[inline(never)]
     #[must_use]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        self.eval_pdf_lane(wo, wi)
+    }
+
+    /// [`Principled::eval_pdf`], inlined where it is called (in a loop over lanes).
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_pdf_lane(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         // PERF: every parameter read here, unconditionally: a load that only one arm of a
         // select makes is a conditional load, which keeps a loop over lanes scalar.
         let p = *self;
@@ -350,6 +360,7 @@ impl Principled {
     /// The direction [`Principled::sample`] takes and the relative index it crosses, or
     /// `None` when it has none (its first part: the lane path tracer finds the value and
     /// density of the lanes' directions together, on lanes).
+    #[inline(never)]
     #[must_use]
     pub fn direction(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<(Vec3, f32)> {
         let (wi, eta, ok) = self.direction_lane(wo, u, u2);

@@ -420,7 +420,7 @@ impl Model for Principled {
     }
     #[inline(always)]
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        Principled::eval_pdf(self, wo, wi)
+        Principled::eval_pdf_lane(self, wo, wi)
     }
     #[inline(always)]
     fn direction_lane(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (Vec3, f32, bool) {
