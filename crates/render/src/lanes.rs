@@ -486,9 +486,37 @@ pub fn exp(x: f32) -> f32 {
     }
 }
 
+/// `ln x` (f32) of a positive normal `x`, branch-free as [`exp`]: x = 2^e m with m in
+/// [√½, √2), ln m = 2 atanh((m − 1)/(m + 1)) by its odd series to the 9th power (|s| ≤
+/// 0.172: the next term is below 3e-9 of the result), plus e ln 2 (ln 2 in two parts).
+/// Within 3e-7 of the exact value, relative, or 1e-7 absolute near 1 (tested).
+#[inline(always)]
+#[must_use]
+pub fn ln(x: f32) -> f32 {
+    let (e, m) = x.exponent_mantissa();
+    let big = m > std::f32::consts::SQRT_2;
+    let m = if big { m * 0.5 } else { m };
+    let e = if big { e + 1.0 } else { e };
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let series = s * ((1.0 + s2 * (1.0 / 3.0)) + (s2 * s2) * ((1.0 / 5.0 + s2 * (1.0 / 7.0)) + (s2 * s2) * (1.0 / 9.0)));
+    (e * 0.693_359_4 + 2.0 * series) + e * -2.121_944_4e-4
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`ln`] against the exactly rounded logarithm over positive normal numbers.
+    #[test]
+    fn ln_matches_std() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        for k in 0..200_000 {
+            let x = if k < 1000 { 1.0 + (k as f32 - 500.0) * 1e-4 } else { f32::from_bits(rng.random_range(0x0080_0000u32..0x7f80_0000)) };
+            let (got, want) = (f64::from(ln(x)), f64::from(x).ln());
+            assert!((got - want).abs() <= 3e-7 * want.abs() + 1e-7, "ln {x}: {got} against {want}");
+        }
+    }
     use lucent_accel::math::ulps;
     use rand::{Rng, SeedableRng};
 

@@ -10,7 +10,7 @@
 //! (EGSR 2014), the visible slope's CDF inverted by safeguarded Newton steps. The densities
 //! of those samples use the exact Smith masking (the erf form for Beckmann).
 
-use crate::lanes::{exp, pow_unit, sin_cos};
+use crate::lanes::{exp, pow_fast, sin_cos};
 use glam::Vec3;
 use lucent_scene::Distribution;
 use std::f32::consts::PI;
@@ -174,19 +174,39 @@ impl Microfacet {
     /// visible normals, Beckmann's D(m) cos θm.
     #[must_use]
     pub fn sample(&self, v: Vec3, u: (f32, f32)) -> Vec3 {
-        let (ax, ay) = (self.alpha, self.alpha_y);
         match self.dist {
             Distribution::Ggx => self.ggx_sample(v, u),
             Distribution::Beckmann => {
-                // Stretch to α = 1, sample the visible slopes there, rotate and unstretch.
-                let vs = Vec3::new(ax * v.x, ay * v.y, v.z).normalize();
-                let sin_t = (1.0 - vs.z * vs.z).max(0.0).sqrt();
-                let (cos_p, sin_p) = if sin_t > 1e-7 { (vs.x / sin_t, vs.y / sin_t) } else { (1.0, 0.0) };
-                let (sx, sy) = beckmann_visible_slopes(vs.z, u);
-                let (x, y) = ((cos_p * sx - sin_p * sy) * ax, (sin_p * sx + cos_p * sy) * ay);
-                Vec3::new(-x, -y, 1.0).normalize()
+                let vs = Vec3::new(self.alpha * v.x, self.alpha_y * v.y, v.z).normalize();
+                self.beckmann_from(v, SlopeSearch::begin::<false>(vs.z, u))
             }
         }
+    }
+
+    /// The first part of Beckmann's [`Microfacet::sample`]: the visible slope's search
+    /// after its first [`FIRST_STEPS`] steps, branch-free (a loop over lanes that calls it
+    /// vectorizes).
+    #[inline(always)]
+    #[must_use]
+    pub fn beckmann_start(&self, v: Vec3, u: (f32, f32)) -> SlopeSearch {
+        let vs = Vec3::new(self.alpha * v.x, self.alpha_y * v.y, v.z).normalize();
+        SlopeSearch::start(vs.z, u)
+    }
+
+    /// Beckmann's [`Microfacet::sample`] from its search's first part `s`
+    /// ([`Microfacet::beckmann_start`] of the same `v` and `u`): the search finished (rarely
+    /// more steps), then the normal.
+    #[inline(always)]
+    #[must_use]
+    pub fn beckmann_from(&self, v: Vec3, s: SlopeSearch) -> Vec3 {
+        let (ax, ay) = (self.alpha, self.alpha_y);
+        // Stretch to α = 1, sample the visible slopes there, rotate and unstretch.
+        let vs = Vec3::new(ax * v.x, ay * v.y, v.z).normalize();
+        let sin_t = (1.0 - vs.z * vs.z).max(0.0).sqrt();
+        let (cos_p, sin_p) = if sin_t > 1e-7 { (vs.x / sin_t, vs.y / sin_t) } else { (1.0, 0.0) };
+        let (sx, sy) = s.finish();
+        let (x, y) = ((cos_p * sx - sin_p * sy) * ax, (sin_p * sx + cos_p * sy) * ay);
+        Vec3::new(-x, -y, 1.0).normalize()
     }
 
     /// GGX's visible normal for direction `v` and `u` (see [`Microfacet::sample`]),
@@ -285,42 +305,137 @@ impl Microfacet {
 /// ∝ 1 − x tan θ, by Newton steps kept inside a bisection bracket, from the report's
 /// fitted first guess b₀ = c − (1 + c)(1 − u)^p(θ), c = erf(cot θ). All in f32: two or
 /// three steps where the former f64 search in x took up to 40 with erf and exp each.
+///
+/// (The search is a [`SlopeSearch`]: [`Microfacet::sample`] takes its steps one by one
+/// and stops at the slope; the lane path tracer's Beckmann conductors take the first
+/// [`FIRST_STEPS`] on lanes, branch-free ([`SlopeSearch::start`]), then the rest one by
+/// one: the same numbers. This whole is for the tests.)
+#[cfg(test)]
 fn beckmann_visible_slopes(cos_t: f32, u: (f32, f32)) -> (f32, f32) {
-    let c = cos_t.clamp(1e-6, 1.0);
-    let tan_t = (1.0 - c * c).max(0.0).sqrt() / c;
-    let u0 = u.0.clamp(1e-6, 1.0 - 1e-6);
-    // The bracket, in b = erf x: the support ends at cot θ (the slope seen edge-on).
-    let (mut lo, mut hi) = (-1.0f32, if tan_t > 1e-7 { erf(1.0 / tan_t) } else { 1.0 });
-    let k = tan_t * FRAC_1_SQRT_PI;
-    let cot2 = if tan_t > 1e-7 { 1.0 / (tan_t * tan_t) } else { f32::INFINITY };
-    let norm = 1.0 / (1.0 + hi + k * (-cot2).exp());
-    // (A first guess only: θ by Abramowitz and Stegun's 4.4.45, within 7e-5, and the
-    // power by `pow_unit`'s short series; Newton's steps correct either.)
-    let theta = (1.0 - c).max(0.0).sqrt() * (1.570_728_8 + c * (-0.212_114_4 + c * (0.074_261 - 0.018_729_3 * c)));
-    let fit = 1.0 + theta * (-0.876 + theta * (0.4265 - 0.0594 * theta));
-    let mut b = hi - (1.0 + hi) * pow_unit(1.0 - u0, fit);
-    // (The slope of the last b looked at, when it was close enough.)
-    let mut found = None;
-    for _ in 0..16 {
-        // (Written so that a NaN also falls back to bisection.)
-        if !(b >= lo && b <= hi) {
-            b = 0.5 * (lo + hi);
-        }
-        let x = erfinv(b);
-        let value = norm * (1.0 + b + k * (-x * x).exp()) - u0;
-        if value.abs() < 1e-6 {
-            found = Some(x);
-            break;
-        }
-        if value > 0.0 {
-            hi = b;
-        } else {
-            lo = b;
-        }
-        let slope = norm * (1.0 - x * tan_t);
-        b -= value / slope;
+    SlopeSearch::begin::<false>(cos_t, u).finish()
+}
+
+/// Steps of the slope search taken branch-free, for every lane ([`SlopeSearch::start`]):
+/// from the fitted first guess, 90% of searches end after three, the rest after two or
+/// four (measured over a 200 × 200 grid of cos θ and u); a search still open takes its
+/// further steps one by one ([`SlopeSearch::finish`]).
+/// ([`SlopeSearch::start`] writes its steps out.)
+pub const FIRST_STEPS: usize = 4;
+
+/// Most steps of the slope search.
+pub const MAX_STEPS: usize = 16;
+
+/// The search for Beckmann's visible slope x (see `beckmann_visible_slopes`): its
+/// bracket `[lo, hi]` and guess `b` in b = erf x, the CDF's constants, and the slope once
+/// found.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SlopeSearch {
+    lo: f32,
+    hi: f32,
+    b: f32,
+    norm: f32,
+    k: f32,
+    tan_t: f32,
+    u0: f32,
+    x: f32,
+    found: bool,
+    /// The other slope, y = erf⁻¹(2 u₁ − 1).
+    y: f32,
+    /// Steps taken.
+    taken: f32,
+}
+
+impl SlopeSearch {
+    /// The search for a direction of cosine `cos_t` and the numbers `u`, after its first
+    /// [`FIRST_STEPS`] steps, branch-free (for a loop over lanes).
+    #[inline(always)]
+    #[must_use]
+    pub fn start(cos_t: f32, u: (f32, f32)) -> Self {
+        let mut s = Self::begin::<true>(cos_t, u);
+        // PERF: written out, not as a loop: a loop of four large steps stays a loop, and
+        // a loop over lanes around it is then no innermost loop, which LLVM does not
+        // vectorize.
+        s.step::<true>();
+        s.step::<true>();
+        s.step::<true>();
+        s.step::<true>();
+        s
     }
-    (found.unwrap_or_else(|| erfinv(b)), erfinv(2.0 * u.1.clamp(1e-6, 1.0 - 1e-6) - 1.0))
+
+    /// The search before its first step, with `y` (`LANES`: branch-free; either way the
+    /// same numbers).
+    #[inline(always)]
+    #[must_use]
+    pub fn begin<const LANES: bool>(cos_t: f32, u: (f32, f32)) -> Self {
+        let u0 = u.0;
+        let c = cos_t.clamp(1e-6, 1.0);
+        let tan_t = (1.0 - c * c).max(0.0).sqrt() / c;
+        let u0 = u0.clamp(1e-6, 1.0 - 1e-6);
+        // The bracket, in b = erf x: the support ends at cot θ (the slope seen edge-on).
+        let edge = tan_t > 1e-7;
+        let hi = if edge { erf(1.0 / tan_t) } else { 1.0 };
+        let k = tan_t * FRAC_1_SQRT_PI;
+        let cot2 = if edge { 1.0 / (tan_t * tan_t) } else { f32::INFINITY };
+        let norm = 1.0 / (1.0 + hi + k * exp(-cot2));
+        // (A first guess only: θ by Abramowitz and Stegun's 4.4.45, within 7e-5, and the
+        // power by `pow_fast`'s short series (1 − u in (0, 1), the exponent in [0.44, 1]);
+        // Newton's steps correct either.)
+        let theta = (1.0 - c).max(0.0).sqrt() * (1.570_728_8 + c * (-0.212_114_4 + c * (0.074_261 - 0.018_729_3 * c)));
+        let fit = 1.0 + theta * (-0.876 + theta * (0.4265 - 0.0594 * theta));
+        let b = hi - (1.0 + hi) * pow_fast(1.0 - u0, fit);
+        let y = erfinv_of::<LANES>(2.0 * u.1.clamp(1e-6, 1.0 - 1e-6) - 1.0);
+        Self { lo: -1.0, hi, b, norm, k, tan_t, u0, x: 0.0, found: false, y, taken: 0.0 }
+    }
+
+    /// The search as eleven numbers (for rows of lanes; `found` as 0 or 1).
+    #[inline(always)]
+    #[must_use]
+    pub fn to_row(self) -> [f32; 11] {
+        [self.lo, self.hi, self.b, self.norm, self.k, self.tan_t, self.u0, self.x, if self.found { 1.0 } else { 0.0 }, self.y, self.taken]
+    }
+
+    /// [`SlopeSearch::to_row`] undone.
+    #[inline(always)]
+    #[must_use]
+    pub fn from_row(r: [f32; 11]) -> Self {
+        let [lo, hi, b, norm, k, tan_t, u0, x, found, y, taken] = r;
+        Self { lo, hi, b, norm, k, tan_t, u0, x, found: found != 0.0, y, taken }
+    }
+
+    /// One Newton step kept inside the bracket (bisection where Newton leaves it or gives
+    /// NaN), branch-free; nothing changes once the slope is found.
+    /// (`LANES`: branch-free; either way the same numbers. A step after the slope is found
+    /// changes nothing, so a search that stops there ends as one that takes them.)
+    #[inline(always)]
+    fn step<const LANES: bool>(&mut self) {
+        let Self { lo, hi, b, norm, k, tan_t, u0, .. } = *self;
+        // (Written so that a NaN also falls back to bisection.)
+        let b = if b >= lo && b <= hi { b } else { 0.5 * (lo + hi) };
+        let x = erfinv_of::<LANES>(b);
+        let value = norm * (1.0 + b + k * exp(-x * x)) - u0;
+        let hit = value.abs() < 1e-6;
+        let above = value > 0.0;
+        let slope = norm * (1.0 - x * tan_t);
+        let next = b - value / slope;
+        let go = !self.found & !hit;
+        self.x = if !self.found & hit { x } else { self.x };
+        self.found |= hit;
+        self.hi = if go & above { b } else { self.hi };
+        self.lo = if go & !above { b } else { self.lo };
+        self.b = if go { next } else { self.b };
+        self.taken += 1.0;
+    }
+
+    /// The slopes (x, y): the search's further steps while it is open (up to
+    /// [`MAX_STEPS`] in all).
+    #[inline(always)]
+    #[must_use]
+    pub fn finish(mut self) -> (f32, f32) {
+        while !self.found && self.taken < MAX_STEPS as f32 {
+            self.step::<false>();
+        }
+        (if self.found { self.x } else { erfinv(self.b) }, self.y)
+    }
 }
 
 /// 1 / √π.
@@ -349,18 +464,29 @@ fn erfc(x: f32) -> f32 {
 }
 
 /// erf in f32, from [`erfc`].
+#[inline(always)]
 fn erf(x: f32) -> f32 {
     1.0 - erfc(x)
 }
 
 /// erf⁻¹ in f32 by Giles's approximation ("Approximating the erfinv function", GPU
-/// Computing Gems, 2011; single-precision accuracy).
+/// Computing Gems, 2011; single-precision accuracy), one by one: the fit its argument
+/// needs (the same numbers as [`erfinv_of`]).
+#[inline(always)]
+fn erfinv(y: f32) -> f32 {
+    erfinv_of::<false>(y)
+}
+
+/// erf⁻¹ (see [`erfinv`]); with `LANES` branch-free (both fits made, one selected), else
+/// only the fit needed: the same numbers either way. The logarithm by
+/// [`crate::lanes::ln`].
 // (The fit's coefficients as published, past f32's digits.)
 #[allow(clippy::excessive_precision)]
-fn erfinv(y: f32) -> f32 {
+#[inline(always)]
+fn erfinv_of<const LANES: bool>(y: f32) -> f32 {
     let y = y.clamp(-1.0 + 1e-7, 1.0 - 1e-7);
-    let w = -((1.0 - y) * (1.0 + y)).ln();
-    let p = if w < 5.0 {
+    let w = -crate::lanes::ln((1.0 - y) * (1.0 + y));
+    let near = |w: f32| {
         let w = w - 2.5;
         let mut p = 2.810_226_36e-08f32;
         for c in [
@@ -376,7 +502,8 @@ fn erfinv(y: f32) -> f32 {
             p = c + p * w;
         }
         p
-    } else {
+    };
+    let far = |w: f32| {
         let w = w.sqrt() - 3.0;
         let mut p = -0.000_200_214_257f32;
         for c in [
@@ -393,7 +520,14 @@ fn erfinv(y: f32) -> f32 {
         }
         p
     };
-    p * y
+    if LANES {
+        let (a, b) = (near(w), far(w));
+        (if w < 5.0 { a } else { b }) * y
+    } else if w < 5.0 {
+        near(w) * y
+    } else {
+        far(w) * y
+    }
 }
 
 /// The unpolarised Fresnel reflectance of a dielectric interface for a direction of cosine
@@ -618,6 +752,20 @@ mod tests {
                 assert!((cdf - f64::from(u)).abs() < 2e-5, "cos {cos_t}, u {u}: x {x}, C(x) {cdf}");
                 // y is normal: erf(y) = 2u − 1.
                 assert!((erf(y) - (2.0 * u - 1.0)).abs() < 2e-6, "y {y}");
+            }
+        }
+    }
+
+    /// The slope search's first steps on lanes (branch-free, both of erf⁻¹'s fits made)
+    /// and then the rest give the numbers of the search taken step by step, bit for bit.
+    #[test]
+    fn slope_search_on_lanes_is_the_search_step_by_step() {
+        for i in 0..300 {
+            let cos_t = (i as f32 + 0.5) / 300.0;
+            for j in 0..300 {
+                let u = ((j as f32 + 0.5) / 300.0, ((j * 7 + i) % 300) as f32 / 300.0);
+                let (a, b) = (SlopeSearch::start(cos_t, u).finish(), SlopeSearch::begin::<false>(cos_t, u).finish());
+                assert_eq!((a.0.to_bits(), a.1.to_bits()), (b.0.to_bits(), b.1.to_bits()), "cos {cos_t}, u {u:?}");
             }
         }
     }
