@@ -11,7 +11,7 @@ use crate::geom::{Hit, Ray};
 use crate::kernel::{KernelSet, ScalarSet};
 use crate::mesh::{MeshBvh, Nodes};
 use crate::shape::Shape;
-use crate::tlas::{Geometry, Instance, TwoLevel};
+use crate::tlas::{Geometry, TwoLevel};
 use crate::traverse::{self, Counters, Leaves, RayPre};
 use crate::triangle::{unit_triangle_hit, WatertightRay};
 use crate::TriangleTest;
@@ -96,22 +96,13 @@ struct InstAll<'a> {
 impl InstAll<'_> {
     fn instance(&self, id: u32, pre: &RayPre, tmax: f32) {
         let Some(inst) = self.tl.instances().get(id as usize) else { return };
-        let local = local_ray(inst, pre);
+        let local = inst.local_ray(pre);
         match self.tl.geometries().get(inst.geometry as usize) {
             Some(Geometry::Mesh(m)) => mesh_all(m, id, &local, tmax, self.out),
             Some(Geometry::Shape(s)) => shape_all(*s, id, &local, tmax, &mut self.out.borrow_mut()),
             None => {}
         }
     }
-}
-
-/// The ray in an instance's object space (distances along it are the same: the direction
-/// is transformed, not normalised).
-fn local_ray(inst: &Instance, pre: &RayPre) -> RayPre {
-    if inst.is_identity() {
-        return *pre;
-    }
-    RayPre::new(&Ray { org: pre.org, dir: pre.dir, tmin: pre.tmin, tmax: f32::INFINITY }.transformed(&inst.object_from_world))
 }
 
 impl Leaves for InstAll<'_> {

@@ -61,6 +61,28 @@ impl Instance {
     pub fn is_identity(&self) -> bool {
         self.object_from_world == Affine3A::IDENTITY
     }
+
+    /// The origin and direction of ray `pre` in object space (the direction not
+    /// renormalised, so distances along it are the world ray's): what a shape needs.
+    #[inline(always)]
+    pub(crate) fn object_ray(&self, pre: &RayPre) -> (Vec3, Vec3) {
+        if self.is_identity() {
+            return (pre.org, pre.dir);
+        }
+        let m = &self.object_from_world;
+        (m.transform_point3(pre.org), m.transform_vector3(pre.dir))
+    }
+
+    /// Ray `pre` in object space with its box-test constants made again: what a mesh's
+    /// walk needs ([`Instance::object_ray`] with the constants).
+    #[inline(always)]
+    pub(crate) fn local_ray(&self, pre: &RayPre) -> RayPre {
+        if self.is_identity() {
+            return *pre;
+        }
+        let (org, dir) = self.object_ray(pre);
+        RayPre::new(&Ray { org, dir, tmin: pre.tmin, tmax: f32::INFINITY })
+    }
 }
 
 /// Most instances in one Morton run of the clustered SAH top level
@@ -462,21 +484,20 @@ fn avx512_occluded(t: &TwoLevel, ray: &Ray) -> bool {
     t.occluded_k::<crate::kernel::Avx512Set>(&RayPre::new(ray), ray.tmax)
 }
 
+/// Reports `inst`'s transformation to `c` when it is one.
+#[inline(always)]
+fn count_transform<C: Counters>(inst: &Instance, c: &mut C) {
+    if !inst.is_identity() {
+        c.transform(std::ptr::from_ref(&inst.object_from_world) as usize, std::mem::size_of::<Affine3A>());
+    }
+}
+
 pub(crate) struct InstLeaves<'a, K> {
     pub(crate) tl: &'a TwoLevel,
     pub(crate) k: std::marker::PhantomData<K>,
 }
 
 impl<K: KernelSet> InstLeaves<'_, K> {
-    #[inline(always)]
-    fn local(&self, inst: &Instance, pre: &RayPre) -> RayPre {
-        if inst.is_identity() {
-            return *pre;
-        }
-        let r = Ray { org: pre.org, dir: pre.dir, tmin: pre.tmin, tmax: f32::INFINITY }.transformed(&inst.object_from_world);
-        RayPre::new(&r)
-    }
-
     #[inline(always)]
     pub(crate) fn hit_instance<C: Counters>(&self, id: u32, pre: &RayPre, hit: &mut Hit, c: &mut C) {
         let inst = &self.tl.instances[id as usize];
@@ -499,26 +520,20 @@ impl<K: KernelSet> InstLeaves<'_, K> {
         }
     }
 
-    /// The origin and direction of the ray in `inst`'s object space, for a shape: the
-    /// same as [`Self::local`]'s, without the box-test constants a shape does not read.
-    /// PERF: those took three divisions per ray and shape.
+    /// The origin and direction of the ray in `inst`'s object space, for a shape, counted
+    /// as a transformation when it is one. PERF: without the box-test constants a shape
+    /// does not read (three divisions per ray and shape).
     #[inline(always)]
     fn shape_ray<C: Counters>(&self, inst: &Instance, pre: &RayPre, c: &mut C) -> (Vec3, Vec3) {
-        if inst.is_identity() {
-            return (pre.org, pre.dir);
-        }
-        c.transform(std::ptr::from_ref(&inst.object_from_world) as usize, std::mem::size_of::<Affine3A>());
-        let m = &inst.object_from_world;
-        (m.transform_point3(pre.org), m.transform_vector3(pre.dir))
+        count_transform(inst, c);
+        inst.object_ray(pre)
     }
 
     /// The ray in `inst`'s object space, counted as a transformation when it is one.
     #[inline(always)]
     fn transform<C: Counters>(&self, inst: &Instance, pre: &RayPre, c: &mut C) -> RayPre {
-        if !inst.is_identity() {
-            c.transform(std::ptr::from_ref(&inst.object_from_world) as usize, std::mem::size_of::<Affine3A>());
-        }
-        self.local(inst, pre)
+        count_transform(inst, c);
+        inst.local_ray(pre)
     }
 
     #[inline(always)]
