@@ -412,17 +412,25 @@ pub(crate) fn pow_unit(x: f32, y: f32) -> f32 {
     }
 }
 
+/// The reduction of a logarithm ([`pow_fast`], [`ln`]): x = 2^e m with m in [√½, √2),
+/// and s = (m − 1)/(m + 1), so that ln m = 2 atanh s (|s| ≤ 0.172).
+#[inline(always)]
+fn log_reduced<T: Real>(x: T) -> (T, T) {
+    let one = T::splat(1.0);
+    let (e, m) = x.exponent_mantissa();
+    let big = m.gt(T::splat(std::f32::consts::SQRT_2));
+    let m = T::select(big, m * T::splat(0.5), m);
+    let e = T::select(big, e + one, e);
+    (e, (m - one) / (m + one))
+}
+
 /// [`pow_unit`]'s series, branch-free; meaningful only where [`pow_needs_slow`] is false.
 #[inline(always)]
 pub(crate) fn pow_fast<T: Real>(x: T, y: T) -> T {
     // log2 x = e + log2 m with m in [√½, √2): log2 m = 2/ln 2 · atanh((m − 1)/(m + 1)),
     // an odd series in s = (m − 1)/(m + 1), |s| ≤ 0.172 (next term below 2e-8).
     let one = T::splat(1.0);
-    let (e, m) = x.exponent_mantissa();
-    let big = m.gt(T::splat(std::f32::consts::SQRT_2));
-    let m = T::select(big, m * T::splat(0.5), m);
-    let e = T::select(big, e + one, e);
-    let s = (m - one) / (m + one);
+    let (e, s) = log_reduced(x);
     let s2 = s * s;
     // PERF: the series in Estrin's form (two short chains rather than one long one).
     let atanh = s * ((one + s2 * T::splat(1.0 / 3.0)) + (s2 * s2) * (T::splat(1.0 / 5.0) + s2 * T::splat(1.0 / 7.0)));
@@ -493,11 +501,7 @@ pub fn exp(x: f32) -> f32 {
 #[inline(always)]
 #[must_use]
 pub fn ln(x: f32) -> f32 {
-    let (e, m) = x.exponent_mantissa();
-    let big = m > std::f32::consts::SQRT_2;
-    let m = if big { m * 0.5 } else { m };
-    let e = if big { e + 1.0 } else { e };
-    let s = (m - 1.0) / (m + 1.0);
+    let (e, s) = log_reduced(x);
     let s2 = s * s;
     let series = s * ((1.0 + s2 * (1.0 / 3.0)) + (s2 * s2) * ((1.0 / 5.0 + s2 * (1.0 / 7.0)) + (s2 * s2) * (1.0 / 9.0)));
     (e * 0.693_359_4 + 2.0 * series) + e * -2.121_944_4e-4
@@ -506,6 +510,8 @@ pub fn ln(x: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lucent_accel::math::ulps;
+    use rand::{Rng, SeedableRng};
 
     /// [`ln`] against the exactly rounded logarithm over positive normal numbers.
     #[test]
@@ -517,8 +523,6 @@ mod tests {
             assert!((got - want).abs() <= 3e-7 * want.abs() + 1e-7, "ln {x}: {got} against {want}");
         }
     }
-    use lucent_accel::math::ulps;
-    use rand::{Rng, SeedableRng};
 
     /// The Phong power against `powf` over the range it serves (relative error, with an
     /// absolute floor far below one 8-bit step), and `powf`'s answers outside it.

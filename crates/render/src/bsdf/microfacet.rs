@@ -177,8 +177,8 @@ impl Microfacet {
         match self.dist {
             Distribution::Ggx => self.ggx_sample(v, u),
             Distribution::Beckmann => {
-                let vs = Vec3::new(self.alpha * v.x, self.alpha_y * v.y, v.z).normalize();
-                self.beckmann_from(v, SlopeSearch::begin::<false>(vs.z, u))
+                let vs = self.stretched(v);
+                self.beckmann_from(vs, SlopeSearch::begin::<false>(vs.z, u))
             }
         }
     }
@@ -189,19 +189,24 @@ impl Microfacet {
     #[inline(always)]
     #[must_use]
     pub fn beckmann_start(&self, v: Vec3, u: (f32, f32)) -> SlopeSearch {
-        let vs = Vec3::new(self.alpha * v.x, self.alpha_y * v.y, v.z).normalize();
-        SlopeSearch::start(vs.z, u)
+        SlopeSearch::start(self.stretched(v).z, u)
     }
 
-    /// Beckmann's [`Microfacet::sample`] from its search's first part `s`
-    /// ([`Microfacet::beckmann_start`] of the same `v` and `u`): the search finished (rarely
-    /// more steps), then the normal.
+    /// Direction `v` stretched to α = 1, where Beckmann's visible slopes are sampled.
     #[inline(always)]
     #[must_use]
-    pub fn beckmann_from(&self, v: Vec3, s: SlopeSearch) -> Vec3 {
+    pub fn stretched(&self, v: Vec3) -> Vec3 {
+        Vec3::new(self.alpha * v.x, self.alpha_y * v.y, v.z).normalize()
+    }
+
+    /// Beckmann's [`Microfacet::sample`] for the stretched direction `vs`
+    /// ([`Microfacet::stretched`]) from its search `s` ([`Microfacet::beckmann_start`] of
+    /// the same direction and numbers): the search finished (rarely more steps), then the
+    /// slopes rotated to the direction's azimuth and unstretched into the normal.
+    #[inline(always)]
+    #[must_use]
+    pub fn beckmann_from(&self, vs: Vec3, s: SlopeSearch) -> Vec3 {
         let (ax, ay) = (self.alpha, self.alpha_y);
-        // Stretch to α = 1, sample the visible slopes there, rotate and unstretch.
-        let vs = Vec3::new(ax * v.x, ay * v.y, v.z).normalize();
         let sin_t = (1.0 - vs.z * vs.z).max(0.0).sqrt();
         let (cos_p, sin_p) = if sin_t > 1e-7 { (vs.x / sin_t, vs.y / sin_t) } else { (1.0, 0.0) };
         let (sx, sy) = s.finish();
@@ -367,10 +372,9 @@ impl SlopeSearch {
     #[inline(always)]
     #[must_use]
     pub fn begin<const LANES: bool>(cos_t: f32, u: (f32, f32)) -> Self {
-        let u0 = u.0;
         let c = cos_t.clamp(1e-6, 1.0);
         let tan_t = (1.0 - c * c).max(0.0).sqrt() / c;
-        let u0 = u0.clamp(1e-6, 1.0 - 1e-6);
+        let u0 = u.0.clamp(1e-6, 1.0 - 1e-6);
         // The bracket, in b = erf x: the support ends at cot θ (the slope seen edge-on).
         let edge = tan_t > 1e-7;
         let hi = if edge { erf(1.0 / tan_t) } else { 1.0 };
@@ -403,9 +407,9 @@ impl SlopeSearch {
     }
 
     /// One Newton step kept inside the bracket (bisection where Newton leaves it or gives
-    /// NaN), branch-free; nothing changes once the slope is found.
-    /// (`LANES`: branch-free; either way the same numbers. A step after the slope is found
-    /// changes nothing, so a search that stops there ends as one that takes them.)
+    /// NaN), without branches (`LANES`: erf⁻¹'s too; either way the same numbers). A step
+    /// after the slope is found changes nothing, so a search that stops there ends as one
+    /// that takes them.
     #[inline(always)]
     fn step<const LANES: bool>(&mut self) {
         let Self { lo, hi, b, norm, k, tan_t, u0, .. } = *self;
@@ -764,7 +768,9 @@ mod tests {
             let cos_t = (i as f32 + 0.5) / 300.0;
             for j in 0..300 {
                 let u = ((j as f32 + 0.5) / 300.0, ((j * 7 + i) % 300) as f32 / 300.0);
-                let (a, b) = (SlopeSearch::start(cos_t, u).finish(), SlopeSearch::begin::<false>(cos_t, u).finish());
+                let started = SlopeSearch::start(cos_t, u);
+                assert_eq!(started.taken, FIRST_STEPS as f32);
+                let (a, b) = (started.finish(), SlopeSearch::begin::<false>(cos_t, u).finish());
                 assert_eq!((a.0.to_bits(), a.1.to_bits()), (b.0.to_bits(), b.1.to_bits()), "cos {cos_t}, u {u:?}");
             }
         }

@@ -189,6 +189,18 @@ impl Principled {
         (if h.z < 0.0 { -h } else { h }, eta_path, reflect)
     }
 
+    /// The base colour's hue: the base over its luminance (white for a black base), which
+    /// the tinted specular and sheen lobes take.
+    #[inline(always)]
+    fn tint_colour(&self) -> Vec3 {
+        let lum = luminance(self.base);
+        if lum > 0.0 {
+            self.base / lum
+        } else {
+            Vec3::ONE
+        }
+    }
+
     /// The main lobe's Fresnel term: the dielectric's, mixed with Schlick's for the
     /// metallic and tinted parts on the front side (Mitsuba's `principled_fresnel`).
     /// Branch-free, as the value and density are (see [`Principled::eval_pdf`]).
@@ -198,8 +210,7 @@ impl Principled {
         let fs = Vec3::ZERO;
         let metal = m * schlick(self.base, cos_i, self.eta);
         let fs = if self.has.metallic { fs + metal } else { fs };
-        let lum = luminance(self.base);
-        let c_tint = if lum > 0.0 { self.base / lum } else { Vec3::ONE };
+        let c_tint = self.tint_colour();
         let eta_it = if cos_i >= 0.0 { self.eta } else { 1.0 / self.eta };
         let r0 = (eta_it - 1.0) / (eta_it + 1.0);
         let tinted = (1.0 - m) * tint * schlick(c_tint * (r0 * r0), cos_i, self.eta);
@@ -240,19 +251,13 @@ impl Principled {
         self.eval_pdf_lane(wo, wi)
     }
 
-    /// [`Principled::eval_pdf`], inlined where it is called (in a loop over lanes).
+    /// [`Principled::eval_pdf`], inlined where it is called (in a loop over lanes). PERF:
+    /// of a copy (`self` by value), so that every parameter is read unconditionally: a load
+    /// that only one arm of a select makes is a conditional load, which keeps a loop over
+    /// lanes scalar.
     #[inline(always)]
     #[must_use]
-    pub fn eval_pdf_lane(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        // PERF: every parameter read here, unconditionally: a load that only one arm of a
-        // select makes is a conditional load, which keeps a loop over lanes scalar.
-        let p = *self;
-        p.eval_pdf_local(wo, wi)
-    }
-
-    /// [`Principled::eval_pdf`] of a copy held in registers.
-    #[inline(always)]
-    fn eval_pdf_local(self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+    pub fn eval_pdf_lane(self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let (wh, eta_path, reflect) = self.half(wo, wi);
         let (oh, ih) = (wo.dot(wh), wi.dot(wh));
         let (f, _) = fresnel_dielectric(oh, self.eta);
@@ -304,9 +309,7 @@ impl Principled {
         let diffuse = self.base * (brdf * co.abs() * FRAC_1_PI * shape);
         let value = if (brdf > 0.0) & reflect & front { value + diffuse } else { value };
         let fd = schlick_weight(cos_d.abs());
-        let lum = luminance(self.base);
-        let c_tint = if lum > 0.0 { self.base / lum } else { Vec3::ONE };
-        let tinted = Vec3::ONE * (1.0 - self.sheen_tint) + c_tint * self.sheen_tint;
+        let tinted = Vec3::ONE * (1.0 - self.sheen_tint) + self.tint_colour() * self.sheen_tint;
         let tint = if self.has.sheen_tint { tinted } else { Vec3::ONE };
         let sheen = tint * (self.sheen * (1.0 - self.metallic) * fd * co.abs());
         let sheen_on = self.has.sheen & (self.sheen > 0.0) & reflect & (1.0 - self.metallic > 0.0) & front;
@@ -370,56 +373,43 @@ impl Principled {
     /// [`Principled::direction`] branch-free (every lobe's direction made, one selected),
     /// so that a loop over lanes vectorizes; the direction, its relative index and whether
     /// there is one.
+    /// (Of a copy, as [`Principled::eval_pdf_lane`].)
     #[inline(always)]
     #[must_use]
-    pub fn direction_lane(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (Vec3, f32, bool) {
-        // (Every parameter read unconditionally, as in `eval_pdf`.)
-        let p = *self;
+    pub fn direction_lane(self, wo: Vec3, u: f32, u2: (f32, f32)) -> (Vec3, f32, bool) {
         let ci = wo.z;
-        let (_, bsdf) = p.weights();
+        let (_, bsdf) = self.weights();
         let front = ci > 0.0;
         let none = (ci == 0.0) | !(front | (bsdf > 0.0));
         let v = if ci < 0.0 { -wo } else { wo };
-        let m = p.mf.ggx_sample(v, u2);
-        let (f, cos_t) = fresnel_dielectric(wo.dot(m), p.eta);
-        let [_, p_trans, p_cc, p_diffuse] = p.probabilities(front, f);
+        let m = self.mf.ggx_sample(v, u2);
+        let (f, cos_t) = fresnel_dielectric(wo.dot(m), self.eta);
+        let [_, p_trans, p_cc, p_diffuse] = self.probabilities(front, f);
         // The lobes in the order they are chosen: diffuse, clearcoat, transmission, the
         // main reflection.
         let wd = cosine_hemisphere(u2);
         let ok_d = ci * wd.z > 0.0;
-        let mc = gtr1_sample(u2, p.cc_alpha, p.cc_ln);
+        let mc = gtr1_sample(u2, self.cc_alpha, self.cc_ln);
         let wc = reflect(wo, mc);
         let ok_c = facet_agrees(mc, wo, wc, ci, true) & (ci * wc.z > 0.0);
-        let wt = refract(wo, m, cos_t, p.eta);
-        let eta_t = if wo.dot(m) >= 0.0 { p.eta } else { 1.0 / p.eta };
+        let wt = refract(wo, m, cos_t, self.eta);
+        let eta_t = if wo.dot(m) >= 0.0 { self.eta } else { 1.0 / self.eta };
         let ok_t = facet_agrees(m, wo, wt, ci, false) & (ci * wt.z < 0.0);
         let wr = reflect(wo, m);
         let ok_r = facet_agrees(m, wo, wr, ci, true) & (ci * wr.z > 0.0);
         let diffuse = u < p_diffuse;
-        let coat = !diffuse & p.has.clearcoat & (u < p_diffuse + p_cc);
-        let trans = !diffuse & !coat & p.has.spec_trans & (u < p_diffuse + p_cc + p_trans);
-        let pick = |d: Vec3, c: Vec3, t: Vec3, r: Vec3| {
-            if diffuse {
-                d
-            } else if coat {
-                c
-            } else if trans {
-                t
-            } else {
-                r
-            }
-        };
-        let wi = pick(wd, wc, wt, wr);
-        let eta = if trans { eta_t } else { 1.0 };
-        let ok = if diffuse {
-            ok_d
+        let coat = !diffuse & self.has.clearcoat & (u < p_diffuse + p_cc);
+        let trans = !diffuse & !coat & self.has.spec_trans & (u < p_diffuse + p_cc + p_trans);
+        let (wi, ok) = if diffuse {
+            (wd, ok_d)
         } else if coat {
-            ok_c
+            (wc, ok_c)
         } else if trans {
-            ok_t
+            (wt, ok_t)
         } else {
-            ok_r
+            (wr, ok_r)
         };
+        let eta = if trans { eta_t } else { 1.0 };
         (wi, eta, ok & !none)
     }
 

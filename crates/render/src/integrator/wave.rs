@@ -343,7 +343,7 @@ impl<const BECKMANN: bool> Model for RoughConductor<BECKMANN> {
     }
     #[inline(always)]
     fn prepare_from(&mut self, wo: Vec3, _u: f32, _u2: (f32, f32), s: SlopeSearch) -> Vec3 {
-        reflect(wo, self.mf.beckmann_from(wo, s))
+        reflect(wo, self.mf.beckmann_from(self.mf.stretched(wo), s))
     }
 }
 /// Smooth dielectrics only (the rough ones are packed as [`RoughDielectric`]).
@@ -447,11 +447,11 @@ impl Model for Principled {
     }
     #[inline(always)]
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        Principled::eval_pdf_lane(self, wo, wi)
+        Principled::eval_pdf_lane(*self, wo, wi)
     }
     #[inline(always)]
     fn direction_lane(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> (Vec3, f32, bool) {
-        Principled::direction_lane(self, wo, u, u2)
+        Principled::direction_lane(*self, wo, u, u2)
     }
 }
 impl Model for ThinDielectric {
