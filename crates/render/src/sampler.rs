@@ -349,9 +349,28 @@ impl PixelSampler {
     #[inline]
     #[must_use]
     pub fn get1_hashed(&self, index: u32, dim: u32) -> f32 {
-        to_unit(hash32(hash32(self.key ^ 0x68a5_4e1d ^ index) ^ dim.wrapping_mul(0x9e37_79b9)))
+        hashed_at(self.hashed_seed(index), dim)
     }
 
+    /// What [`PixelSampler::get1_hashed`] draws sample `index`'s dimensions from (with
+    /// [`hashed_at`]): one hash per sample, where many dimensions are drawn.
+    #[inline]
+    #[must_use]
+    pub fn hashed_seed(&self, index: u32) -> u32 {
+        hash32(self.key ^ 0x68a5_4e1d ^ index)
+    }
+}
+
+/// Dimension `dim` of [`PixelSampler::get1_hashed`] from the sample's
+/// [`PixelSampler::hashed_seed`] (integer operations only: a loop over lanes of it
+/// vectorizes).
+#[inline(always)]
+#[must_use]
+pub fn hashed_at(seed: u32, dim: u32) -> f32 {
+    to_unit(hash32(seed ^ dim.wrapping_mul(0x9e37_79b9)))
+}
+
+impl PixelSampler {
     /// Dimension `dim` of sample `index`, stratified on its own: the van der Corput
     /// sequence (a Sobol' point's first dimension) over its own shuffle of the pixel's
     /// samples, Owen-scrambled, so that the first 2^m samples of a pixel put one number

@@ -251,3 +251,37 @@ fn vpl_regions_and_thread_counts_give_the_same_image() {
         assert!(img.pixels == whole.pixels, "{threads} threads gave another image");
     }
 }
+
+/// Every build of the VPL terms' lane loops (AVX-512, AVX2, the baseline) gives the same
+/// bits: the BART kitchen (MTL's Lambertian plus Beckmann lobes on lanes) and the
+/// materials scene (rough plastics, conductors and others one by one), with the shadow
+/// roulette and the discontinuity buffer on.
+#[test]
+fn every_build_of_the_vpl_terms_gives_the_same_bits() {
+    use lucent_render::lanes::Level;
+    let mut kitchen = World::new(lucent_scene::load(&common::scene("bart/kitchen/kitchen.gltf")).expect("kitchen"), MeshOptions::default())
+        .expect("world");
+    let desc = kitchen.set_time(5.0).expect("pose").expect("the kitchen has a camera");
+    let kitchen_cam = Camera::new(&desc, 96, 64);
+    let sc = lucent_scene::load_mitsuba_with(&data("materials/scene.xml"), &[]).expect("materials");
+    let materials_cam = Camera::new(&sc.camera.expect("camera"), 96, 64);
+    let materials = World::new(sc, MeshOptions::default()).expect("world");
+    let st = RenderSettings {
+        spp: 2,
+        integrator: Integrator::Vpl(VplSettings { count: 64, ..VplSettings::default() }),
+        ..RenderSettings::new(96, 64)
+    };
+    for (name, w, cam) in [("kitchen", &kitchen, &kitchen_cam), ("materials", &materials, &materials_cam)] {
+        let mut images = Vec::new();
+        for level in [Level::Portable, Level::Avx2, Level::Avx512] {
+            Level::force(level);
+            let img = render(w, cam, &st, &|_| {}).0;
+            images.push((level, Level::current(), img.pixels.iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>()));
+        }
+        Level::unforce();
+        assert!(images[0].2.iter().any(|p| p.iter().any(|&b| f32::from_bits(b) > 0.0)), "{name}: a black image");
+        for (level, ran, img) in &images[1..] {
+            assert_eq!(img, &images[0].2, "{name}: {level:?} (ran as {ran:?}) against the portable build");
+        }
+    }
+}

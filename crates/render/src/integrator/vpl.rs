@@ -42,11 +42,15 @@
 //! Unbiased; at 512 × 384 it leaves 74% of the rays of a Conference frame and 49% of a
 //! kitchen frame, the frames take 1/1.15 and 1/1.27 of the time (medians of five
 //! interleaved pairs), and the VPL images' relMSE against path tracing is unchanged to the
-//! fourth digit on the Cornell box, Sponza and both kitchens (`bench vpl`, stop 62). (The
-//! terms on lanes, the pixels' BSDFs packed by model as the lane path tracer's, were
-//! measured and dropped: 1.17x the scalar terms' time on the kitchen, 0.93-0.97x with the
-//! microfacet lobes forced inline; 16 pixels per VPL do not fill the lanes enough to pay
-//! for the packing.)
+//! fourth digit on the Cornell box, Sponza and both kitchens (`bench vpl`, stop 62).
+//!
+//! The terms run on lanes without packing anything (`TermLanes`): a VPL's BSDF is one
+//! BSDF over the chunk's pixels (their directions, distances and the VPL's BSDF values
+//! in one loop over lanes), and a pixel's BSDF is one BSDF over its set's VPLs; then
+//! the terms, their shadow rays and the roulette are loops over lanes again. The same
+//! numbers as `vpl_term` and `shadow_roulette`, which the ray-by-ray reference
+//! keeps. (Packing the pixels' BSDFs by model, as the lane path tracer does, had been
+//! measured slower than the scalar terms: 1.17x on the kitchen.)
 //!
 //! Random numbers: light paths from the [`Sampler`] (Owen-scrambled Sobol'), path `i` of
 //! frame `k` its index `i` in a sequence scrambled per frame, so each frame (sample index)
@@ -56,12 +60,13 @@
 
 use super::hit::{bsdf_frame, emitted, light_normal, material, packet_first_hits, shading_normal};
 use crate::aov::{dark, demodulate, demodulating, Layers};
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Bsdf, Diffuse, DiffuseGlossy};
 use crate::camera::Camera;
 use crate::color::luminance;
 use crate::denoise::spread_outliers_of_layers;
 use crate::film::Region;
-use crate::sampler::{CameraSamples, PixelSampler, DEFAULT_SEED};
+use crate::lanes::on_lanes;
+use crate::sampler::{hashed_at, CameraSamples, PixelSampler, DEFAULT_SEED};
 use crate::sampling::ShadingFrame;
 use crate::tiles::{Job, Sink, NO_RAYS, TILE};
 use crate::world::record::rays_traced_here;
@@ -391,6 +396,13 @@ fn vpl_term(v: &Vpl, sh: &Shade, d_min2: f32) -> Option<(Vec3, Ray)> {
         return None;
     }
     let fx = sh.bsdf.eval(sh.wo, sh.frame.to_local(-dir));
+    term_of(v, sh, d2, fv, fx, d_min2)
+}
+
+/// [`vpl_term`] from the squared distance and the two BSDF values (the VPL's toward the
+/// point, the point's toward the VPL), once `d2` is a positive number and `fv` positive.
+#[inline]
+fn term_of(v: &Vpl, sh: &Shade, d2: f32, fv: Vec3, fx: Vec3, d_min2: f32) -> Option<(Vec3, Ray)> {
     if fx.max_element() <= 0.0 {
         return None;
     }
@@ -398,10 +410,218 @@ fn vpl_term(v: &Vpl, sh: &Shade, d_min2: f32) -> Option<(Vec3, Ray)> {
     if !c.is_finite() {
         return None;
     }
+    let to = sh.p - v.p;
     let org = if to.dot(v.ng) >= 0.0 { v.org[0] } else { v.org[1] };
     let seg = sh.end_toward(v.p) - org;
     let len = seg.length();
     (len > 0.0).then(|| (c, Ray::new(org, seg / len).with_range(0.0, len)))
+}
+
+/// Pixels per chunk of a set's pixels in a tile: the VPL terms' lanes.
+const CHUNK: usize = 64;
+/// Rows of a chunk's lanes (x, y, z).
+type ChunkRows = [[f32; CHUNK]; 3];
+
+#[inline(always)]
+fn get(r: &ChunkRows, j: usize) -> Vec3 {
+    Vec3::new(r[0][j], r[1][j], r[2][j])
+}
+
+#[inline(always)]
+fn put(r: &mut ChunkRows, j: usize, v: Vec3) {
+    (r[0][j], r[1][j], r[2][j]) = (v.x, v.y, v.z);
+}
+
+/// Lanes per strip of the VPL terms' loops: `n` lanes run as whole strips (a loop of this
+/// constant count vectorizes whole).
+const STRIP: usize = 16;
+
+/// The strips that hold `n` lanes (at most a chunk's).
+#[inline]
+fn strips(n: usize) -> usize {
+    n.div_ceil(STRIP).min(CHUNK / STRIP)
+}
+
+/// One VPL's terms at a chunk's pixels, computed on lanes: the same numbers as
+/// [`vpl_term`]'s (the same operations in the same order).
+#[derive(Clone)]
+struct TermLanes {
+    /// From the VPL toward each pixel's point: the unit direction (then the shadow ray's)
+    /// and the squared distance.
+    dir: ChunkRows,
+    d2: [f32; CHUNK],
+    /// The VPL's BSDF toward each pixel, each pixel's toward the VPL, then the term.
+    fv: ChunkRows,
+    fx: ChunkRows,
+    /// The shadow ray's length, whether it leaves the VPL's upper side, and whether
+    /// the term carries light (else [`vpl_term`] gives `None`).
+    len: [f32; CHUNK],
+    upper: [bool; CHUNK],
+    ok: [bool; CHUNK],
+    /// The term's luminance (for the shadow roulette).
+    lum: [f32; CHUNK],
+}
+
+/// A chunk's shading points as rows: position, geometric normal, offset, throughput.
+struct Points {
+    p: ChunkRows,
+    ng: ChunkRows,
+    off: [f32; CHUNK],
+    beta: ChunkRows,
+}
+
+impl TermLanes {
+    fn new() -> Self {
+        let z = [[0.0; CHUNK]; 3];
+        Self { dir: z, d2: [0.0; CHUNK], fv: z, fx: z, len: [0.0; CHUNK], upper: [false; CHUNK], ok: [false; CHUNK], lum: [0.0; CHUNK] }
+    }
+
+    /// The directions from `v` toward the points `p` (every lane) and `v`'s BSDF toward
+    /// the first `n`.
+    fn toward(&mut self, v: &Vpl, p: &ChunkRows, n: usize) {
+        let mut local = [[0.0; CHUNK]; 3];
+        on_lanes!(|t: &mut TermLanes, local: &mut ChunkRows, p: &ChunkRows, vp: Vec3, fr: ShadingFrame, strips: usize| {
+            for s in 0..strips {
+                for k in 0..STRIP {
+                    let j = s * STRIP + k;
+                    let to = get(p, j) - vp;
+                    let d2 = to.length_squared();
+                    let dir = to / d2.sqrt();
+                    t.d2[j] = d2;
+                    put(&mut t.dir, j, dir);
+                    put(local, j, fr.to_local(dir));
+                }
+            }
+        })(self, &mut local, p, v.p, v.frame, strips(n));
+        eval_lanes(&v.bsdf, v.wo, &local, n, &mut self.fv);
+    }
+
+    /// With both BSDFs' values: the terms (into `fv`), whether each carries light, and
+    /// the shadow rays (as [`term_of`]).
+    fn finish(&mut self, v: &Vpl, pts: &Points, n: usize, d_min2: f32) {
+        on_lanes!(|t: &mut TermLanes, pts: &Points, v: (Vec3, Vec3, [Vec3; 2], Vec3), d_min2: f32, strips: usize| {
+            let (vp, ng, org, flux) = v;
+            for s in 0..strips {
+                for k in 0..STRIP {
+                    let j = s * STRIP + k;
+                    let (d2, fv, fx) = (t.d2[j], get(&t.fv, j), get(&t.fx, j));
+                    let p = get(&pts.p, j);
+                    let c = flux * fv * fx * get(&pts.beta, j) / d2.max(d_min2);
+                    let upper = (p - vp).dot(ng) >= 0.0;
+                    let o = if upper { org[0] } else { org[1] };
+                    // (Shade::end_toward, on lanes.)
+                    let png = get(&pts.ng, j);
+                    let n = if (vp - p).dot(png) < 0.0 { -png } else { png };
+                    let seg = (p + n * pts.off[j]) - o;
+                    let len = seg.length();
+                    put(&mut t.fv, j, c);
+                    put(&mut t.dir, j, seg / len);
+                    t.len[j] = len;
+                    t.upper[j] = upper;
+                    t.ok[j] =
+                        !(d2.is_nan() | (d2 <= 0.0)) & (fv.max_element() > 0.0) & (fx.max_element() > 0.0) & c.is_finite() & (len > 0.0);
+                    t.lum[j] = luminance(c);
+                }
+            }
+        })(self, pts, (v.p, v.ng, v.org, v.flux), d_min2, strips(n));
+    }
+
+    /// The shadow roulette ([`shadow_roulette`]) of every lane: `bar`, the lanes' bars,
+    /// `seeds` their pixels' [`PixelSampler::hashed_seed`], `vi` the VPL's number in its
+    /// set. A term it drops no longer carries light; one it keeps is divided by its
+    /// chance.
+    fn roulette(&mut self, bar: &[f32; CHUNK], seeds: &[u32; CHUNK], vi: usize, n: usize) {
+        on_lanes!(|t: &mut TermLanes, bar: &[f32; CHUNK], seeds: &[u32; CHUNK], dim: u32, strips: usize| {
+            for s in 0..strips {
+                for k in 0..STRIP {
+                    let j = s * STRIP + k;
+                    let (l, b) = (t.lum[j], bar[j]);
+                    let chance = (b > 0.0) & b.is_finite() & (l < b);
+                    let q = l / b;
+                    let c = get(&t.fv, j);
+                    put(&mut t.fv, j, if chance { c / q } else { c });
+                    t.ok[j] &= !chance | (hashed_at(seeds[j], dim) < q);
+                }
+            }
+        })(self, bar, seeds, ROULETTE_DIM + vi as u32, strips(n));
+    }
+
+    /// Lane `j`'s term and shadow ray, when it carries light.
+    #[inline]
+    fn term(&self, v: &Vpl, j: usize) -> Option<(Vec3, Ray)> {
+        let org = if self.upper[j] { v.org[0] } else { v.org[1] };
+        self.ok[j].then(|| (get(&self.fv, j), Ray::new(org, get(&self.dir, j)).with_range(0.0, self.len[j])))
+    }
+}
+
+/// `bsdf.eval(wo, wi[j])` into `f[j]` for the lanes `j < n` (and, for the models on
+/// lanes, past it to a whole strip of 16, unused): the Lambertian and MTL's models (the
+/// VPL scenes' materials) in loops over lanes, the others one by one.
+fn eval_lanes(bsdf: &Bsdf, wo: Vec3, wi: &ChunkRows, n: usize, f: &mut ChunkRows) {
+    let strips = strips(n);
+    match *bsdf {
+        Bsdf::Diffuse(b) => on_lanes!(|b: Diffuse, wo: Vec3, wi: &ChunkRows, strips: usize, f: &mut ChunkRows| {
+            for s in 0..strips {
+                for k in 0..STRIP {
+                    let j = s * STRIP + k;
+                    put(f, j, b.eval(wo, get(wi, j)));
+                }
+            }
+        })(b, wo, wi, strips, f),
+        Bsdf::DiffuseGlossy(b) => on_lanes!(|b: DiffuseGlossy, wo: Vec3, wi: &ChunkRows, strips: usize, f: &mut ChunkRows| {
+            for s in 0..strips {
+                for k in 0..STRIP {
+                    let j = s * STRIP + k;
+                    put(f, j, b.eval_pdf(wo, get(wi, j)).0);
+                }
+            }
+        })(b, wo, wi, strips, f),
+        _ => {
+            for j in 0..n.min(CHUNK) {
+                put(f, j, bsdf.eval(wo, get(wi, j)));
+            }
+        }
+    }
+}
+
+/// The terms of the VPLs `vpls` at the shading points `shades` (at most [`CHUNK`]), one
+/// [`TermLanes`] per VPL in `lanes`, as [`vpl_term`] gives them: each VPL's directions
+/// and BSDF over the points on lanes, then each point's BSDF over the VPLs, then the
+/// terms and shadow rays on lanes.
+fn chunk_terms<'w>(vpls: &[Vpl<'w>], shades: &[&Shade<'w>], d_min2: f32, lanes: &mut Vec<TermLanes>) {
+    let n = shades.len().min(CHUNK);
+    let z = [[0.0; CHUNK]; 3];
+    let mut pts = Points { p: z, ng: z, off: [0.0; CHUNK], beta: z };
+    for (j, sh) in shades[..n].iter().enumerate() {
+        put(&mut pts.p, j, sh.p);
+        put(&mut pts.ng, j, sh.ng);
+        pts.off[j] = sh.off;
+        put(&mut pts.beta, j, sh.beta);
+    }
+    if lanes.len() < vpls.len() {
+        lanes.resize(vpls.len(), TermLanes::new());
+    }
+    for (t, v) in lanes.iter_mut().zip(vpls) {
+        t.toward(v, &pts.p, n);
+    }
+    // Each point's BSDF toward the VPLs, up to CHUNK of them at a time.
+    let (mut local, mut f) = (z, z);
+    for (j, sh) in shades[..n].iter().enumerate() {
+        for group in lanes[..vpls.len()].chunks_mut(CHUNK) {
+            for (i, t) in group.iter().enumerate() {
+                put(&mut local, i, sh.frame.to_local(-get(&t.dir, j)));
+            }
+            eval_lanes(&sh.bsdf, sh.wo, &local, group.len(), &mut f);
+            for (i, t) in group.iter_mut().enumerate() {
+                put(&mut t.fx, j, get(&f, i));
+            }
+        }
+    }
+    for (t, v) in lanes.iter_mut().zip(vpls) {
+        t.finish(v, &pts, n, d_min2);
+        // (Lanes past the chunk's points carry nothing.)
+        t.ok[n..].fill(false);
+    }
 }
 
 /// The squared least distance of a VPL's light (see [`VplSettings::clamp`]).
@@ -519,7 +739,10 @@ pub fn trace_layers(w: &World, cam: &Camera, job: &Job, set: &VplSet, r: Region,
             // Light reflected at each pixel's shading point: direct, then the VPLs'.
             let mut ind = vec![Vec3::ZERO; N];
             let mut who = vec![0usize; N];
-            let mut all_terms: Vec<Option<(Vec3, Ray)>> = Vec::new();
+            let mut term_lanes: Vec<TermLanes> = Vec::new();
+            // (A VPL's shadow rays and terms; only the first `q` are read.)
+            let mut rays = NO_RAYS;
+            let mut terms = [(0usize, Vec3::ZERO); 64];
             let mut x0 = r.x0;
             while x0 < r.x1 {
                 let x1 = (x0 + VPL_TILE).min(r.x1);
@@ -581,32 +804,29 @@ pub fn trace_layers(w: &World, cam: &Camera, job: &Job, set: &VplSet, r: Region,
                         let cm = (m - c).min(64);
                         // Every VPL's term at each of the chunk's pixels first: the shadow
                         // roulette weighs each against their mean.
-                        all_terms.clear();
-                        let (mut sums, mut counts) = ([0f32; 64], [0u32; 64]);
-                        for v in vpls {
-                            for (jj, &j) in who[c..c + cm].iter().enumerate() {
-                                let t = shades[j].as_ref().and_then(|sh| vpl_term(v, sh, d_min2));
-                                if let Some((t, _)) = &t {
-                                    sums[jj] += luminance(*t);
+                        let points: Vec<&Shade> = who[c..c + cm].iter().filter_map(|&j| shades[j].as_ref()).collect();
+                        chunk_terms(vpls, &points, d_min2, &mut term_lanes);
+                        let (mut sums, mut counts) = ([0f32; CHUNK], [0u32; CHUNK]);
+                        for t in &term_lanes[..vpls.len()] {
+                            for jj in 0..cm {
+                                if t.ok[jj] {
+                                    sums[jj] += t.lum[jj];
                                     counts[jj] += 1;
                                 }
-                                all_terms.push(t);
                             }
                         }
-                        let (mut bar, mut pixels) = ([0f32; 64], [PixelSampler::default(); 64]);
+                        let (mut bar, mut seeds) = ([0f32; CHUNK], [0u32; CHUNK]);
                         for (jj, &j) in who[c..c + cm].iter().enumerate() {
                             bar[jj] = bar_of(sums[jj], counts[jj]);
-                            pixels[jj] = s.sampler().pixel(coords[j].0, coords[j].1);
+                            seeds[jj] = s.sampler().pixel(coords[j].0, coords[j].1).hashed_seed(k);
                         }
-                        for (vi, chunk_terms) in all_terms.chunks(cm).enumerate() {
-                            let mut rays = NO_RAYS;
-                            let mut terms = [(0usize, Vec3::ZERO); 64];
+                        for (vi, (t, v)) in term_lanes.iter_mut().zip(vpls).enumerate() {
+                            t.roulette(&bar, &seeds, vi, cm);
                             let mut q = 0;
-                            for (jj, (&j, t)) in who[c..c + cm].iter().zip(chunk_terms).enumerate() {
-                                let Some((t, ray)) = t else { continue };
-                                if let Some(t) = shadow_roulette(*t, bar[jj], &pixels[jj], k, vi) {
-                                    rays[q] = *ray;
-                                    terms[q] = (j, t);
+                            for (jj, &j) in who[c..c + cm].iter().enumerate() {
+                                if let Some((c, ray)) = t.term(v, jj) {
+                                    rays[q] = ray;
+                                    terms[q] = (j, c);
                                     q += 1;
                                 }
                             }
@@ -754,14 +974,17 @@ pub fn render(
         if spread {
             spread_outliers_of_layers(&mut layers, ew as usize, (ext.y1 - ext.y0) as usize, OUTLIER_SIGMAS, OUTLIER_RADIUS);
         }
-        for y in r.y0..r.y1 {
-            for x in r.x0..r.x1 {
+        // (Rows on all cores: the discontinuity buffer was a serial fifth of a frame.)
+        let layers = &layers;
+        sums.par_chunks_mut(rw as usize).enumerate().for_each(|(row, sums)| {
+            let y = r.y0 + row as u32;
+            for (x, sum) in (r.x0..r.x1).zip(sums) {
                 let l = &layers[((y - ext.y0) * ew + (x - ext.x0)) as usize];
-                let lit = if margin > 0 { discontinuity(&layers, ext, m, x, y) } else { l.lit };
+                let lit = if margin > 0 { discontinuity(layers, ext, m, x, y) } else { l.lit };
                 let v = l.emitted + demodulating(l.albedo) * lit;
-                sums[((y - r.y0) * rw + (x - r.x0)) as usize] += if v.is_finite() { v } else { Vec3::ZERO };
+                *sum += if v.is_finite() { v } else { Vec3::ZERO };
             }
-        }
+        });
         if k + 1 == r.s1 {
             progress(u64::from(r.x1.div_ceil(TILE) - r.x0 / TILE) * u64::from(r.y1.div_ceil(TILE) - r.y0 / TILE));
         }
