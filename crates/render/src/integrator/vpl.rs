@@ -888,7 +888,28 @@ pub const OUTLIER_RADIUS: u32 = 6;
 #[must_use]
 pub fn discontinuity(layers: &[Layers], r: Region, m: u32, x: u32, y: u32) -> Vec3 {
     let width = r.x1 - r.x0;
-    let at = |x: u32, y: u32| &layers[((y - r.y0) * width + (x - r.x0)) as usize];
+    discontinuity_with(|x, y| Near::of(&layers[((y - r.y0) * width + (x - r.x0)) as usize]), r, m, x, y)
+}
+
+/// What the discontinuity buffer reads of a pixel's layers.
+#[derive(Clone, Copy, Debug)]
+struct Near {
+    lit: Vec3,
+    normal: Vec3,
+    depth: f32,
+    dark: bool,
+}
+
+impl Near {
+    #[inline]
+    fn of(l: &Layers) -> Self {
+        Self { lit: l.lit, normal: l.normal, depth: l.depth, dark: dark(l.albedo) }
+    }
+}
+
+/// [`discontinuity`] over pixels `at(x, y)` of region `r`.
+#[inline]
+fn discontinuity_with(at: impl Fn(u32, u32) -> Near, r: Region, m: u32, x: u32, y: u32) -> Vec3 {
     let c = at(x, y);
     if m <= 1 || !c.depth.is_finite() || c.normal == Vec3::ZERO {
         return c.lit;
@@ -909,11 +930,7 @@ pub fn discontinuity(layers: &[Layers], r: Region, m: u32, x: u32, y: u32) -> Ve
             }
             let wx = if even && dx.abs() == h { 0.5 } else { 1.0 };
             let q = at(xx as u32, yy as u32);
-            if !q.depth.is_finite()
-                || (q.depth - c.depth).abs() > 0.05 * c.depth
-                || q.normal.dot(c.normal) < 0.906
-                || dark(q.albedo) != dark(c.albedo)
-            {
+            if !q.depth.is_finite() || (q.depth - c.depth).abs() > 0.05 * c.depth || q.normal.dot(c.normal) < 0.906 || q.dark != c.dark {
                 continue;
             }
             sum += q.lit * (wx * wy);
@@ -974,13 +991,16 @@ pub fn render(
         if spread {
             spread_outliers_of_layers(&mut layers, ew as usize, (ext.y1 - ext.y0) as usize, OUTLIER_SIGMAS, OUTLIER_RADIUS);
         }
-        // (Rows on all cores: the discontinuity buffer was a serial fifth of a frame.)
+        // (Rows on all cores: the discontinuity buffer was a serial fifth of a frame.
+        // What it reads of each pixel made first, once: 32 bytes of the layers' 52.)
         let layers = &layers;
+        let near: Vec<Near> = if margin > 0 { layers.par_iter().map(Near::of).collect() } else { Vec::new() };
         sums.par_chunks_mut(rw as usize).enumerate().for_each(|(row, sums)| {
             let y = r.y0 + row as u32;
             for (x, sum) in (r.x0..r.x1).zip(sums) {
                 let l = &layers[((y - ext.y0) * ew + (x - ext.x0)) as usize];
-                let lit = if margin > 0 { discontinuity(layers, ext, m, x, y) } else { l.lit };
+                let at = |x: u32, y: u32| near[((y - ext.y0) * ew + (x - ext.x0)) as usize];
+                let lit = if margin > 0 { discontinuity_with(at, ext, m, x, y) } else { l.lit };
                 let v = l.emitted + demodulating(l.albedo) * lit;
                 *sum += if v.is_finite() { v } else { Vec3::ZERO };
             }
