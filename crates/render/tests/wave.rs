@@ -29,11 +29,11 @@ fn bits(f: &Film) -> Vec<[u32; 3]> {
 
 /// Every level the CPU runs gives the portable build's bits (every BSDF and light kind of
 /// the materials scene, the Cornell box, Beckmann's rough conductors and plastics with
-/// their vector loops (bumpmap), anisotropic roughness, an environment map's batches, and
-/// the principled BSDF's lobes).
+/// their vector loops (bumpmap), anisotropic roughness, an environment map's batches, the
+/// principled BSDF's lobes, and blends' and masks' parts).
 #[test]
 fn every_build_of_the_lanes_gives_the_same_bits() {
-    for name in ["materials", "cornell_box", "bumpmap", "anisotropic", "envmap", "principled"] {
+    for name in ["materials", "cornell_box", "bumpmap", "anisotropic", "envmap", "principled", "blendbsdf", "mask"] {
         let (w, cam) = scene(name);
         let mut images = Vec::new();
         for level in [Level::Portable, Level::Avx2, Level::Avx512] {
@@ -47,19 +47,25 @@ fn every_build_of_the_lanes_gives_the_same_bits() {
     }
 }
 
-/// The principled BSDF's lane form (its direction lane by lane, value and density on
-/// lanes) gives the scalar path tracer's image bit for bit: metallic, transmitting,
-/// clearcoated, sheened and flat lobes (`image_bits.rs` has no principled scene).
+/// The lane forms of the principled BSDF (its direction, value and density on lanes), of
+/// the blend (each part packed with its model: the mix's value and density, the chosen
+/// part's sample mixed with the other's density toward it) and of the mask (its inner
+/// BSDF packed, the null lobe chosen lane by lane) give the scalar path tracer's image bit
+/// for bit (`image_bits.rs` has none of these scenes): metallic, transmitting,
+/// clearcoated, sheened and flat lobes; diffuse and rough gold mixed by a texture, rough
+/// plastic and smooth glass mixed 70/30; a textured opacity.
 #[test]
-fn principled_lanes_are_the_scalar_path_tracer() {
-    let (w, cam) = scene("principled");
-    let st = settings(8);
-    let Integrator::Path(ps) = st.integrator else { unreachable!() };
-    let scalar = RenderSettings { integrator: Integrator::Path(PathSettings { lanes: false, ..ps }), ..st };
-    let (a, b) = (bits(&render(&w, &cam, &st, &|_| {}).0), bits(&render(&w, &cam, &scalar, &|_| {}).0));
-    let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
-    assert_eq!(differ, 0, "lanes and scalar differ in {differ} of {} pixels", a.len());
-    assert!(a.iter().any(|p| p.iter().any(|&c| f32::from_bits(c) > 0.0)), "a lit image");
+fn principled_blend_and_mask_lanes_are_the_scalar_path_tracer() {
+    for name in ["principled", "blendbsdf", "mask"] {
+        let (w, cam) = scene(name);
+        let st = settings(8);
+        let Integrator::Path(ps) = st.integrator else { unreachable!() };
+        let scalar = RenderSettings { integrator: Integrator::Path(PathSettings { lanes: false, ..ps }), ..st };
+        let (a, b) = (bits(&render(&w, &cam, &st, &|_| {}).0), bits(&render(&w, &cam, &scalar, &|_| {}).0));
+        let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+        assert_eq!(differ, 0, "{name}: lanes and scalar differ in {differ} of {} pixels", a.len());
+        assert!(a.iter().any(|p| p.iter().any(|&c| f32::from_bits(c) > 0.0)), "{name}: a lit image");
+    }
 }
 
 /// One thread or three, pixels in one region or in tiles: the same bits. Samples split

@@ -246,11 +246,11 @@ pub struct Blend<'a> {
 }
 
 impl<'a> Blend<'a> {
-    fn first(&self) -> Bsdf<'a> {
+    pub(crate) fn first(&self) -> Bsdf<'a> {
         self.parts[0].bsdf_at(self.textures, self.uv)
     }
 
-    fn second(&self) -> Bsdf<'a> {
+    pub(crate) fn second(&self) -> Bsdf<'a> {
         self.parts[1].bsdf_at(self.textures, self.uv)
     }
 
@@ -343,7 +343,7 @@ pub struct Mask<'a> {
 }
 
 impl<'a> Mask<'a> {
-    fn inner(&self) -> Bsdf<'a> {
+    pub(crate) fn inner(&self) -> Bsdf<'a> {
         self.inner.bsdf_at(self.textures, self.uv)
     }
 

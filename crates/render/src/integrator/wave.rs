@@ -801,6 +801,32 @@ macro_rules! each_model {
     }};
 }
 
+/// The scatter stage's samples by lane: whether there is one, its direction, weight,
+/// density, delta flag and relative index.
+struct SampleRows {
+    ok: [bool; CAP],
+    wi: Rows,
+    weight: Rows,
+    pdf: [f32; CAP],
+    delta: [bool; CAP],
+    eta: [f32; CAP],
+}
+
+impl SampleRows {
+    fn new() -> Self {
+        Self { ok: [false; CAP], wi: [[0.0; CAP]; 3], weight: [[0.0; CAP]; 3], pdf: [0.0; CAP], delta: [false; CAP], eta: [1.0; CAP] }
+    }
+
+    /// Lane `i`'s sample from packed lane `j` of `p`.
+    #[inline(always)]
+    fn put<B>(&mut self, i: usize, p: &Packed<B>, j: usize) {
+        self.ok[i] = p.ok[j];
+        put3(&mut self.wi, i, get3(&p.wi, j));
+        put3(&mut self.weight, i, get3(&p.f, j));
+        (self.pdf[i], self.delta[i], self.eta[i]) = (p.pdf[j], p.delta[j], p.eta[j]);
+    }
+}
+
 /// One packed set per model, made once per thread's wave.
 struct Models<'w> {
     diffuse: Box<Packed<Diffuse>>,
@@ -817,6 +843,38 @@ struct Models<'w> {
     thin: Box<Packed<ThinDielectric>>,
     diffuse_glossy: Box<Packed<DiffuseGlossy>>,
     principled: Box<Packed<Principled>>,
+    /// The lanes whose BSDF is a blend or a mask, shaded through their parts' packs, and
+    /// how each lane's results combine ([`Models::push_eval`], [`Models::push_sample`]).
+    mixed: Vec<(u8, Mix)>,
+    /// A blend's second part (eval) or the part it did not choose (sample, evaluated
+    /// toward the sample), packed apart (made when first needed).
+    parts: Option<Box<Models<'w>>>,
+    /// The parts blends' samples did not choose, by lane, for the second phase.
+    others: Vec<(u8, Bsdf<'w>)>,
+}
+
+/// How a lane's BSDF, a blend or a mask, is made of packed BSDFs (Mitsuba's `blendbsdf`
+/// and `mask`: [`crate::bsdf::Blend`], [`crate::bsdf::Mask`], whose scalar forms these
+/// follow step for step, so the lanes give their bits).
+#[derive(Clone, Copy, Debug)]
+enum Mix {
+    /// A mask of opacity α: its inner BSDF's value and density times α (eval; nothing
+    /// packed where α is 0), or its sample's density times α (sample).
+    Mask(f32),
+    /// A mask's null lobe was chosen (sample): straight through, probability 1 − α.
+    Null(f32),
+    /// A blend of weight w (eval): (1 − w)·first + w·second, the first packed here, the
+    /// second in `parts`, each only where its share is positive.
+    Blend(f32),
+    /// A blend's sample, drawn from the part chosen with probability p; the other part,
+    /// evaluated toward it in `parts` (or one by one), is mixed in.
+    Chosen(f32),
+}
+
+/// Whether `b` packs as it is (not a blend, a mask or the user's).
+#[inline]
+fn packable(b: &Bsdf) -> bool {
+    !matches!(b, Bsdf::Blend(_) | Bsdf::Mask(_) | Bsdf::Custom(..))
 }
 
 impl<'w> Models<'w> {
@@ -836,11 +894,196 @@ impl<'w> Models<'w> {
             thin: Packed::new(),
             diffuse_glossy: Packed::new(),
             principled: Packed::new(),
+            mixed: Vec::new(),
+            parts: None,
+            others: Vec::new(),
         }
     }
 
     fn clear(&mut self) {
-        each_model!(self, |p| p.clear());
+        each_model!(&mut *self, |p| p.clear());
+        self.mixed.clear();
+        self.others.clear();
+        if let Some(parts) = &mut self.parts {
+            parts.clear();
+        }
+    }
+
+    /// The packs of blends' other parts.
+    fn parts(&mut self) -> &mut Models<'w> {
+        self.parts.get_or_insert_with(|| Box::new(Models::new()))
+    }
+
+    /// Packs lane `i` for `eval` toward `wi`: its BSDF's model, or a blend's or a mask's
+    /// parts (combined by [`Models::mix_eval`]); `false` for what has no lane form, which
+    /// the caller takes lane by lane.
+    fn push_eval(&mut self, i: usize, b: Bsdf<'w>, wo: Vec3, wi: Vec3) -> bool {
+        match b {
+            Bsdf::Mask(m) => {
+                if m.opacity > 0.0 {
+                    let inner = m.inner();
+                    if !packable(&inner) {
+                        return false;
+                    }
+                    self.push(i, inner, wo, wi, 0.0, (0.0, 0.0));
+                }
+                self.mixed.push((i as u8, Mix::Mask(m.opacity)));
+                true
+            }
+            Bsdf::Blend(bl) => {
+                let w = bl.weight;
+                let (first, second) = (bl.first(), bl.second());
+                if (w < 1.0 && !packable(&first)) || (w > 0.0 && !packable(&second)) {
+                    return false;
+                }
+                if w < 1.0 {
+                    self.push(i, first, wo, wi, 0.0, (0.0, 0.0));
+                }
+                if w > 0.0 {
+                    self.parts().push(i, second, wo, wi, 0.0, (0.0, 0.0));
+                }
+                self.mixed.push((i as u8, Mix::Blend(w)));
+                true
+            }
+            _ => self.push(i, b, wo, wi, 0.0, (0.0, 0.0)),
+        }
+    }
+
+    /// Runs `eval_all` on the blends' second parts.
+    fn eval_parts(&mut self) {
+        if let Some(parts) = &mut self.parts {
+            run_models!(&mut **parts, eval_all);
+        }
+    }
+
+    /// The results of every lane [`Models::push_eval`] took into `f` and `pdf`: the packed
+    /// lanes' as they are, the blends' and masks' combined as their scalar `eval_pdf`.
+    fn mix_eval(&mut self, f: &mut Rows, pdf: &mut [f32; CAP]) {
+        each_model!(&mut *self, |p| {
+            for (j, &i) in p.lane.iter().enumerate() {
+                put3(f, usize::from(i), get3(&p.f, j));
+                pdf[usize::from(i)] = p.pdf[j];
+            }
+        });
+        if self.mixed.is_empty() {
+            return;
+        }
+        let (mut f2, mut pdf2): (Rows, [f32; CAP]) = ([[0.0; CAP]; 3], [0.0; CAP]);
+        if let Some(parts) = &mut self.parts {
+            parts.mix_eval(&mut f2, &mut pdf2);
+        }
+        for &(i, mix) in &self.mixed {
+            let i = usize::from(i);
+            let (fi, pi) = (get3(f, i), pdf[i]);
+            let (fi, pi) = match mix {
+                Mix::Mask(a) if a > 0.0 => (fi * a, pi * a),
+                Mix::Mask(_) => (Vec3::ZERO, 0.0),
+                Mix::Blend(w) => {
+                    let (fa, pa) = if w < 1.0 { (fi * (1.0 - w), pi * (1.0 - w)) } else { (Vec3::ZERO, 0.0) };
+                    let (fb, pb) = if w > 0.0 { (get3(&f2, i) * w, pdf2[i] * w) } else { (Vec3::ZERO, 0.0) };
+                    (fa + fb, pa + pb)
+                }
+                Mix::Null(_) | Mix::Chosen(_) => (fi, pi),
+            };
+            put3(f, i, fi);
+            pdf[i] = pi;
+        }
+    }
+
+    /// Packs lane `i` for a sample (numbers `u`, `u2`): its BSDF's model, or the part a
+    /// blend or a mask chooses with `u` (finished by [`Models::mix_sample`]); `false` for
+    /// what has no lane form.
+    fn push_sample(&mut self, i: usize, b: Bsdf<'w>, wo: Vec3, u: f32, u2: (f32, f32)) -> bool {
+        match b {
+            Bsdf::Mask(m) => {
+                let a = m.opacity;
+                if u >= a {
+                    self.mixed.push((i as u8, Mix::Null(a)));
+                    return true;
+                }
+                let inner = m.inner();
+                if !packable(&inner) {
+                    return false;
+                }
+                self.push(i, inner, wo, Vec3::ZERO, (u / a).clamp(0.0, 1.0 - f32::EPSILON), u2);
+                self.mixed.push((i as u8, Mix::Mask(a)));
+                true
+            }
+            Bsdf::Blend(bl) => {
+                let w = bl.weight;
+                let (chosen, other, p, u) =
+                    if u < w { (bl.second(), bl.first(), w, u / w) } else { (bl.first(), bl.second(), 1.0 - w, (u - w) / (1.0 - w)) };
+                if !packable(&chosen) {
+                    return false;
+                }
+                self.push(i, chosen, wo, Vec3::ZERO, u.clamp(0.0, 1.0 - f32::EPSILON), u2);
+                self.others.push((i as u8, other));
+                self.mixed.push((i as u8, Mix::Chosen(p)));
+                true
+            }
+            _ => self.push(i, b, wo, Vec3::ZERO, u, u2),
+        }
+    }
+
+    /// The samples of every lane [`Models::push_sample`] took, after `sample_all`: the
+    /// packed lanes' as they are, the masks' and blends' finished as their scalar
+    /// `sample` (a blend's other part evaluated toward the sample, on lanes where it
+    /// packs).
+    fn mix_sample(&mut self, wo: &Rows, out: &mut SampleRows) {
+        each_model!(&mut *self, |p| {
+            for (j, &i) in p.lane.iter().enumerate() {
+                out.put(usize::from(i), p, j);
+            }
+        });
+        if self.mixed.is_empty() {
+            return;
+        }
+        let mut alone: Vec<(usize, Vec3, f32)> = Vec::new();
+        let others = std::mem::take(&mut self.others);
+        for &(i, other) in &others {
+            let i = usize::from(i);
+            if !out.ok[i] {
+                continue;
+            }
+            let (o, wi) = (get3(wo, i), get3(&out.wi, i));
+            if packable(&other) {
+                self.parts().push(i, other, o, wi, 0.0, (0.0, 0.0));
+            } else {
+                let (of, op) = other.eval_pdf(o, wi);
+                alone.push((i, of, op));
+            }
+        }
+        self.others = others;
+        self.eval_parts();
+        let (mut of, mut op): (Rows, [f32; CAP]) = ([[0.0; CAP]; 3], [0.0; CAP]);
+        if let Some(parts) = &mut self.parts {
+            parts.mix_eval(&mut of, &mut op);
+        }
+        for (i, f, p) in alone {
+            put3(&mut of, i, f);
+            op[i] = p;
+        }
+        for &(i, mix) in &self.mixed {
+            let i = usize::from(i);
+            match mix {
+                Mix::Null(a) => {
+                    out.ok[i] = true;
+                    put3(&mut out.wi, i, -get3(wo, i));
+                    put3(&mut out.weight, i, Vec3::ONE);
+                    (out.pdf[i], out.delta[i], out.eta[i]) = (1.0 - a, true, 1.0);
+                }
+                Mix::Mask(a) => out.pdf[i] *= a,
+                Mix::Chosen(p) if out.ok[i] => {
+                    let (sw, sp) = (get3(&out.weight, i), out.pdf[i]);
+                    let f = sw * sp * p + get3(&of, i) * (1.0 - p);
+                    let pdf = sp * p + op[i] * (1.0 - p);
+                    out.ok[i] = pdf > 0.0 && pdf.is_finite();
+                    put3(&mut out.weight, i, f / pdf);
+                    out.pdf[i] = pdf;
+                }
+                Mix::Chosen(_) | Mix::Blend(_) => {}
+            }
+        }
     }
 
     /// Counts the packed loops just run, and `alone` lanes shaded one by one.
@@ -1225,7 +1468,7 @@ fn light<'w>(
         put3(&mut li, i, ls.li);
         (pdf[i], delta[i], dist[i]) = (ls.pdf, ls.delta, ls.dist);
         let wi = wave.frame[i].to_local(ls.dir);
-        if !models.push(i, bsdf, get3(&wave.wo, i), wi, 0.0, (0.0, 0.0)) {
+        if !models.push_eval(i, bsdf, get3(&wave.wo, i), wi) {
             alone[n_alone] = i as u8;
             n_alone += 1;
         }
@@ -1274,15 +1517,11 @@ fn light<'w>(
         }
     }
     run_models!(&mut *models, eval_all);
+    models.eval_parts();
     models.count(watch, n_alone);
     let mut f: Rows = [[0.0; CAP]; 3];
     let mut bsdf_pdf = [0.0f32; CAP];
-    each_model!(&mut *models, |p| {
-        for (j, &i) in p.lane.iter().enumerate() {
-            put3(&mut f, usize::from(i), get3(&p.f, j));
-            bsdf_pdf[usize::from(i)] = p.pdf[j];
-        }
-    });
+    models.mix_eval(&mut f, &mut bsdf_pdf);
     for &i in &alone[..n_alone] {
         let i = usize::from(i);
         let Some(bsdf) = wave.bsdf[i] else { continue };
@@ -1431,28 +1670,16 @@ fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, w
             continue;
         }
         let Some(bsdf) = wave.bsdf[i] else { continue };
-        if !models.push(i, bsdf, get3(&wave.wo, i), Vec3::ZERO, wave.u_bsdf[i], (wave.u2_bsdf[0][i], wave.u2_bsdf[1][i])) {
+        if !models.push_sample(i, bsdf, get3(&wave.wo, i), wave.u_bsdf[i], (wave.u2_bsdf[0][i], wave.u2_bsdf[1][i])) {
             alone[n_alone] = i as u8;
             n_alone += 1;
         }
     }
     run_models!(&mut *models, sample_all);
     models.count(watch, n_alone);
-    let mut ok = [false; CAP];
-    let mut wi: Rows = [[0.0; CAP]; 3];
-    let mut weight: Rows = [[0.0; CAP]; 3];
-    let mut pdf = [0.0f32; CAP];
-    let mut delta = [false; CAP];
-    let mut eta = [1.0f32; CAP];
-    each_model!(&mut *models, |p| {
-        for (j, &i) in p.lane.iter().enumerate() {
-            let i = usize::from(i);
-            ok[i] = p.ok[j];
-            put3(&mut wi, i, get3(&p.wi, j));
-            put3(&mut weight, i, get3(&p.f, j));
-            (pdf[i], delta[i], eta[i]) = (p.pdf[j], p.delta[j], p.eta[j]);
-        }
-    });
+    let mut out = SampleRows::new();
+    models.mix_sample(&wave.wo, &mut out);
+    let SampleRows { mut ok, mut wi, mut weight, mut pdf, mut delta, mut eta } = out;
     for &i in &alone[..n_alone] {
         let i = usize::from(i);
         let Some(bsdf) = wave.bsdf[i] else { continue };
