@@ -1336,16 +1336,25 @@ fn trace<'w>(w: &'w World, s: &PathSettings, wave: &mut Wave<'w>, timed: bool) -
     let mis = s.sampling == LightSampling::Mis;
     // The lanes whose rays left the scene: their directions and previous normals.
     let (mut esc_lane, mut esc_dir, mut esc_n, mut n_esc) = ([0u8; CAP], [Vec3::ZERO; CAP], [Vec3::ZERO; CAP], 0);
+    // Every lane's closest hit first, asking for the cache lines its surface will read:
+    // made after all of them, the surfaces' misses overlap (PERF: one miss after another,
+    // the face normal's load was a quarter of `World::surface` on Sponza).
+    let t0 = if timed { now() } else { 0 };
+    let mut found = [None; CAP];
+    for (i, f) in found.iter_mut().enumerate().take(wave.n) {
+        *f = w.first_hit(&wave.ray[i], wave.first[i].take());
+        if let Some((_, h)) = f {
+            w.prefetch_surface(h);
+        }
+    }
+    if timed {
+        ray_ticks += now().wrapping_sub(t0);
+    }
     for i in 0..wave.n {
         wave.scatter[i] = false;
         let depth = wave.depth[i];
         let beta = get3(&wave.beta, i);
-        let t0 = if timed { now() } else { 0 };
-        let found = w.first_hit(&wave.ray[i], wave.first[i].take());
-        if timed {
-            ray_ticks += now().wrapping_sub(t0);
-        }
-        let Some((hit_ray, hit)) = found else {
+        let Some((hit_ray, hit)) = found[i] else {
             if !hidden(depth) {
                 // (The environment's radiance and density after the loop, together.)
                 esc_lane[n_esc] = i as u8;

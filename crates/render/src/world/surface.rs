@@ -54,6 +54,28 @@ impl Surface {
 }
 
 impl World {
+    /// Asks for the cache lines [`World::surface`] reads first for hit `h` (a mesh
+    /// triangle's face normal, material and corners), so that the misses of many hits
+    /// overlap when their surfaces are made after all of them are found.
+    #[inline]
+    pub(crate) fn prefetch_surface(&self, h: &Hit) {
+        let Some(inst) = self.info.get(h.inst as usize) else { return };
+        if let Geom::Mesh(m) = inst.geom {
+            let tri = h.prim as usize;
+            if let Some(f) = self.faces.get(m as usize).and_then(|f| f.get(tri)) {
+                lucent_accel::traverse::prefetch(f);
+            }
+            if let Some(mesh) = self.scene.meshes.get(m as usize) {
+                if let Some(t) = mesh.material.get(tri) {
+                    lucent_accel::traverse::prefetch(t);
+                }
+                if let Some(idx) = mesh.indices.get(tri) {
+                    lucent_accel::traverse::prefetch(idx);
+                }
+            }
+        }
+    }
+
     /// The unit geometric normal of a hit in world space, the one [`World::surface`] gives
     /// (a triangle's by its winding, `(b − a) × (c − a)`; a shape's outward), without the
     /// rest of the surface point: what ray queries report. Zero for a hit this world does
