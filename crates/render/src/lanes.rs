@@ -261,6 +261,20 @@ impl V3<F8> {
     }
 }
 
+/// Lane `i` of three rows (x, y, z) of `K` lanes.
+#[inline(always)]
+pub(crate) fn get3<const K: usize>(r: &[[f32; K]; 3], i: usize) -> Vec3 {
+    Vec3::new(r[0][i], r[1][i], r[2][i])
+}
+
+/// Sets lane `i` of three rows.
+#[inline(always)]
+pub(crate) fn put3<const K: usize>(r: &mut [[f32; K]; 3], i: usize, v: Vec3) {
+    r[0][i] = v.x;
+    r[1][i] = v.y;
+    r[2][i] = v.z;
+}
+
 /// Which build of a lane loop runs: the instruction sets a loop's function is compiled for
 /// by `on_lanes!`, best first. Every build gives the same bits (IEEE operations, no fused
 /// products: Rust never contracts).

@@ -65,7 +65,7 @@ use crate::camera::Camera;
 use crate::color::luminance;
 use crate::denoise::spread_outliers_of_layers;
 use crate::film::Region;
-use crate::lanes::on_lanes;
+use crate::lanes::{get3, on_lanes, put3};
 use crate::sampler::{hashed_at, CameraSamples, PixelSampler, DEFAULT_SEED};
 use crate::sampling::ShadingFrame;
 use crate::tiles::{Job, Sink, NO_RAYS, TILE};
@@ -422,16 +422,6 @@ const CHUNK: usize = 64;
 /// Rows of a chunk's lanes (x, y, z).
 type ChunkRows = [[f32; CHUNK]; 3];
 
-#[inline(always)]
-fn get(r: &ChunkRows, j: usize) -> Vec3 {
-    Vec3::new(r[0][j], r[1][j], r[2][j])
-}
-
-#[inline(always)]
-fn put(r: &mut ChunkRows, j: usize, v: Vec3) {
-    (r[0][j], r[1][j], r[2][j]) = (v.x, v.y, v.z);
-}
-
 /// Lanes per strip of the VPL terms' loops: `n` lanes run as whole strips (a loop of this
 /// constant count vectorizes whole).
 const STRIP: usize = 16;
@@ -484,12 +474,12 @@ impl TermLanes {
             for s in 0..strips {
                 for k in 0..STRIP {
                     let j = s * STRIP + k;
-                    let to = get(p, j) - vp;
+                    let to = get3(p, j) - vp;
                     let d2 = to.length_squared();
                     let dir = to / d2.sqrt();
                     t.d2[j] = d2;
-                    put(&mut t.dir, j, dir);
-                    put(local, j, fr.to_local(dir));
+                    put3(&mut t.dir, j, dir);
+                    put3(local, j, fr.to_local(dir));
                 }
             }
         })(self, &mut local, p, v.p, v.frame, strips(n));
@@ -504,18 +494,18 @@ impl TermLanes {
             for s in 0..strips {
                 for k in 0..STRIP {
                     let j = s * STRIP + k;
-                    let (d2, fv, fx) = (t.d2[j], get(&t.fv, j), get(&t.fx, j));
-                    let p = get(&pts.p, j);
-                    let c = flux * fv * fx * get(&pts.beta, j) / d2.max(d_min2);
+                    let (d2, fv, fx) = (t.d2[j], get3(&t.fv, j), get3(&t.fx, j));
+                    let p = get3(&pts.p, j);
+                    let c = flux * fv * fx * get3(&pts.beta, j) / d2.max(d_min2);
                     let upper = (p - vp).dot(ng) >= 0.0;
                     let o = if upper { org[0] } else { org[1] };
                     // (Shade::end_toward, on lanes.)
-                    let png = get(&pts.ng, j);
+                    let png = get3(&pts.ng, j);
                     let n = if (vp - p).dot(png) < 0.0 { -png } else { png };
                     let seg = (p + n * pts.off[j]) - o;
                     let len = seg.length();
-                    put(&mut t.fv, j, c);
-                    put(&mut t.dir, j, seg / len);
+                    put3(&mut t.fv, j, c);
+                    put3(&mut t.dir, j, seg / len);
                     t.len[j] = len;
                     t.upper[j] = upper;
                     t.ok[j] =
@@ -538,8 +528,8 @@ impl TermLanes {
                     let (l, b) = (t.lum[j], bar[j]);
                     let chance = (b > 0.0) & b.is_finite() & (l < b);
                     let q = l / b;
-                    let c = get(&t.fv, j);
-                    put(&mut t.fv, j, if chance { c / q } else { c });
+                    let c = get3(&t.fv, j);
+                    put3(&mut t.fv, j, if chance { c / q } else { c });
                     t.ok[j] &= !chance | (hashed_at(seeds[j], dim) < q);
                 }
             }
@@ -550,7 +540,7 @@ impl TermLanes {
     #[inline]
     fn term(&self, v: &Vpl, j: usize) -> Option<(Vec3, Ray)> {
         let org = if self.upper[j] { v.org[0] } else { v.org[1] };
-        self.ok[j].then(|| (get(&self.fv, j), Ray::new(org, get(&self.dir, j)).with_range(0.0, self.len[j])))
+        self.ok[j].then(|| (get3(&self.fv, j), Ray::new(org, get3(&self.dir, j)).with_range(0.0, self.len[j])))
     }
 }
 
@@ -564,7 +554,7 @@ fn eval_lanes(bsdf: &Bsdf, wo: Vec3, wi: &ChunkRows, n: usize, f: &mut ChunkRows
             for s in 0..strips {
                 for k in 0..STRIP {
                     let j = s * STRIP + k;
-                    put(f, j, b.eval(wo, get(wi, j)));
+                    put3(f, j, b.eval(wo, get3(wi, j)));
                 }
             }
         })(b, wo, wi, strips, f),
@@ -572,13 +562,13 @@ fn eval_lanes(bsdf: &Bsdf, wo: Vec3, wi: &ChunkRows, n: usize, f: &mut ChunkRows
             for s in 0..strips {
                 for k in 0..STRIP {
                     let j = s * STRIP + k;
-                    put(f, j, b.eval_pdf(wo, get(wi, j)).0);
+                    put3(f, j, b.eval_pdf(wo, get3(wi, j)).0);
                 }
             }
         })(b, wo, wi, strips, f),
         _ => {
             for j in 0..n.min(CHUNK) {
-                put(f, j, bsdf.eval(wo, get(wi, j)));
+                put3(f, j, bsdf.eval(wo, get3(wi, j)));
             }
         }
     }
@@ -593,10 +583,10 @@ fn chunk_terms<'w>(vpls: &[Vpl<'w>], shades: &[&Shade<'w>], d_min2: f32, lanes: 
     let z = [[0.0; CHUNK]; 3];
     let mut pts = Points { p: z, ng: z, off: [0.0; CHUNK], beta: z };
     for (j, sh) in shades[..n].iter().enumerate() {
-        put(&mut pts.p, j, sh.p);
-        put(&mut pts.ng, j, sh.ng);
+        put3(&mut pts.p, j, sh.p);
+        put3(&mut pts.ng, j, sh.ng);
         pts.off[j] = sh.off;
-        put(&mut pts.beta, j, sh.beta);
+        put3(&mut pts.beta, j, sh.beta);
     }
     if lanes.len() < vpls.len() {
         lanes.resize(vpls.len(), TermLanes::new());
@@ -609,11 +599,11 @@ fn chunk_terms<'w>(vpls: &[Vpl<'w>], shades: &[&Shade<'w>], d_min2: f32, lanes: 
     for (j, sh) in shades[..n].iter().enumerate() {
         for group in lanes[..vpls.len()].chunks_mut(CHUNK) {
             for (i, t) in group.iter().enumerate() {
-                put(&mut local, i, sh.frame.to_local(-get(&t.dir, j)));
+                put3(&mut local, i, sh.frame.to_local(-get3(&t.dir, j)));
             }
             eval_lanes(&sh.bsdf, sh.wo, &local, group.len(), &mut f);
             for (i, t) in group.iter_mut().enumerate() {
-                put(&mut t.fx, j, get(&f, i));
+                put3(&mut t.fx, j, get3(&f, i));
             }
         }
     }

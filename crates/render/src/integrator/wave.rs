@@ -38,10 +38,11 @@ use crate::bsdf::{
     Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, Principled, RoughConductor,
     RoughDielectric, RoughPlasticLane, ThinDielectric,
 };
-use crate::lanes::on_lanes;
+use crate::lanes::{get3, on_lanes, put3};
 use crate::lights::area::EmissiveTri;
+use crate::lights::delta::DeltaLane;
 use crate::lights::environment::EnvBatch;
-use crate::lights::{flat_sample, Choice, LightSample, Weights};
+use crate::lights::{delta_sample, flat_sample, Choice, LightSample, Weights};
 use crate::sampler::PixelSampler;
 use crate::sampling::{power_heuristic, ShadingFrame};
 use crate::tiles::{Block, SampleBlock, NO_RAYS};
@@ -70,20 +71,6 @@ const CHUNK: usize = 1024;
 
 /// Three rows of lanes (a vector per lane).
 type Rows = [[f32; CAP]; 3];
-
-/// Lane `i` of three rows.
-#[inline(always)]
-fn get3(r: &Rows, i: usize) -> Vec3 {
-    Vec3::new(r[0][i], r[1][i], r[2][i])
-}
-
-/// Sets lane `i` of three rows.
-#[inline(always)]
-fn put3(r: &mut Rows, i: usize, v: Vec3) {
-    r[0][i] = v.x;
-    r[1][i] = v.y;
-    r[2][i] = v.z;
-}
 
 /// Adds `v` to lane `i` of three rows.
 #[inline(always)]
@@ -1163,6 +1150,7 @@ fn shade_with(settings: &PathSettings, s: &SampleBlock, block: &Block, mut emit:
     let mut models = Models::new();
     let mut flat = Flat::new();
     let mut envs = EnvBatch::new();
+    let mut deltas = Deltas::new();
     let mut watch = Watch::new();
     let mut next = 0usize;
     while next < total {
@@ -1178,7 +1166,7 @@ fn shade_with(settings: &PathSettings, s: &SampleBlock, block: &Block, mut emit:
             watch.lap(Part::Camera);
             camera_packets(w, &mut wave, fresh, block.among, s.traversal.packets);
             watch.lap(Part::ClosestHits);
-            step(w, settings, &mut wave, &mut models, (&mut flat, &mut envs), &mut vals, &mut watch);
+            step(w, settings, &mut wave, &mut models, (&mut flat, &mut envs, &mut deltas), &mut vals, &mut watch);
         }
         // The chunk's values, pixel by pixel in order of the sample index.
         for e in chunk.clone() {
@@ -1294,7 +1282,7 @@ fn step<'w>(
     s: &PathSettings,
     wave: &mut Wave<'w>,
     models: &mut Models<'w>,
-    batches: (&mut Flat, &mut EnvBatch),
+    batches: (&mut Flat, &mut EnvBatch, &mut Deltas),
     vals: &mut [Vec3],
     watch: &mut Watch,
 ) {
@@ -1452,7 +1440,7 @@ fn light<'w>(
     s: &PathSettings,
     wave: &mut Wave<'w>,
     models: &mut Models<'w>,
-    (flat, envs): (&mut Flat, &mut EnvBatch),
+    (flat, envs, deltas): (&mut Flat, &mut EnvBatch, &mut Deltas),
     watch: &mut Watch,
 ) {
     let lights = &w.light_set;
@@ -1487,6 +1475,7 @@ fn light<'w>(
     // maps after in a batch (their cache misses overlapped), the others here.
     flat.n = 0;
     envs.n = 0;
+    deltas.n = 0;
     for i in 0..wave.n {
         let Some(bsdf) = wave.bsdf[i].filter(|_| wave.scatter[i]) else { continue };
         if bsdf.is_delta() {
@@ -1502,6 +1491,7 @@ fn light<'w>(
         match lights.choice(&wt, wave.u_light[i]) {
             Choice::Nothing => {}
             Choice::Flat { light, quad, pmf } => flat.push(i, light, quad, pmf, p, u2),
+            Choice::Delta { light, pmf } => deltas.push(i, light, pmf, p),
             Choice::Env { pmf } => envs.push(i as u8, u2, n, pmf),
             Choice::Other { entry, pmf } => {
                 if let Some(ls) = lights.sample_entry(entry, pmf, p, n, u2, textures, s.sampling == LightSampling::Mis) {
@@ -1511,6 +1501,13 @@ fn light<'w>(
         }
     }
     on_lanes!(|f: &mut Flat| f.sample_all())(flat);
+    on_lanes!(|d: &mut Deltas| d.sample_all())(deltas);
+    for j in 0..deltas.n {
+        let i = usize::from(deltas.lane[j]);
+        if let (true, Some(bsdf)) = (deltas.ok[j], wave.bsdf[i]) {
+            pack(models, i, bsdf, &deltas.out[j]);
+        }
+    }
     for j in 0..flat.n {
         let i = usize::from(flat.lane[j]);
         if let (true, Some(bsdf)) = (flat.ok[j], wave.bsdf[i]) {
@@ -1562,6 +1559,56 @@ fn light<'w>(
         }
     }
     watch.lap(Part::ShadowRays);
+}
+
+/// The lanes whose chosen light is a point or spot light ([`Choice::Delta`]), sampled
+/// together by [`delta_sample`].
+struct Deltas {
+    n: usize,
+    lane: [u8; CAP],
+    light: [DeltaLane; CAP],
+    pmf: [f32; CAP],
+    p: Rows,
+    /// Out: the samples, and whether there is one.
+    out: [LightSample; CAP],
+    ok: [bool; CAP],
+}
+
+impl Deltas {
+    fn new() -> Box<Self> {
+        let none = LightSample { dir: Vec3::Z, dist: 0.0, li: Vec3::ZERO, pdf: 0.0, delta: true };
+        Box::new(Self {
+            n: 0,
+            lane: [0; CAP],
+            light: [DeltaLane::default(); CAP],
+            pmf: [0.0; CAP],
+            p: [[0.0; CAP]; 3],
+            out: [none; CAP],
+            ok: [false; CAP],
+        })
+    }
+
+    #[inline(always)]
+    fn push(&mut self, i: usize, light: DeltaLane, pmf: f32, p: Vec3) {
+        let j = self.n;
+        self.lane[j] = i as u8;
+        self.light[j] = light;
+        self.pmf[j] = pmf;
+        put3(&mut self.p, j, p);
+        self.n += 1;
+    }
+
+    /// Every lane's sample, in whole strips of [`STRIP`] (the lanes past `n` hold an
+    /// earlier step's light; their results go unused).
+    #[inline(always)]
+    fn sample_all(&mut self) {
+        for strip in 0..self.n.div_ceil(STRIP).min(CAP / STRIP) {
+            for k in 0..STRIP {
+                let j = strip * STRIP + k;
+                (self.out[j], self.ok[j]) = delta_sample(&self.light[j], self.pmf[j], get3(&self.p, j));
+            }
+        }
+    }
 }
 
 /// The lanes whose chosen light is an untextured triangle or parallelogram

@@ -92,9 +92,22 @@ pub(crate) enum Choice<'a> {
     /// The environment map, chosen with probability `pmf`: sampled in batches
     /// ([`LightSet::sample_env_batch`]).
     Env { pmf: f32 },
+    /// A point or spot light, chosen with probability `pmf`: sampled as
+    /// [`delta::sample_lane`] does.
+    Delta { light: delta::DeltaLane, pmf: f32 },
     /// Another kind: entry `entry`, chosen with probability `pmf`;
     /// [`LightSet::sample_entry`] samples it.
     Other { entry: usize, pmf: f32 },
+}
+
+/// [`LightSet::sample`] of a [`Choice::Delta`] light, branch-free for loops over lanes
+/// (the same bits): the sample (its density times the choice's `pmf`) and whether there
+/// is one.
+#[inline(always)]
+pub(crate) fn delta_sample(light: &delta::DeltaLane, pmf: f32, p: Vec3) -> (LightSample, bool) {
+    let (s, ok) = delta::sample_lane(light, p);
+    let pdf = s.pdf * pmf;
+    (LightSample { pdf, ..s }, ok & (pdf > 0.0) & pdf.is_finite() & s.li.is_finite())
 }
 
 /// [`LightSet::sample`] of a [`Choice::Flat`] light, branch-free for loops over lanes
@@ -447,6 +460,10 @@ impl LightSet {
             Entry::Area(AreaLight::Tri(t)) if t.tex.is_none() => Choice::Flat { light: t, quad: false, pmf },
             Entry::Area(AreaLight::Quad(t)) => Choice::Flat { light: t, quad: true, pmf },
             Entry::Env => Choice::Env { pmf },
+            Entry::Delta(k) => match self.delta.get(*k).and_then(delta::DeltaLane::of) {
+                Some(light) => Choice::Delta { light, pmf },
+                None => Choice::Other { entry: i, pmf },
+            },
             _ => Choice::Other { entry: i, pmf },
         }
     }
