@@ -1561,7 +1561,7 @@ fn light<'w>(
     watch.lap(Part::ShadowRays);
 }
 
-/// The lanes whose chosen light is a point or spot light ([`Choice::Delta`]), sampled
+/// The lanes whose chosen light is a point, spot or directional light ([`Choice::Delta`]), sampled
 /// together by [`delta_sample`].
 struct Deltas {
     n: usize,

@@ -86,36 +86,40 @@ pub(crate) fn sample(l: &Light, p: Vec3) -> Option<LightSample> {
     }
 }
 
-/// A point or spot light as a loop over lanes takes it ([`sample_lane`]).
+/// A point, spot or directional light as a loop over lanes takes it ([`sample_lane`]).
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct DeltaLane {
-    /// Position.
+    /// Position (point and spot lights).
     pub(crate) position: Vec3,
-    /// A spot light's unit axis (zero for a point light, which has no falloff).
+    /// A spot light's unit axis; a directional light's unit direction toward it; zero for
+    /// a point light, which has no falloff.
     pub(crate) axis: Vec3,
     /// A spot light's inner and outer angles (radians).
     pub(crate) inner: f32,
     pub(crate) outer: f32,
-    /// Whether it is a spot light.
+    /// Whether it is a spot light, a directional light.
     pub(crate) spot: bool,
+    pub(crate) directional: bool,
     pub(crate) color: Vec3,
 }
 
 impl DeltaLane {
-    /// `l` as a lane takes it; `None` for a directional light.
-    pub(crate) fn of(l: &Light) -> Option<Self> {
+    /// `l` as a lane takes it.
+    pub(crate) fn of(l: &Light) -> Self {
         match l.kind {
-            LightKind::Point { position } => Some(Self { position, color: l.color, ..Self::default() }),
+            LightKind::Point { position } => Self { position, color: l.color, ..Self::default() },
             LightKind::Spot { position, direction, inner, outer } => {
-                Some(Self { position, axis: direction.normalize_or_zero(), inner, outer, spot: true, color: l.color })
+                Self { position, axis: direction.normalize_or_zero(), inner, outer, spot: true, color: l.color, ..Self::default() }
             }
-            LightKind::Directional { .. } => None,
+            LightKind::Directional { direction } => {
+                Self { axis: -direction.normalize_or_zero(), directional: true, color: l.color, ..Self::default() }
+            }
         }
     }
 }
 
-/// [`sample`] of a point or spot light, branch-free for loops over lanes (the same bits):
-/// the sample and whether there is one.
+/// [`sample`], branch-free for loops over lanes (the same bits): the sample and whether
+/// there is one.
 #[inline(always)]
 pub(crate) fn sample_lane(l: &DeltaLane, p: Vec3) -> (LightSample, bool) {
     let to = l.position - p;
@@ -132,16 +136,23 @@ pub(crate) fn sample_lane(l: &DeltaLane, p: Vec3) -> (LightSample, bool) {
     };
     let falloff = if l.spot { cone } else { 1.0 };
     let ok = (dist > 0.0) & dist.is_finite() & (falloff > 0.0);
-    (LightSample { dir, dist, li: l.color * falloff / (dist * dist), pdf: 1.0, delta: true }, ok)
+    let local = LightSample { dir, dist, li: l.color * falloff / (dist * dist), pdf: 1.0, delta: true };
+    // (A directional light: its direction, from every point.)
+    let parallel = LightSample { dir: l.axis, dist: f32::INFINITY, li: l.color, pdf: 1.0, delta: true };
+    if l.directional {
+        (parallel, l.axis != Vec3::ZERO)
+    } else {
+        (local, ok)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The lane form gives [`sample`]'s numbers bit for bit (point and spot lights, points
-    /// inside, on the edge of and outside the cone, at the light itself), and no sample
-    /// where it gives none.
+    /// The lane form gives [`sample`]'s numbers bit for bit (point, spot and directional
+    /// lights; points inside, on the edge of and outside the cone, at the light itself; a
+    /// directional light without a direction), and no sample where it gives none.
     #[test]
     fn the_lane_sample_is_the_scalar_one() {
         let v = Vec3::new;
@@ -157,6 +168,8 @@ mod tests {
                 color: v(1.0, 2.0, 3.0),
                 inverse_square: true,
             },
+            Light { kind: LightKind::Directional { direction: v(0.3, -1.0, 0.2) }, color: v(2.0, 2.0, 1.5), inverse_square: false },
+            Light { kind: LightKind::Directional { direction: Vec3::ZERO }, color: v(1.0, 1.0, 1.0), inverse_square: false },
         ];
         let mut state = 0x1234_5678u32;
         let mut next = || {
@@ -165,13 +178,11 @@ mod tests {
         };
         let (mut some, mut none) = (0, 0);
         for l in &lights {
-            let lane = DeltaLane::of(l).expect("a point or spot light");
+            let lane = DeltaLane::of(l);
             let mut points: Vec<Vec3> = (0..4000).map(|_| v(next(), next(), next())).collect();
-            let pos = match l.kind {
-                LightKind::Point { position } | LightKind::Spot { position, .. } => position,
-                LightKind::Directional { .. } => unreachable!(),
-            };
-            points.push(pos);
+            if let LightKind::Point { position } | LightKind::Spot { position, .. } = l.kind {
+                points.push(position);
+            }
             for p in points {
                 let (s, ok) = sample_lane(&lane, p);
                 match sample(l, p) {
@@ -189,6 +200,6 @@ mod tests {
                 }
             }
         }
-        assert!(some > 1000 && none > 100, "{some} samples, {none} without");
+        assert!(some > 1000 && none > 4000, "{some} samples, {none} without");
     }
 }

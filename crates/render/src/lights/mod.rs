@@ -92,7 +92,7 @@ pub(crate) enum Choice<'a> {
     /// The environment map, chosen with probability `pmf`: sampled in batches
     /// ([`LightSet::sample_env_batch`]).
     Env { pmf: f32 },
-    /// A point or spot light, chosen with probability `pmf`: sampled as
+    /// A point, spot or directional light, chosen with probability `pmf`: sampled as
     /// [`delta::sample_lane`] does.
     Delta { light: delta::DeltaLane, pmf: f32 },
     /// Another kind: entry `entry`, chosen with probability `pmf`;
@@ -460,9 +460,9 @@ impl LightSet {
             Entry::Area(AreaLight::Tri(t)) if t.tex.is_none() => Choice::Flat { light: t, quad: false, pmf },
             Entry::Area(AreaLight::Quad(t)) => Choice::Flat { light: t, quad: true, pmf },
             Entry::Env => Choice::Env { pmf },
-            Entry::Delta(k) => match self.delta.get(*k).and_then(delta::DeltaLane::of) {
-                Some(light) => Choice::Delta { light, pmf },
-                None => Choice::Other { entry: i, pmf },
+            Entry::Delta(k) => match self.delta.get(*k) {
+                Some(l) => Choice::Delta { light: delta::DeltaLane::of(l), pmf },
+                None => Choice::Nothing,
             },
             _ => Choice::Other { entry: i, pmf },
         }
