@@ -276,15 +276,22 @@ impl<'a> Blend<'a> {
     /// as apart).
     #[must_use]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        let w = self.weight;
+        Self::mix(self.weight, || self.first().eval_pdf(wo, wi), || self.second().eval_pdf(wo, wi))
+    }
+
+    /// `(1 − w)·first + w·second` of two parts' (value, density) pairs, each part's asked
+    /// for only where its share is positive: [`Blend::eval_pdf`], and the lane
+    /// integrator's blends (their parts' values from their packs).
+    #[inline]
+    pub(crate) fn mix(w: f32, first: impl FnOnce() -> (Vec3, f32), second: impl FnOnce() -> (Vec3, f32)) -> (Vec3, f32) {
         let (fa, pa) = if w < 1.0 {
-            let (f, p) = self.first().eval_pdf(wo, wi);
+            let (f, p) = first();
             (f * (1.0 - w), p * (1.0 - w))
         } else {
             (Vec3::ZERO, 0.0)
         };
         let (fb, pb) = if w > 0.0 {
-            let (f, p) = self.second().eval_pdf(wo, wi);
+            let (f, p) = second();
             (f * w, p * w)
         } else {
             (Vec3::ZERO, 0.0)
@@ -295,15 +302,31 @@ impl<'a> Blend<'a> {
     /// A direction: the second BSDF's with probability w (`u` reused, rescaled).
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
+        let (chosen, other, p, u) = self.choose(u);
+        let s = chosen.sample(wo, u, u2)?;
+        let (of, op) = other.eval_pdf(wo, s.wi);
+        Self::mixed(s, p, of, op)
+    }
+
+    /// The part `u` chooses (the second with probability w), the other part, the chosen
+    /// one's probability, and `u` rescaled within its share for the chosen one's sample.
+    #[inline]
+    pub(crate) fn choose(&self, u: f32) -> (Bsdf<'a>, Bsdf<'a>, f32, f32) {
         let w = self.weight;
         let (chosen, other, p, u) =
             if u < w { (self.second(), self.first(), w, u / w) } else { (self.first(), self.second(), 1.0 - w, (u - w) / (1.0 - w)) };
-        let s = chosen.sample(wo, u.clamp(0.0, 1.0 - f32::EPSILON), u2)?;
+        (chosen, other, p, u.clamp(0.0, 1.0 - f32::EPSILON))
+    }
+
+    /// The sample `s` of the part chosen with probability `p`, weighed by the mixed
+    /// density with the other part's value `of` and density `op` toward it; `None` where
+    /// that density is not a positive number.
+    #[inline]
+    pub(crate) fn mixed(s: BsdfSample, p: f32, of: Vec3, op: f32) -> Option<BsdfSample> {
         // (The chosen one's value from its weight and density; the other's evaluated. A
         // delta sample's probability is mixed with the other's density as well, as
         // Mitsuba 3.9.1's blendbsdf does: not the mix's estimate where a delta and a
         // glossy lobe overlap, but Mitsuba's image.)
-        let (of, op) = other.eval_pdf(wo, s.wi);
         let f = s.weight * s.pdf * p + of * (1.0 - p);
         let pdf = s.pdf * p + op * (1.0 - p);
         if !(pdf > 0.0 && pdf.is_finite()) {
@@ -370,9 +393,16 @@ impl<'a> Mask<'a> {
     /// [`Mask::eval`] and [`Mask::pdf`] at once (the inner BSDF resolved once).
     #[must_use]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        if self.opacity > 0.0 {
-            let (f, p) = self.inner().eval_pdf(wo, wi);
-            (f * self.opacity, p * self.opacity)
+        Self::scaled(self.opacity, || self.inner().eval_pdf(wo, wi))
+    }
+
+    /// The inner BSDF's (value, density) times the opacity `a`, asked for only where `a`
+    /// is positive: [`Mask::eval_pdf`], and the lane integrator's masks.
+    #[inline]
+    pub(crate) fn scaled(a: f32, inner: impl FnOnce() -> (Vec3, f32)) -> (Vec3, f32) {
+        if a > 0.0 {
+            let (f, p) = inner();
+            (f * a, p * a)
         } else {
             (Vec3::ZERO, 0.0)
         }
@@ -383,11 +413,33 @@ impl<'a> Mask<'a> {
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: f32, u2: (f32, f32)) -> Option<BsdfSample> {
         let a = self.opacity;
-        if u >= a {
-            return Some(BsdfSample { wi: -wo, weight: Vec3::ONE, pdf: 1.0 - a, delta: true, eta: 1.0 });
+        match Self::choose(a, wo, u) {
+            Err(null) => Some(null),
+            Ok(u) => Some(Self::through(self.inner().sample(wo, u, u2)?, a)),
         }
-        let s = self.inner().sample(wo, (u / a).clamp(0.0, 1.0 - f32::EPSILON), u2)?;
-        Some(BsdfSample { pdf: s.pdf * a, ..s })
+    }
+
+    /// What `u` chooses at opacity `a`: the null lobe's sample (straight through), or the
+    /// inner BSDF, with `u` rescaled within its share for the inner one's sample.
+    #[inline]
+    pub(crate) fn choose(a: f32, wo: Vec3, u: f32) -> Result<f32, BsdfSample> {
+        if u >= a {
+            Err(Self::null(a, wo))
+        } else {
+            Ok((u / a).clamp(0.0, 1.0 - f32::EPSILON))
+        }
+    }
+
+    /// The null lobe's sample at opacity `a`: straight through, with probability 1 − `a`.
+    #[inline]
+    pub(crate) fn null(a: f32, wo: Vec3) -> BsdfSample {
+        BsdfSample { wi: -wo, weight: Vec3::ONE, pdf: 1.0 - a, delta: true, eta: 1.0 }
+    }
+
+    /// The inner BSDF's sample `s` as the mask's at opacity `a` (its density times `a`).
+    #[inline]
+    pub(crate) fn through(s: BsdfSample, a: f32) -> BsdfSample {
+        BsdfSample { pdf: s.pdf * a, ..s }
     }
 
     /// Whether the inner BSDF is delta only (then so is the whole).

@@ -35,7 +35,7 @@ use super::wave_profile::{now, Part, Watch};
 use crate::bsdf::microfacet::{reflect, SlopeSearch};
 use crate::bsdf::sample::reflection_lane;
 use crate::bsdf::{
-    Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, MetallicRoughness, Plastic, Principled, RoughConductor,
+    Blend, Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, DiffuseGlossy, Mask, MetallicRoughness, Plastic, Principled, RoughConductor,
     RoughDielectric, RoughPlasticLane, ThinDielectric,
 };
 use crate::lanes::{get3, on_lanes, put3};
@@ -812,6 +812,23 @@ impl SampleRows {
         put3(&mut self.weight, i, get3(&p.f, j));
         (self.pdf[i], self.delta[i], self.eta[i]) = (p.pdf[j], p.delta[j], p.eta[j]);
     }
+
+    /// Lane `i`'s sample (whether there is one: `ok`).
+    #[inline]
+    fn get(&self, i: usize) -> BsdfSample {
+        BsdfSample { wi: get3(&self.wi, i), weight: get3(&self.weight, i), pdf: self.pdf[i], delta: self.delta[i], eta: self.eta[i] }
+    }
+
+    /// Sets lane `i`'s sample to `s`, or to none.
+    #[inline]
+    fn set(&mut self, i: usize, s: Option<BsdfSample>) {
+        self.ok[i] = s.is_some();
+        if let Some(s) = s {
+            put3(&mut self.wi, i, s.wi);
+            put3(&mut self.weight, i, s.weight);
+            (self.pdf[i], self.delta[i], self.eta[i]) = (s.pdf, s.delta, s.eta);
+        }
+    }
 }
 
 /// One packed set per model, made once per thread's wave.
@@ -961,16 +978,11 @@ impl<'w> Models<'w> {
         }
         for &(i, mix) in &self.mixed {
             let i = usize::from(i);
-            let (fi, pi) = (get3(f, i), pdf[i]);
+            let own = (get3(f, i), pdf[i]);
             let (fi, pi) = match mix {
-                Mix::Mask(a) if a > 0.0 => (fi * a, pi * a),
-                Mix::Mask(_) => (Vec3::ZERO, 0.0),
-                Mix::Blend(w) => {
-                    let (fa, pa) = if w < 1.0 { (fi * (1.0 - w), pi * (1.0 - w)) } else { (Vec3::ZERO, 0.0) };
-                    let (fb, pb) = if w > 0.0 { (get3(&f2, i) * w, pdf2[i] * w) } else { (Vec3::ZERO, 0.0) };
-                    (fa + fb, pa + pb)
-                }
-                Mix::Null(_) | Mix::Chosen(_) => (fi, pi),
+                Mix::Mask(a) => Mask::scaled(a, || own),
+                Mix::Blend(w) => Blend::mix(w, || own, || (get3(&f2, i), pdf2[i])),
+                Mix::Null(_) | Mix::Chosen(_) => own,
             };
             put3(f, i, fi);
             pdf[i] = pi;
@@ -984,26 +996,24 @@ impl<'w> Models<'w> {
         match b {
             Bsdf::Mask(m) => {
                 let a = m.opacity;
-                if u >= a {
+                let Ok(u) = Mask::choose(a, wo, u) else {
                     self.mixed.push((i as u8, Mix::Null(a)));
                     return true;
-                }
+                };
                 let inner = m.inner();
                 if !packable(&inner) {
                     return false;
                 }
-                self.push(i, inner, wo, Vec3::ZERO, (u / a).clamp(0.0, 1.0 - f32::EPSILON), u2);
+                self.push(i, inner, wo, Vec3::ZERO, u, u2);
                 self.mixed.push((i as u8, Mix::Mask(a)));
                 true
             }
             Bsdf::Blend(bl) => {
-                let w = bl.weight;
-                let (chosen, other, p, u) =
-                    if u < w { (bl.second(), bl.first(), w, u / w) } else { (bl.first(), bl.second(), 1.0 - w, (u - w) / (1.0 - w)) };
+                let (chosen, other, p, u) = bl.choose(u);
                 if !packable(&chosen) {
                     return false;
                 }
-                self.push(i, chosen, wo, Vec3::ZERO, u.clamp(0.0, 1.0 - f32::EPSILON), u2);
+                self.push(i, chosen, wo, Vec3::ZERO, u, u2);
                 self.others.push((i as u8, other));
                 self.mixed.push((i as u8, Mix::Chosen(p)));
                 true
@@ -1053,22 +1063,10 @@ impl<'w> Models<'w> {
         for &(i, mix) in &self.mixed {
             let i = usize::from(i);
             match mix {
-                Mix::Null(a) => {
-                    out.ok[i] = true;
-                    put3(&mut out.wi, i, -get3(wo, i));
-                    put3(&mut out.weight, i, Vec3::ONE);
-                    (out.pdf[i], out.delta[i], out.eta[i]) = (1.0 - a, true, 1.0);
-                }
-                Mix::Mask(a) => out.pdf[i] *= a,
-                Mix::Chosen(p) if out.ok[i] => {
-                    let (sw, sp) = (get3(&out.weight, i), out.pdf[i]);
-                    let f = sw * sp * p + get3(&of, i) * (1.0 - p);
-                    let pdf = sp * p + op[i] * (1.0 - p);
-                    out.ok[i] = pdf > 0.0 && pdf.is_finite();
-                    put3(&mut out.weight, i, f / pdf);
-                    out.pdf[i] = pdf;
-                }
-                Mix::Chosen(_) | Mix::Blend(_) => {}
+                Mix::Null(a) => out.set(i, Some(Mask::null(a, get3(wo, i)))),
+                Mix::Mask(a) if out.ok[i] => out.set(i, Some(Mask::through(out.get(i), a))),
+                Mix::Chosen(p) if out.ok[i] => out.set(i, Blend::mixed(out.get(i), p, get3(&of, i), op[i])),
+                Mix::Mask(_) | Mix::Chosen(_) | Mix::Blend(_) => {}
             }
         }
     }
@@ -1735,17 +1733,14 @@ fn scatter<'w>(s: &PathSettings, wave: &mut Wave<'w>, models: &mut Models<'w>, w
     models.count(watch, n_alone);
     let mut out = SampleRows::new();
     models.mix_sample(&wave.wo, &mut out);
-    let SampleRows { mut ok, mut wi, mut weight, mut pdf, mut delta, mut eta } = out;
     for &i in &alone[..n_alone] {
         let i = usize::from(i);
         let Some(bsdf) = wave.bsdf[i] else { continue };
         if let Some(bs) = bsdf.sample(get3(&wave.wo, i), wave.u_bsdf[i], (wave.u2_bsdf[0][i], wave.u2_bsdf[1][i])) {
-            ok[i] = true;
-            put3(&mut wi, i, bs.wi);
-            put3(&mut weight, i, bs.weight);
-            (pdf[i], delta[i], eta[i]) = (bs.pdf, bs.delta, bs.eta);
+            out.set(i, Some(bs));
         }
     }
+    let SampleRows { ok, wi, weight, pdf, delta, eta } = out;
     for i in 0..wave.n {
         if !wave.scatter[i] {
             continue;
