@@ -303,15 +303,6 @@ struct Shade<'w> {
     beta: Vec3,
 }
 
-impl Shade<'_> {
-    /// Where a shadow ray toward `q` ends: off the surface on `q`'s side.
-    #[inline]
-    fn end_toward(&self, q: Vec3) -> Vec3 {
-        let n = if (q - self.p).dot(self.ng) < 0.0 { -self.ng } else { self.ng };
-        self.p + n * self.off
-    }
-}
-
 /// Follows a camera ray (its first hit given, when known) through delta lobes to its
 /// shading point: the emission on the way into `l.emitted`, the shading point's normal and
 /// distance along the way into `l`; returns the shading point and its direct light.
@@ -403,18 +394,49 @@ fn vpl_term(v: &Vpl, sh: &Shade, d_min2: f32) -> Option<(Vec3, Ray)> {
 /// point, the point's toward the VPL), once `d2` is a positive number and `fv` positive.
 #[inline]
 fn term_of(v: &Vpl, sh: &Shade, d2: f32, fv: Vec3, fx: Vec3, d_min2: f32) -> Option<(Vec3, Ray)> {
-    if fx.max_element() <= 0.0 {
-        return None;
-    }
-    let c = v.flux * fv * fx * sh.beta / d2.max(d_min2);
-    if !c.is_finite() {
-        return None;
-    }
-    let to = sh.p - v.p;
-    let org = if to.dot(v.ng) >= 0.0 { v.org[0] } else { v.org[1] };
-    let seg = sh.end_toward(v.p) - org;
+    let t = term_parts((v.p, v.ng, v.flux), (sh.p, sh.ng, sh.off, sh.beta), d2, fv, fx, d_min2, v.org);
+    t.ok.then(|| (t.c, Ray::new(t.org, t.dir).with_range(0.0, t.len)))
+}
+
+/// A VPL's term at a shading point, and its shadow ray, as [`term_parts`] makes them.
+struct TermParts {
+    /// The term.
+    c: Vec3,
+    /// The shadow ray: its origin (off the VPL's surface on the point's side), unit
+    /// direction and length (it ends off the point's surface on the VPL's side).
+    org: Vec3,
+    dir: Vec3,
+    len: f32,
+    /// Whether it leaves the VPL's upper side (`org` is the first of the VPL's origins).
+    upper: bool,
+    /// Whether the term carries light (else [`vpl_term`] gives `None`).
+    ok: bool,
+}
+
+/// The term of VPL (position, geometric normal, flux) at shading point (position,
+/// geometric normal, offset, throughput), from the squared distance between them and the
+/// two BSDF values, branch-free: one piece for [`vpl_term`] and the lanes
+/// ([`TermLanes::finish`]), so both give the same bits.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn term_parts(
+    (vp, vng, flux): (Vec3, Vec3, Vec3),
+    (p, png, off, beta): (Vec3, Vec3, f32, Vec3),
+    d2: f32,
+    fv: Vec3,
+    fx: Vec3,
+    d_min2: f32,
+    orgs: [Vec3; 2],
+) -> TermParts {
+    let c = flux * fv * fx * beta / d2.max(d_min2);
+    let upper = (p - vp).dot(vng) >= 0.0;
+    let org = if upper { orgs[0] } else { orgs[1] };
+    // (The shadow ray ends off the point's surface, on the VPL's side.)
+    let n = if (vp - p).dot(png) < 0.0 { -png } else { png };
+    let seg = (p + n * off) - org;
     let len = seg.length();
-    (len > 0.0).then(|| (c, Ray::new(org, seg / len).with_range(0.0, len)))
+    let ok = !(d2.is_nan() | (d2 <= 0.0)) & (fv.max_element() > 0.0) & (fx.max_element() > 0.0) & c.is_finite() & (len > 0.0);
+    TermParts { c, org, dir: seg / len, len, upper, ok }
 }
 
 /// Pixels per chunk of a set's pixels in a tile: the VPL terms' lanes.
@@ -487,33 +509,23 @@ impl TermLanes {
     }
 
     /// With both BSDFs' values: the terms (into `fv`), whether each carries light, and
-    /// the shadow rays (as [`term_of`]).
+    /// the shadow rays ([`term_parts`], as [`term_of`]).
     fn finish(&mut self, v: &Vpl, pts: &Points, n: usize, d_min2: f32) {
-        on_lanes!(|t: &mut TermLanes, pts: &Points, v: (Vec3, Vec3, [Vec3; 2], Vec3), d_min2: f32, strips: usize| {
-            let (vp, ng, org, flux) = v;
+        on_lanes!(|t: &mut TermLanes, pts: &Points, v: (Vec3, Vec3, Vec3), orgs: [Vec3; 2], d_min2: f32, strips: usize| {
             for s in 0..strips {
                 for k in 0..STRIP {
                     let j = s * STRIP + k;
-                    let (d2, fv, fx) = (t.d2[j], get3(&t.fv, j), get3(&t.fx, j));
-                    let p = get3(&pts.p, j);
-                    let c = flux * fv * fx * get3(&pts.beta, j) / d2.max(d_min2);
-                    let upper = (p - vp).dot(ng) >= 0.0;
-                    let o = if upper { org[0] } else { org[1] };
-                    // (Shade::end_toward, on lanes.)
-                    let png = get3(&pts.ng, j);
-                    let n = if (vp - p).dot(png) < 0.0 { -png } else { png };
-                    let seg = (p + n * pts.off[j]) - o;
-                    let len = seg.length();
-                    put3(&mut t.fv, j, c);
-                    put3(&mut t.dir, j, seg / len);
-                    t.len[j] = len;
-                    t.upper[j] = upper;
-                    t.ok[j] =
-                        !(d2.is_nan() | (d2 <= 0.0)) & (fv.max_element() > 0.0) & (fx.max_element() > 0.0) & c.is_finite() & (len > 0.0);
-                    t.lum[j] = luminance(c);
+                    let point = (get3(&pts.p, j), get3(&pts.ng, j), pts.off[j], get3(&pts.beta, j));
+                    let r = term_parts(v, point, t.d2[j], get3(&t.fv, j), get3(&t.fx, j), d_min2, orgs);
+                    put3(&mut t.fv, j, r.c);
+                    put3(&mut t.dir, j, r.dir);
+                    t.len[j] = r.len;
+                    t.upper[j] = r.upper;
+                    t.ok[j] = r.ok;
+                    t.lum[j] = luminance(r.c);
                 }
             }
-        })(self, pts, (v.p, v.ng, v.org, v.flux), d_min2, strips(n));
+        })(self, pts, (v.p, v.ng, v.flux), v.org, d_min2, strips(n));
     }
 
     /// The shadow roulette ([`shadow_roulette`]) of every lane: `bar`, the lanes' bars,
@@ -525,12 +537,9 @@ impl TermLanes {
             for s in 0..strips {
                 for k in 0..STRIP {
                     let j = s * STRIP + k;
-                    let (l, b) = (t.lum[j], bar[j]);
-                    let chance = (b > 0.0) & b.is_finite() & (l < b);
-                    let q = l / b;
-                    let c = get3(&t.fv, j);
-                    put3(&mut t.fv, j, if chance { c / q } else { c });
-                    t.ok[j] &= !chance | (hashed_at(seeds[j], dim) < q);
+                    let (c, kept) = roulette_of(get3(&t.fv, j), t.lum[j], bar[j], hashed_at(seeds[j], dim));
+                    put3(&mut t.fv, j, c);
+                    t.ok[j] &= kept;
                 }
             }
         })(self, bar, seeds, ROULETTE_DIM + vi as u32, strips(n));
@@ -689,12 +698,18 @@ const ROULETTE_DIM: u32 = 0x1000;
 /// shadow roulette (see [`SHADOW_ROULETTE`]): `None` when its shadow ray is not traced.
 #[inline]
 fn shadow_roulette(c: Vec3, bar: f32, px: &PixelSampler, k: u32, i: usize) -> Option<Vec3> {
-    let l = luminance(c);
-    if !(bar > 0.0 && bar.is_finite()) || l >= bar {
-        return Some(c);
-    }
+    let (c, kept) = roulette_of(c, luminance(c), bar, px.get1_hashed(k, ROULETTE_DIM + i as u32));
+    kept.then_some(c)
+}
+
+/// [`shadow_roulette`] of term `c` of luminance `l` against `bar`, with the number `u`,
+/// branch-free (one piece for it and the lanes, [`TermLanes::roulette`]): the term (divided
+/// by its chance where it had one) and whether it is kept.
+#[inline(always)]
+fn roulette_of(c: Vec3, l: f32, bar: f32, u: f32) -> (Vec3, bool) {
+    let chance = (bar > 0.0) & bar.is_finite() & (l < bar);
     let q = l / bar;
-    (px.get1_hashed(k, ROULETTE_DIM + i as u32) < q).then(|| c / q)
+    (if chance { c / q } else { c }, !chance | (u < q))
 }
 
 /// The layers of every pixel of `r` (row-major) for the sample `set` belongs to, tile by
