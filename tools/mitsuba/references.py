@@ -26,7 +26,7 @@ import numpy as np  # noqa: E402
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, "..", ".."))
 OUT = os.path.join(ROOT, "crates", "render", "tests", "data", "mitsuba")
-SCENES = ["cornell_box", "materials", "envmap", "bunny", "sponza", "lamps", "crop_window", "serialized", "filter_gaussian", "filter_lanczos", "filter_mitchell", "uv_conventions", "normalmap", "blendbsdf", "bumpmap", "mask", "crop_gaussian", "uv_shapes", "rough_checker", "anisotropic", "principled"]
+SCENES = ["cornell_box", "materials", "envmap", "bunny", "sponza", "lamps", "crop_window", "serialized", "filter_gaussian", "filter_lanczos", "filter_mitchell", "uv_conventions", "normalmap", "blendbsdf", "bumpmap", "mask", "crop_gaussian", "uv_shapes", "rough_checker", "anisotropic", "principled", "plaza", "hall"]
 # Files a scene reads beside it.
 EXTRA = {
     "envmap": ["sky.exr"],

@@ -185,6 +185,20 @@ fn lamps_room() {
     converges_to_mitsuba("lamps");
 }
 
+/// A square at night under 84 lights (sphere lamps, point lights, a dim sky): the light
+/// tree (`lights/tree.rs`) was tuned here.
+#[test]
+fn plaza_of_many_lights() {
+    converges_to_mitsuba("plaza");
+}
+
+/// A hall under 58 lights (ceiling panels, wall disks, spots), held out while the light
+/// tree was written and tuned on the plaza.
+#[test]
+fn hall_of_many_lights() {
+    converges_to_mitsuba("hall");
+}
+
 /// Mitsuba's `.serialized` meshes, files Mitsuba wrote (format versions 3 and 4; meshes
 /// picked by `shape_index`, with and without normals and texture coordinates, face
 /// normals), textured by checkerboards (so a flipped texture coordinate shows).

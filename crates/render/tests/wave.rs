@@ -30,10 +30,10 @@ fn bits(f: &Film) -> Vec<[u32; 3]> {
 /// Every level the CPU runs gives the portable build's bits (every BSDF and light kind of
 /// the materials scene, the Cornell box, Beckmann's rough conductors and plastics with
 /// their vector loops (bumpmap), anisotropic roughness, an environment map's batches, the
-/// principled BSDF's lobes, and blends' and masks' parts).
+/// principled BSDF's lobes, blends' and masks' parts, and a light tree's choices).
 #[test]
 fn every_build_of_the_lanes_gives_the_same_bits() {
-    for name in ["materials", "cornell_box", "bumpmap", "anisotropic", "envmap", "principled", "blendbsdf", "mask"] {
+    for name in ["materials", "cornell_box", "bumpmap", "anisotropic", "envmap", "principled", "blendbsdf", "mask", "plaza"] {
         let (w, cam) = scene(name);
         let mut images = Vec::new();
         for level in [Level::Portable, Level::Avx2, Level::Avx512] {
@@ -53,10 +53,11 @@ fn every_build_of_the_lanes_gives_the_same_bits() {
 /// BSDF packed, the null lobe chosen lane by lane) give the scalar path tracer's image bit
 /// for bit (`image_bits.rs` has none of these scenes): metallic, transmitting,
 /// clearcoated, sheened and flat lobes; diffuse and rough gold mixed by a texture, rough
-/// plastic and smooth glass mixed 70/30; a textured opacity.
+/// plastic and smooth glass mixed 70/30; a textured opacity. And the light tree's choices
+/// and densities among many lights (the plaza and the hall).
 #[test]
 fn principled_blend_and_mask_lanes_are_the_scalar_path_tracer() {
-    for name in ["principled", "blendbsdf", "mask"] {
+    for name in ["principled", "blendbsdf", "mask", "plaza", "hall"] {
         let (w, cam) = scene(name);
         let st = settings(8);
         let Integrator::Path(ps) = st.integrator else { unreachable!() };

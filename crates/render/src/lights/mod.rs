@@ -1,8 +1,11 @@
 //! The lights the path tracer samples (next-event estimation), one light object chosen by
 //! its estimated contribution at the shading point (`reach`: a bound on the irradiance it
-//! may send there; uniformly in scenes with more than [`MAX_WEIGHED`] light objects or
-//! with lights of the user's) and, within an emitting mesh, a triangle in proportion to
-//! its power (see `LightSet::of`): area lights (`area`: emitting triangles, spheres and disks),
+//! may send there; uniformly in scenes with lights of the user's) and, within an emitting
+//! mesh, a triangle in proportion to its power, or (past eight triangles) by a
+//! light tree over them (`tree`: the same bound for nodes of lights, Conty Estevez and
+//! Kulla 2018). In a scene of more than [`MAX_WEIGHED`] light objects, every light with a
+//! place (area, point and spot lights) is in one light tree, chosen beside the
+//! environment and directional lights (see `LightSet::of`): area lights (`area`: emitting triangles, spheres and disks),
 //! the scene's point, spot and directional lights (`delta`), the environment
 //! (`environment`: constant, or an equirectangular map sampled by its luminance), and
 //! lights of the library user's own ([`LightModel`]).
@@ -18,6 +21,7 @@ pub(crate) mod delta;
 pub(crate) mod environment;
 mod reach;
 mod sample;
+mod tree;
 
 pub(crate) use area::emissive_triangles;
 use area::AreaLight;
@@ -69,11 +73,14 @@ pub(crate) struct Weights {
     w: [f32; MAX_WEIGHED],
     /// Their sum; `None`: chosen uniformly.
     total: Option<f32>,
+    /// The point and its normal (for the choice within a light tree).
+    p: Vec3,
+    n: Vec3,
 }
 
 impl Weights {
     /// None yet (uniform).
-    pub(crate) const UNIFORM: Self = Self { w: [0.0; MAX_WEIGHED], total: None };
+    pub(crate) const UNIFORM: Self = Self { w: [0.0; MAX_WEIGHED], total: None, p: Vec3::ZERO, n: Vec3::ZERO };
 
     /// Whether the lights are chosen by these weights (not uniformly).
     #[inline(always)]
@@ -130,18 +137,33 @@ fn chosen(s: LightSample, pmf: f32) -> Option<LightSample> {
     (s.pdf > 0.0 && s.pdf.is_finite() && s.li.is_finite()).then_some(s)
 }
 
+/// A light object's entries and how one of them is chosen.
+#[derive(Clone, Debug)]
+enum Members {
+    /// Contiguous entries, chosen in proportion to their power (`LightSet::within`).
+    Run(std::ops::Range<u32>),
+    /// Entries chosen by a light tree, each the light of its place in the list.
+    Tree { entries: Box<[u32]>, tree: tree::LightTree },
+}
+
+/// Emitting meshes of more triangles than this choose among them with a light tree (by
+/// their contribution at the point rather than by power alone).
+const TREE_MIN: usize = 8;
+
 /// The lights of a scene, for sampling.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct LightSet {
     entries: Vec<Entry>,
-    /// The light objects: each one's entries (contiguous).
-    groups: Vec<std::ops::Range<u32>>,
+    /// The light objects: each one's entries. In a scene of more than [`MAX_WEIGHED`],
+    /// those with a place (area, point and spot lights) are one object, a light tree.
+    groups: Vec<Members>,
     /// How far each one's light reaches (the first [`MAX_WEIGHED`]).
     reach: reach::Lanes,
-    /// Per entry: its group, and the cumulative power of its group's entries up to it,
-    /// normalised within the group.
+    /// Per entry: its group; the cumulative power of its group's entries up to it,
+    /// normalised within the group (runs); its place in its group's list (trees).
     group_of: Vec<u32>,
     within: Vec<f32>,
+    leaf_of: Vec<u32>,
     /// Whether light objects are chosen by their reach (else uniformly).
     weighed: bool,
     /// Per instance: for an instance with emitting triangles, each triangle's entry
@@ -270,29 +292,117 @@ impl LightSet {
         // sky's power, from the scene's radius, dwarfs the spot that lights the bunny);
         // the reach compares irradiances at the point instead.
         let mut start = 0;
+        let mut runs = Vec::new();
         let mut reaches = Vec::new();
         for e in 1..=s.entries.len() {
             if e == s.entries.len() || group[e] != group[start] {
                 let ids = start..e;
-                s.group_of.extend(ids.clone().map(|_| s.groups.len() as u32));
                 s.within.extend(cumulative(&power[ids.clone()]));
                 reaches.push(s.reach(&s.entries[ids.clone()], &power[ids.clone()]));
-                s.groups.push(start as u32..e as u32);
+                runs.push(start as u32..e as u32);
                 start = e;
             }
         }
-        s.reach = reach::Lanes::new(&reaches);
+        let local = |r: &Reach| matches!(r, Reach::Local { .. });
+        let crowd: Vec<usize> = (0..runs.len()).filter(|&g| local(&reaches[g])).collect();
+        let mut kept = Vec::new();
+        // A crowd of light objects: those with a place become one, a light tree over all
+        // their entries, chosen beside the others (the environment, directional lights).
+        let tree = if runs.len() > MAX_WEIGHED && crowd.len() > 1 {
+            let ids: Vec<u32> = crowd.iter().flat_map(|&g| runs[g].clone()).collect();
+            s.tree_of(ids, &power)
+        } else {
+            None
+        };
+        if let Some((members, reach)) = tree {
+            for (g, run) in runs.into_iter().enumerate() {
+                if !local(&reaches[g]) {
+                    s.groups.push(Members::Run(run));
+                    kept.push(reaches[g]);
+                }
+            }
+            s.groups.push(members);
+            kept.push(reach);
+        } else {
+            // An emitting mesh of many triangles: a tree over them.
+            for (g, run) in runs.into_iter().enumerate() {
+                let tree = (run.len() > TREE_MIN && local(&reaches[g])).then(|| s.tree_of(run.clone().collect(), &power)).flatten();
+                s.groups.push(tree.map_or(Members::Run(run), |(m, _)| m));
+                kept.push(reaches[g]);
+            }
+        }
+        s.group_of = vec![NONE; s.entries.len()];
+        s.leaf_of = vec![NONE; s.entries.len()];
+        for (g, m) in s.groups.iter().enumerate() {
+            match m {
+                Members::Run(run) => run.clone().for_each(|i| s.group_of[i as usize] = g as u32),
+                Members::Tree { entries, .. } => {
+                    for (k, &i) in entries.iter().enumerate() {
+                        (s.group_of[i as usize], s.leaf_of[i as usize]) = (g as u32, k as u32);
+                    }
+                }
+            }
+        }
+        s.reach = reach::Lanes::new(&kept);
         s.weighed = s.groups.len() <= MAX_WEIGHED && !s.entries.iter().any(|e| matches!(e, Entry::Custom(_)));
         s
     }
 
+    /// A light tree over entries `ids` (which all have a place), and the reach of the whole.
+    fn tree_of(&self, ids: Vec<u32>, power: &[f64]) -> Option<(Members, Reach)> {
+        let lights = ids
+            .iter()
+            .map(|&i| {
+                let i = i as usize;
+                let (e, p) = (self.entries.get(i..=i)?, power.get(i..=i)?);
+                Some((self.extent(e, p)?, self.reach(e, p)))
+            })
+            .collect::<Option<Vec<_>>>()?;
+        let whole = lights.iter().map(|l| l.0).reduce(|a, b| a.union(&b))?;
+        let tree = tree::LightTree::new(&lights)?;
+        Some((Members::Tree { entries: ids.into_boxed_slice(), tree }, whole.reach()))
+    }
+
     /// How far the light of one light object (its entries, with their powers) reaches.
     fn reach(&self, entries: &[Entry], power: &[f64]) -> Reach {
+        match entries.first() {
+            Some(Entry::Area(AreaLight::Sphere { c, r, .. })) => Reach::local(*c, *r, Vec3::ZERO, PI, PI, power[0] as f32 / 4.0),
+            Some(Entry::Delta(k)) => match self.delta.get(*k) {
+                Some(l @ lucent_scene::Light { kind: lucent_scene::LightKind::Directional { direction }, .. }) => {
+                    Reach::Directional { toward: toward_directional(*direction), irradiance: luminance(l.color) }
+                }
+                _ => self.extent(entries, power).map_or(Reach::Everywhere { irradiance: 0.0 }, |e| e.reach()),
+            },
+            Some(Entry::Env) => Reach::Everywhere { irradiance: self.env.as_ref().map_or(0.0, |(_, e)| PI * e.mean_luminance()) },
+            Some(Entry::Area(_)) => self.extent(entries, power).map_or(Reach::Everywhere { irradiance: 0.0 }, |e| e.reach()),
+            Some(Entry::Custom(_)) | None => Reach::Everywhere { irradiance: 1.0 },
+        }
+    }
+
+    /// The place, cone of normals and intensity of one light object with a place (its
+    /// entries, with their powers); `None` for directional lights, the environment and
+    /// user lights.
+    fn extent(&self, entries: &[Entry], power: &[f64]) -> Option<tree::Extent> {
         use lucent_scene::LightKind;
         let (pi, half_pi) = (PI, 0.5 * PI);
-        match entries.first() {
-            Some(Entry::Area(AreaLight::Sphere { c, r, .. })) => Reach::local(*c, *r, Vec3::ZERO, pi, pi, power[0] as f32 / 4.0),
-            Some(Entry::Area(_)) => {
+        let point = |c: Vec3, axis: Vec3, theta_o: f32, theta_e: f32, intensity: f32| tree::Extent {
+            lo: c,
+            hi: c,
+            axis,
+            theta_o,
+            theta_e,
+            intensity,
+        };
+        match entries.first()? {
+            Entry::Area(AreaLight::Sphere { c, r, .. }) => Some(tree::Extent {
+                lo: *c - *r,
+                hi: *c + *r,
+                axis: Vec3::ZERO,
+                theta_o: pi,
+                theta_e: pi,
+                intensity: power[0] as f32 / 4.0,
+            }),
+            Entry::Area(_) => {
                 // Emitting triangles or a disk: one-sided, within a cone of normals.
                 let (mut lo, mut hi, mut axis) = (Vec3::INFINITY, Vec3::NEG_INFINITY, Vec3::ZERO);
                 let mut normals = Vec::with_capacity(entries.len());
@@ -318,22 +428,20 @@ impl LightSet {
                 // (Spread over every direction, a closed emitter's intensity is about a
                 // quarter of its power, as a sphere's.)
                 let intensity = if theta_o >= half_pi { flat * f64::from(pi) / 4.0 } else { flat };
-                let (centre, radius) = (0.5 * (lo + hi), 0.5 * (hi - lo).length());
-                Reach::local(centre, radius, axis, theta_o, half_pi, intensity as f32)
+                Some(tree::Extent { lo, hi, axis, theta_o, theta_e: half_pi, intensity: intensity as f32 })
             }
-            Some(Entry::Delta(k)) => {
-                let Some(l) = self.delta.get(*k) else { return Reach::Everywhere { irradiance: 0.0 } };
+            Entry::Delta(k) => {
+                let l = self.delta.get(*k)?;
                 let lum = luminance(l.color);
                 match l.kind {
-                    LightKind::Point { position } => Reach::local(position, 0.0, Vec3::ZERO, pi, pi, lum),
+                    LightKind::Point { position } => Some(point(position, Vec3::ZERO, pi, pi, lum)),
                     LightKind::Spot { position, direction, inner, outer } => {
-                        Reach::local(position, 0.0, direction, inner.min(outer), (outer - inner).max(0.0), lum)
+                        Some(point(position, direction, inner.min(outer), (outer - inner).max(0.0), lum))
                     }
-                    LightKind::Directional { direction } => Reach::Directional { toward: toward_directional(direction), irradiance: lum },
+                    LightKind::Directional { .. } => None,
                 }
             }
-            Some(Entry::Env) => Reach::Everywhere { irradiance: self.env.as_ref().map_or(0.0, |(_, e)| PI * e.mean_luminance()) },
-            Some(Entry::Custom(_)) | None => Reach::Everywhere { irradiance: 1.0 },
+            Entry::Env | Entry::Custom(_) => None,
         }
     }
 
@@ -376,11 +484,11 @@ impl LightSet {
     #[inline(always)]
     pub(crate) fn weigh(&self, p: Vec3, n: Vec3) -> Weights {
         if !self.weighed || self.groups.len() < 2 {
-            return Weights::UNIFORM;
+            return Weights { p, n, ..Weights::UNIFORM };
         }
         let mut w = [0.0; MAX_WEIGHED];
         let total = self.weights(p, n, &mut w);
-        Weights { w, total }
+        Weights { w, total, p, n }
     }
 
     /// The probability of choosing entry `i` from `p` (normal `n`).
@@ -392,8 +500,12 @@ impl LightSet {
     /// The probability of choosing entry `i` where the weights are `wt`.
     fn pmf_in(&self, i: usize, wt: &Weights) -> f32 {
         let (Some(&g), Some(&c)) = (self.group_of.get(i), self.within.get(i)) else { return 0.0 };
-        let Some(ids) = self.groups.get(g as usize) else { return 0.0 };
-        let in_group = if i == ids.start as usize { c } else { c - self.within[i - 1] };
+        let in_group = match self.groups.get(g as usize) {
+            Some(Members::Run(ids)) if i == ids.start as usize => c,
+            Some(Members::Run(_)) => c - self.within[i - 1],
+            Some(Members::Tree { tree, .. }) => tree.pmf(self.leaf_of[i] as usize, wt.p, wt.n),
+            None => return 0.0,
+        };
         in_group
             * match wt.total {
                 Some(total) => wt.w[g as usize] / total,
@@ -440,7 +552,13 @@ impl LightSet {
                 (g, 1.0 / count as f32, (x - g as f32).clamp(0.0, 1.0))
             }
         };
-        let ids = self.groups[g].clone();
+        let ids = match &self.groups[g] {
+            Members::Run(ids) => ids.clone(),
+            Members::Tree { entries, tree } => {
+                let (k, q) = tree.choose(wt.p, wt.n, u)?;
+                return Some((*entries.get(k)? as usize, pg * q));
+            }
+        };
         let (start, end) = (ids.start as usize, ids.end as usize);
         let i = if end - start == 1 { start } else { (start + self.within[start..end].partition_point(|&c| c <= u)).min(end - 1) };
         let lo = if i == start { 0.0 } else { self.within[i - 1] };
@@ -774,21 +892,64 @@ mod tests {
         assert_eq!(set.entries.len(), 2);
     }
 
+    /// Past [`MAX_WEIGHED`] light objects, those with a place are one light tree, chosen
+    /// beside the others (here a directional light) by their reach; the nearer lights of
+    /// the crowd are chosen more often, and the choice is a distribution its densities
+    /// describe.
     #[test]
-    fn user_lights_and_crowds_are_chosen_uniformly() {
+    fn crowds_are_one_light_tree() {
         let mut scene = Scene::default();
-        for i in 0..=MAX_WEIGHED {
+        let count = 3 * MAX_WEIGHED;
+        for i in 0..count {
             scene.lights.push(Light {
                 kind: LightKind::Point { position: Vec3::new(i as f32, 1.0, 0.0) },
                 color: Vec3::ONE,
                 inverse_square: true,
             });
         }
-        let set = LightSet::of(&scene, Some((Vec3::splat(-1.0), Vec3::splat(20.0))), &[], &[]);
+        scene.lights.push(Light { kind: LightKind::Directional { direction: -Vec3::Y }, color: Vec3::splat(0.1), inverse_square: true });
+        let set = LightSet::of(&scene, Some((Vec3::splat(-1.0), Vec3::splat(50.0))), &[], &[]);
+        assert!(set.weighed);
+        assert_eq!(set.groups.len(), 2);
+        let sun = set.entries.iter().position(|e| matches!(e, Entry::Delta(k) if *k == count)).expect("the sun");
+        for p in [Vec3::ZERO, Vec3::new(30.0, 0.0, 2.0)] {
+            let pmf: Vec<f32> = (0..set.entries.len()).map(|i| set.pmf(i, p, Vec3::Y)).collect();
+            assert!((pmf.iter().sum::<f32>() - 1.0).abs() < 1e-5, "{pmf:?}");
+            let nearest = (p.x.round() as usize).min(count - 1);
+            assert!(pmf[nearest] > 4.0 * pmf[(nearest + 20) % count], "{p}: {pmf:?}");
+            assert!(pmf[sun] > 0.0);
+            let k = 50_000;
+            for j in 0..k {
+                let (i, q) = set.choose(p, Vec3::Y, (j as f32 + 0.5) / k as f32).expect("a light");
+                assert_eq!(q.to_bits(), pmf[i].to_bits(), "{p}, entry {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn with_user_lights_light_objects_are_chosen_uniformly() {
+        #[derive(Debug)]
+        struct Lamp;
+        impl LightModel for Lamp {
+            fn sample(&self, _: Vec3, _: (f32, f32)) -> Option<LightSample> {
+                None
+            }
+            fn power(&self) -> f32 {
+                1.0
+            }
+        }
+        let mut scene = Scene::default();
+        for i in 0..3 {
+            scene.lights.push(Light {
+                kind: LightKind::Point { position: Vec3::new(i as f32, 1.0, 0.0) },
+                color: Vec3::ONE,
+                inverse_square: true,
+            });
+        }
+        let set = LightSet::of(&scene, Some((Vec3::splat(-1.0), Vec3::splat(20.0))), &[], &[Arc::new(Lamp)]);
         assert!(!set.weighed);
-        let uniform = 1.0 / (MAX_WEIGHED + 1) as f32;
-        for i in 0..=MAX_WEIGHED {
-            assert_eq!(set.pmf(i, Vec3::ZERO, Vec3::Y), uniform);
+        for i in 0..4 {
+            assert_eq!(set.pmf(i, Vec3::ZERO, Vec3::Y), 0.25);
         }
     }
 }

@@ -65,7 +65,7 @@ impl Reach {
 
 /// One light's bounds as the weight's arithmetic takes them: every kind in one form.
 #[derive(Clone, Copy, Debug, Default)]
-struct Lane {
+pub(crate) struct Lane {
     /// The centre (`m` = 1) or the unit direction toward the light (`m` = 0: parallel).
     c: Vec3,
     m: f32,
@@ -82,7 +82,14 @@ struct Lane {
 }
 
 impl Lane {
-    fn of(r: &Reach) -> Self {
+    /// The weight of this light at `p` (unit normal `n`, or zero).
+    #[cfg(test)]
+    #[inline]
+    pub(crate) fn weight(&self, p: Vec3, n: Vec3) -> f32 {
+        lane_weight(self, p, n, n != Vec3::ZERO)
+    }
+
+    pub(crate) fn of(r: &Reach) -> Self {
         let mut l = match *r {
             Reach::Local { centre, radius, axis, cos_o, sin_o, cos_e, intensity } => {
                 Lane { c: centre, m: 1.0, radius, inv_r2: 0.0, axis, cos_o, sin_o, cos_e, intensity, everywhere: 0.0 }
