@@ -926,6 +926,61 @@ mod tests {
         }
     }
 
+    /// An emitting mesh of many small triangles scattered over a ceiling: a light tree
+    /// chooses among them; the densities describe the choice, the nearest triangles are
+    /// chosen most often, and the samples' mean is the irradiance the triangles send.
+    #[test]
+    fn an_emitting_mesh_of_many_triangles_is_a_light_tree() {
+        use lucent_scene::Mesh;
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let (mut positions, mut indices) = (Vec::new(), Vec::new());
+        for t in 0..60u32 {
+            // Facing down (corners clockwise from below), 2 cm across, over 8 × 8 m.
+            let c = Vec3::new(next() * 8.0 - 4.0, 2.0 + next(), next() * 8.0 - 4.0);
+            positions.extend([c, c + Vec3::new(0.02, 0.0, 0.0), c + Vec3::new(0.0, 0.0, 0.02)]);
+            indices.push([3 * t, 3 * t + 1, 3 * t + 2]);
+        }
+        let mut scene = Scene::default();
+        scene.materials.push(Material { emission: Vec3::splat(50.0), ..Material::default() });
+        scene.meshes.push(Mesh { name: "lamps".into(), material: vec![0; indices.len()], positions, indices, ..Mesh::default() });
+        scene.instances.push(Instance { geom: Geom::Mesh(0), world_from_object: Affine3A::IDENTITY });
+        let emissive = area::emissive_triangles(&scene);
+        let set = LightSet::of(&scene, Some((Vec3::splat(-4.0), Vec3::splat(4.0))), &emissive, &[]);
+        assert_eq!(set.entries.len(), 60);
+        assert!(matches!(set.groups.as_slice(), [Members::Tree { .. }]));
+        let (p, n) = (Vec3::new(1.0, 0.0, -1.0), Vec3::Y);
+        let pmf: Vec<f32> = (0..60).map(|i| set.pmf(i, p, n)).collect();
+        assert!((pmf.iter().sum::<f32>() - 1.0).abs() < 1e-4, "{pmf:?}");
+        // The irradiance at p: each tiny triangle as a point of its area.
+        let mut expected = 0.0f64;
+        let mut nearest = (f32::INFINITY, 0);
+        for (i, e) in set.entries.iter().enumerate() {
+            let Entry::Area(AreaLight::Tri(t)) = e else { panic!("a triangle") };
+            let to = t.p0 + (t.e1 + t.e2) / 3.0 - p;
+            let (d2, w) = (to.length_squared(), to.normalize());
+            expected += f64::from(50.0 * t.area * n.dot(w).max(0.0) * t.n.dot(-w).max(0.0) / d2);
+            if d2 < nearest.0 {
+                nearest = (d2, i);
+            }
+        }
+        assert!(pmf[nearest.1] > 2.0 / 60.0, "the nearest: {}", pmf[nearest.1]);
+        let m = 400;
+        let mut sum = 0.0f64;
+        for i in 0..m {
+            for j in 0..16 {
+                let u2 = ((j % 4) as f32 / 4.0 + 0.125, (j / 4) as f32 / 4.0 + 0.125);
+                let Some(ls) = set.sample(p, n, (i as f32 + 0.5) / m as f32, u2, &[], false) else { continue };
+                sum += f64::from(ls.li.x * n.dot(ls.dir).max(0.0) / ls.pdf);
+            }
+        }
+        let mean = sum / f64::from(16 * m);
+        assert!((mean / expected - 1.0).abs() < 0.03, "{mean} against {expected}");
+    }
+
     #[test]
     fn with_user_lights_light_objects_are_chosen_uniformly() {
         #[derive(Debug)]
