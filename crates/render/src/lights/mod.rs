@@ -527,24 +527,8 @@ impl LightSet {
         // The group, its probability, and `u` within it.
         let (g, pg, u) = match wt.total {
             Some(total) => {
-                let target = u * total;
-                // (Rounding may leave `target` past the last sum: the last group with
-                // any weight takes it.)
-                let (mut g, mut acc, mut last) = (usize::MAX, 0.0, (0, 0.0));
-                for (k, &wk) in w[..count].iter().enumerate() {
-                    if wk > 0.0 {
-                        if target < acc + wk {
-                            g = k;
-                            break;
-                        }
-                        last = (k, acc);
-                        acc += wk;
-                    }
-                }
-                if g == usize::MAX {
-                    (g, acc) = last;
-                }
-                (g, w[g] / total, ((target - acc) / w[g]).clamp(0.0, 1.0))
+                let (g, pg, rest) = reach::pick(&w[..count], total, u);
+                (g, pg, rest.clamp(0.0, 1.0))
             }
             None => {
                 let x = u * count as f32;

@@ -143,6 +143,30 @@ fn lane_weight(l: &Lane, p: Vec3, n: Vec3, has_n: bool) -> f32 {
     }
 }
 
+/// The one of `w` (weights summing to `total`, which is positive) that `u` in [0, 1)
+/// picks, each in proportion to its weight: its index, its probability and `u` rescaled
+/// to within its share (not clamped). Rounding that leaves `u · total` past the last sum
+/// gives the last one with any weight.
+#[inline(always)]
+pub(crate) fn pick(w: &[f32], total: f32, u: f32) -> (usize, f32, f32) {
+    let target = u * total;
+    let (mut k, mut acc, mut last) = (usize::MAX, 0.0, (0, 0.0));
+    for (j, &wj) in w.iter().enumerate() {
+        if wj > 0.0 {
+            if target < acc + wj {
+                k = j;
+                break;
+            }
+            last = (j, acc);
+            acc += wj;
+        }
+    }
+    if k == usize::MAX {
+        (k, acc) = last;
+    }
+    (k, w[k] / total, (target - acc) / w[k])
+}
+
 /// The most lights weighed at once.
 pub(crate) const WIDTH: usize = 16;
 

@@ -15,7 +15,7 @@
 
 #[cfg(test)]
 use super::reach::Lane;
-use super::reach::{Lanes, Reach, WIDTH};
+use super::reach::{pick, Lanes, Reach, WIDTH};
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -212,25 +212,9 @@ impl LightTree {
             if !(total > 0.0 && total.is_finite()) {
                 return None;
             }
-            // The child whose share of the total holds u·total (the last with any weight
-            // when rounding leaves the target past the sum).
-            let target = u * total;
-            let (mut slot, mut acc, mut last) = (usize::MAX, 0.0, (0, 0.0));
-            for (j, &wj) in w[..node.count as usize].iter().enumerate() {
-                if wj > 0.0 {
-                    if target < acc + wj {
-                        slot = j;
-                        break;
-                    }
-                    last = (j, acc);
-                    acc += wj;
-                }
-            }
-            if slot == usize::MAX {
-                (slot, acc) = last;
-            }
-            pmf *= w[slot] / total;
-            u = ((target - acc) / w[slot]).clamp(0.0, ONE_MINUS);
+            let (slot, p_slot, rest) = pick(&w[..node.count as usize], total, u);
+            pmf *= p_slot;
+            u = rest.clamp(0.0, ONE_MINUS);
             let kid = node.kids[slot];
             if kid & LIGHT != 0 {
                 return Some(((kid & !LIGHT) as usize, pmf));
