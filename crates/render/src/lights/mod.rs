@@ -358,9 +358,9 @@ impl LightSet {
                 Some((self.extent(e, p)?, self.reach(e, p)))
             })
             .collect::<Option<Vec<_>>>()?;
-        let whole = lights.iter().map(|l| l.0).reduce(|a, b| a.union(&b))?;
         let tree = tree::LightTree::new(&lights)?;
-        Some((Members::Tree { entries: ids.into_boxed_slice(), tree }, whole.reach()))
+        let reach = tree.whole().reach();
+        Some((Members::Tree { entries: ids.into_boxed_slice(), tree }, reach))
     }
 
     /// How far the light of one light object (its entries, with their powers) reaches.

@@ -1,13 +1,14 @@
 //! A light tree: many lights chosen by their estimated contribution at the shading point
 //! in time logarithmic in their number. Conty Estevez and Kulla 2018, "Importance sampling
 //! of many lights with adaptive tree splitting" (their light BVH, without the adaptive
-//! splitting), in the form pbrt-v4's `BVHLightSampler` gives it: a binary tree over the
-//! lights, each node bounding its lights' places, the cone of their normals and the total
-//! of their intensities; a choice walks down from the root, taking each child with
-//! probability proportional to its importance at the point ([`super::reach`]'s weight,
-//! the same measure the few-lights choice weighs every light object with), so the
-//! probability of a light is the product of the choices on its way; the way is kept per
-//! light (bits), so the density of a light met by a BSDF ray is found by the same walk.
+//! splitting), in the form pbrt-v4's `BVHLightSampler` gives it: a tree over the lights
+//! (built binary, then collapsed to eight children a node), each node bounding its
+//! lights' places, the cone of their normals and the total of their intensities; a
+//! choice walks down from the root, taking each child with probability proportional to
+//! its importance at the point ([`super::reach`]'s weight, the same measure the
+//! few-lights choice weighs every light object with), so the probability of a light is
+//! the product of the choices on its way; each light's node and each node's parent are
+//! kept, so the density of a light met by a BSDF ray is found by the same products.
 //!
 //! Unbiased wherever the weights are: a node's weight is zero only where none of its
 //! lights sends anything (behind all of them, or outside every spot's cone), since its
@@ -45,7 +46,7 @@ impl Extent {
 
     /// The smallest extent holding both (the cones' union as pbrt-v4's
     /// `DirectionCone::Union`).
-    pub(crate) fn union(&self, o: &Self) -> Self {
+    fn union(&self, o: &Self) -> Self {
         let (axis, theta_o) = cone_union((self.axis, self.theta_o), (o.axis, o.theta_o));
         Self {
             lo: self.lo.min(o.lo),
@@ -145,6 +146,8 @@ pub(crate) struct LightTree {
     parent: Vec<(u32, u32)>,
     /// Per light: its node and its place there.
     home: Vec<(u32, u32)>,
+    /// What all its lights cover.
+    whole: Extent,
 }
 
 impl LightTree {
@@ -157,7 +160,7 @@ impl LightTree {
         let mut binary = Vec::with_capacity(2 * lights.len());
         let mut ids: Vec<u32> = (0..lights.len() as u32).collect();
         build(lights, &mut ids, 0, &mut binary);
-        let mut t = Self { nodes: Vec::new(), parent: Vec::new(), home: vec![(INNER, 0); lights.len()] };
+        let mut t = Self { nodes: Vec::new(), parent: Vec::new(), home: vec![(INNER, 0); lights.len()], whole: binary[0].ext };
         if binary[0].leaf != INNER {
             // One light: a root with one child.
             let mut kids = [0; WIDE];
@@ -248,6 +251,11 @@ impl LightTree {
         pmf
     }
 
+    /// What all its lights cover (the root's extent).
+    pub(crate) fn whole(&self) -> &Extent {
+        &self.whole
+    }
+
     /// How many nodes it has, and the most a light lies below the root.
     #[cfg(test)]
     fn shape(&self) -> (usize, usize) {
@@ -280,10 +288,7 @@ fn build(lights: &[(Extent, Reach)], ids: &mut [u32], depth: u32, out: &mut Vec<
     let mid = if depth >= MEDIAN_DEPTH { None } else { split(lights, ids, &whole) };
     let mid = mid.unwrap_or_else(|| {
         // The median along the centroids' widest axis.
-        let (lo, hi) = ids.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), i| {
-            let c = ext(i).centroid();
-            (lo.min(c), hi.max(c))
-        });
+        let (lo, hi) = centroid_bounds(lights, ids);
         let axis = (hi - lo).max_position();
         let half = ids.len() / 2;
         ids.select_nth_unstable_by(half, |a, b| ext(a).centroid()[axis].total_cmp(&ext(b).centroid()[axis]));
@@ -296,6 +301,14 @@ fn build(lights: &[(Extent, Reach)], ids: &mut [u32], depth: u32, out: &mut Vec<
     at
 }
 
+/// The bounds of the centroids of lights `ids`.
+fn centroid_bounds(lights: &[(Extent, Reach)], ids: &[u32]) -> (Vec3, Vec3) {
+    ids.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &i| {
+        let c = lights[i as usize].0.centroid();
+        (lo.min(c), hi.max(c))
+    })
+}
+
 /// Where to split `ids` (whose union is `whole`): buckets along each axis of their
 /// centroids, the split of least cost by Conty Estevez and Kulla's surface area
 /// orientation heuristic (each side's intensity × bounds area × emission spread, the
@@ -303,10 +316,10 @@ fn build(lights: &[(Extent, Reach)], ids: &mut [u32], depth: u32, out: &mut Vec<
 /// of the second half; `None` when no bucket split separates them.
 fn split(lights: &[(Extent, Reach)], ids: &mut [u32], whole: &Extent) -> Option<usize> {
     let ext = |i: u32| lights[i as usize].0;
-    let (clo, chi) = ids.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &i| {
-        let c = ext(i).centroid();
-        (lo.min(c), hi.max(c))
-    });
+    let (clo, chi) = centroid_bounds(lights, ids);
+    // Light i's bucket along `axis` (whose centroids span `span`).
+    let bucket =
+        |i: u32, axis: usize, span: f32| (((ext(i).centroid()[axis] - clo[axis]) / span * BUCKETS as f32) as usize).min(BUCKETS - 1);
     let size = whole.hi - whole.lo;
     let widest = size.max_element();
     let mut best: Option<(f32, usize, usize)> = None;
@@ -315,10 +328,9 @@ fn split(lights: &[(Extent, Reach)], ids: &mut [u32], whole: &Extent) -> Option<
         if span <= 0.0 || !span.is_finite() {
             continue;
         }
-        let bucket = |i: u32| (((ext(i).centroid()[axis] - clo[axis]) / span * BUCKETS as f32) as usize).min(BUCKETS - 1);
         let mut buckets: [Option<Extent>; BUCKETS] = [None; BUCKETS];
         for &i in ids.iter() {
-            let b = bucket(i);
+            let b = bucket(i, axis, span);
             buckets[b] = Some(buckets[b].map_or(ext(i), |e| e.union(&ext(i))));
         }
         let cost_of = |e: &Option<Extent>| e.map_or(0.0, |e| e.intensity * e.area().max(1e-12) * e.spread());
@@ -347,8 +359,7 @@ fn split(lights: &[(Extent, Reach)], ids: &mut [u32], whole: &Extent) -> Option<
     let span = chi[axis] - clo[axis];
     let mut mid = 0;
     for k in 0..ids.len() {
-        let c = ext(ids[k]).centroid()[axis];
-        if ((((c - clo[axis]) / span * BUCKETS as f32) as usize).min(BUCKETS - 1)) < b {
+        if bucket(ids[k], axis, span) < b {
             ids.swap(k, mid);
             mid += 1;
         }
